@@ -1,0 +1,468 @@
+//! Scripted hand trajectories for the simulated device, and their command-line form.
+//!
+//! Owns: [`HandScript`] (what the simulated hand tries to do, as a function of script time), the CLI names of
+//! the scripts ([`ScriptKind`]) and their options ([`ScriptOptions`]). Everything is in the DEVICE frame, mm;
+//! the server maps the device frame into the world.
+//!
+//! Must not: integrate physics (that is [`crate::hand_model`]) or keep time (the device passes script time in).
+
+use std::fmt;
+use std::str::FromStr;
+use std::sync::Arc;
+
+use sinew_protocol::rt::LatestValue;
+use thiserror::Error;
+
+use crate::hand_model::HandTarget;
+
+/// What the simulated hand does. Script time starts at 0 when the device is created.
+#[derive(Clone)]
+pub enum HandScript {
+    /// Hold the stylus still at `position_mm`.
+    Hold {
+        /// Where, mm.
+        position_mm: [f32; 3],
+    },
+    /// Start `approach_mm` above the surface point `at_mm`, descend along -z at constant speed for
+    /// `descend_s` to `depth_mm` below it, then hold.
+    Press {
+        /// Surface point, mm.
+        at_mm: [f32; 3],
+        /// How far below the surface the hand aims, mm.
+        depth_mm: f32,
+        /// Starting height above the surface, mm.
+        approach_mm: f32,
+        /// Duration of the descent, s.
+        descend_s: f32,
+    },
+    /// [`HandScript::Press`], then stroke sinusoidally along x: `x = at.x + stroke_mm * sin(2 pi t / period)`.
+    PressAndStroke {
+        /// Surface point, mm.
+        at_mm: [f32; 3],
+        /// How far below the surface the hand aims, mm.
+        depth_mm: f32,
+        /// Starting height above the surface, mm.
+        approach_mm: f32,
+        /// Duration of the descent, s.
+        descend_s: f32,
+        /// Stroke amplitude: the target moves +/- this along x, mm.
+        stroke_mm: f32,
+        /// Period of one back-and-forth stroke, s.
+        stroke_period_s: f32,
+    },
+    /// The target is set from outside (a test, a replay); the hand holds the last target it saw.
+    Follow(Arc<LatestValue<[f32; 3]>>),
+}
+
+impl fmt::Debug for HandScript {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            HandScript::Hold { position_mm } => f
+                .debug_struct("Hold")
+                .field("position_mm", position_mm)
+                .finish(),
+            HandScript::Press {
+                at_mm,
+                depth_mm,
+                approach_mm,
+                descend_s,
+            } => f
+                .debug_struct("Press")
+                .field("at_mm", at_mm)
+                .field("depth_mm", depth_mm)
+                .field("approach_mm", approach_mm)
+                .field("descend_s", descend_s)
+                .finish(),
+            HandScript::PressAndStroke {
+                at_mm,
+                depth_mm,
+                approach_mm,
+                descend_s,
+                stroke_mm,
+                stroke_period_s,
+            } => f
+                .debug_struct("PressAndStroke")
+                .field("at_mm", at_mm)
+                .field("depth_mm", depth_mm)
+                .field("approach_mm", approach_mm)
+                .field("descend_s", descend_s)
+                .field("stroke_mm", stroke_mm)
+                .field("stroke_period_s", stroke_period_s)
+                .finish(),
+            HandScript::Follow(target) => f.debug_tuple("Follow").field(&target.peek()).finish(),
+        }
+    }
+}
+
+/// The vertical part of a press: start above, descend at constant speed, hold at depth.
+fn press_target(
+    at_mm: [f32; 3],
+    depth_mm: f32,
+    approach_mm: f32,
+    descend_s: f32,
+    t_s: f64,
+) -> HandTarget {
+    let top_z = at_mm[2] + approach_mm;
+    let bottom_z = at_mm[2] - depth_mm;
+    let descend_s = f64::from(descend_s);
+    if descend_s.is_nan() || descend_s <= 0.0 || t_s >= descend_s {
+        return HandTarget::at_rest([at_mm[0], at_mm[1], bottom_z]);
+    }
+    let t_s = t_s.max(0.0);
+    let fraction = (t_s / descend_s) as f32;
+    let speed_mm_s = (bottom_z - top_z) / descend_s as f32;
+    HandTarget {
+        position_mm: [at_mm[0], at_mm[1], top_z + (bottom_z - top_z) * fraction],
+        velocity_mm_s: [0.0, 0.0, speed_mm_s],
+    }
+}
+
+impl HandScript {
+    /// The target at script time `t_s`, or `None` when the script has nothing new (a [`HandScript::Follow`]
+    /// whose mailbox is empty or momentarily busy): the device then keeps its last target.
+    ///
+    /// Real-time contract: no allocation, never blocks, never panics.
+    pub fn target(&self, t_s: f64) -> Option<HandTarget> {
+        match self {
+            HandScript::Hold { position_mm } => Some(HandTarget::at_rest(*position_mm)),
+            HandScript::Press {
+                at_mm,
+                depth_mm,
+                approach_mm,
+                descend_s,
+            } => Some(press_target(
+                *at_mm,
+                *depth_mm,
+                *approach_mm,
+                *descend_s,
+                t_s,
+            )),
+            HandScript::PressAndStroke {
+                at_mm,
+                depth_mm,
+                approach_mm,
+                descend_s,
+                stroke_mm,
+                stroke_period_s,
+            } => {
+                let mut target = press_target(*at_mm, *depth_mm, *approach_mm, *descend_s, t_s);
+                let stroke_t_s = t_s - f64::from(*descend_s);
+                if stroke_t_s > 0.0 && *stroke_period_s > 0.0 {
+                    let omega_rad_s = std::f64::consts::TAU / f64::from(*stroke_period_s);
+                    let phase_rad = omega_rad_s * stroke_t_s;
+                    let stroke_mm = f64::from(*stroke_mm);
+                    target.position_mm[0] = at_mm[0] + (stroke_mm * phase_rad.sin()) as f32;
+                    target.velocity_mm_s[0] = (stroke_mm * omega_rad_s * phase_rad.cos()) as f32;
+                }
+                Some(target)
+            }
+            HandScript::Follow(mailbox) => mailbox.peek().map(HandTarget::at_rest),
+        }
+    }
+
+    /// Where the stylus starts: the target at time 0, or the origin for a [`HandScript::Follow`] with no target.
+    pub fn start_mm(&self) -> [f32; 3] {
+        self.target(0.0).map_or([0.0; 3], |t| t.position_mm)
+    }
+}
+
+/// A script or option given on the command line that cannot be used.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ScriptError {
+    /// Not one of the script names.
+    #[error("unknown script `{0}`: expected one of hold, press, press-stroke")]
+    UnknownScript(String),
+    /// A vector option is not three comma-separated numbers.
+    #[error("`{0}` is not a vector `x,y,z` of three finite numbers (mm)")]
+    BadVector(String),
+    /// A numeric option is out of its domain.
+    #[error("script option {option} = {value} is invalid: {reason}")]
+    BadOption {
+        /// Option name.
+        option: &'static str,
+        /// The value given.
+        value: f32,
+        /// Why.
+        reason: &'static str,
+    },
+}
+
+/// The scripts that can be chosen by name (`--script`). [`HandScript::Follow`] has no CLI form.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScriptKind {
+    /// `hold`: [`HandScript::Hold`] at `at_mm`.
+    Hold,
+    /// `press`: [`HandScript::Press`].
+    Press,
+    /// `press-stroke`: [`HandScript::PressAndStroke`].
+    PressStroke,
+}
+
+impl ScriptKind {
+    /// The CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScriptKind::Hold => "hold",
+            ScriptKind::Press => "press",
+            ScriptKind::PressStroke => "press-stroke",
+        }
+    }
+
+    /// Build the script with `options`, checking them.
+    pub fn build(self, options: &ScriptOptions) -> Result<HandScript, ScriptError> {
+        options.validate()?;
+        let o = options;
+        Ok(match self {
+            ScriptKind::Hold => HandScript::Hold {
+                position_mm: o.at_mm,
+            },
+            ScriptKind::Press => HandScript::Press {
+                at_mm: o.at_mm,
+                depth_mm: o.depth_mm,
+                approach_mm: o.approach_mm,
+                descend_s: o.descend_s,
+            },
+            ScriptKind::PressStroke => HandScript::PressAndStroke {
+                at_mm: o.at_mm,
+                depth_mm: o.depth_mm,
+                approach_mm: o.approach_mm,
+                descend_s: o.descend_s,
+                stroke_mm: o.stroke_mm,
+                stroke_period_s: o.stroke_period_s,
+            },
+        })
+    }
+}
+
+impl FromStr for ScriptKind {
+    type Err = ScriptError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim() {
+            "hold" => Ok(ScriptKind::Hold),
+            "press" => Ok(ScriptKind::Press),
+            "press-stroke" | "press_stroke" => Ok(ScriptKind::PressStroke),
+            other => Err(ScriptError::UnknownScript(other.to_owned())),
+        }
+    }
+}
+
+impl fmt::Display for ScriptKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Options shared by the named scripts (device frame, mm and s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScriptOptions {
+    /// Surface point to press at (or the point to hold), mm.
+    pub at_mm: [f32; 3],
+    /// Depth below the surface, mm.
+    pub depth_mm: f32,
+    /// Starting height above the surface, mm.
+    pub approach_mm: f32,
+    /// Descent duration, s.
+    pub descend_s: f32,
+    /// Stroke amplitude along x, mm.
+    pub stroke_mm: f32,
+    /// Stroke period, s.
+    pub stroke_period_s: f32,
+}
+
+impl Default for ScriptOptions {
+    /// Press 5 mm at the device origin from 20 mm above over 2 s; stroke +/- 10 mm every 2 s.
+    fn default() -> Self {
+        Self {
+            at_mm: [0.0; 3],
+            depth_mm: 5.0,
+            approach_mm: 20.0,
+            descend_s: 2.0,
+            stroke_mm: 10.0,
+            stroke_period_s: 2.0,
+        }
+    }
+}
+
+impl ScriptOptions {
+    /// Check every option's domain.
+    pub fn validate(&self) -> Result<(), ScriptError> {
+        if !self.at_mm.iter().all(|c| c.is_finite()) {
+            return Err(ScriptError::BadVector(format!("{:?}", self.at_mm)));
+        }
+        let checks: [(&'static str, f32, bool, &'static str); 5] = [
+            (
+                "depth_mm",
+                self.depth_mm,
+                self.depth_mm >= 0.0,
+                "must be >= 0",
+            ),
+            (
+                "approach_mm",
+                self.approach_mm,
+                self.approach_mm >= 0.0,
+                "must be >= 0",
+            ),
+            (
+                "descend_s",
+                self.descend_s,
+                self.descend_s >= 0.0,
+                "must be >= 0",
+            ),
+            (
+                "stroke_mm",
+                self.stroke_mm,
+                self.stroke_mm >= 0.0,
+                "must be >= 0",
+            ),
+            (
+                "stroke_period_s",
+                self.stroke_period_s,
+                self.stroke_period_s > 0.0,
+                "must be > 0",
+            ),
+        ];
+        for (option, value, ok, reason) in checks {
+            if !(ok && value.is_finite()) {
+                return Err(ScriptError::BadOption {
+                    option,
+                    value,
+                    reason,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Parse `x,y,z` (mm) as given to `--at-mm`.
+pub fn parse_vec3_mm(text: &str) -> Result<[f32; 3], ScriptError> {
+    let bad = || ScriptError::BadVector(text.to_owned());
+    let mut out = [0.0f32; 3];
+    let mut parts = text.split(',');
+    for slot in &mut out {
+        let value: f32 = parts
+            .next()
+            .ok_or_else(bad)?
+            .trim()
+            .parse()
+            .map_err(|_| bad())?;
+        if !value.is_finite() {
+            return Err(bad());
+        }
+        *slot = value;
+    }
+    if parts.next().is_some() {
+        return Err(bad());
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn z(script: &HandScript, t_s: f64) -> f32 {
+        script.target(t_s).unwrap().position_mm[2]
+    }
+
+    #[test]
+    fn press_starts_above_and_reaches_depth() {
+        let script = ScriptKind::Press
+            .build(&ScriptOptions {
+                at_mm: [1.0, 2.0, 3.0],
+                depth_mm: 4.0,
+                approach_mm: 10.0,
+                descend_s: 1.0,
+                ..ScriptOptions::default()
+            })
+            .unwrap();
+        assert_eq!(script.start_mm(), [1.0, 2.0, 13.0]);
+        assert!(
+            (z(&script, 0.5) - 6.0).abs() < 1e-4,
+            "halfway from 13 to -1"
+        );
+        assert!(script.target(0.5).unwrap().velocity_mm_s[2] < 0.0);
+        assert_eq!(
+            script.target(1.0).unwrap(),
+            HandTarget::at_rest([1.0, 2.0, -1.0])
+        );
+        assert_eq!(
+            script.target(100.0).unwrap(),
+            HandTarget::at_rest([1.0, 2.0, -1.0])
+        );
+    }
+
+    #[test]
+    fn hold_holds() {
+        let script = ScriptKind::Hold
+            .build(&ScriptOptions {
+                at_mm: [5.0, -5.0, 1.0],
+                ..ScriptOptions::default()
+            })
+            .unwrap();
+        for t_s in [0.0, 0.3, 10.0, 1e6] {
+            assert_eq!(
+                script.target(t_s).unwrap(),
+                HandTarget::at_rest([5.0, -5.0, 1.0])
+            );
+        }
+    }
+
+    #[test]
+    fn press_stroke_strokes_along_x_at_depth() {
+        let options = ScriptOptions::default();
+        let script = ScriptKind::PressStroke.build(&options).unwrap();
+        let after_s = f64::from(options.descend_s);
+        let quarter_s = f64::from(options.stroke_period_s) / 4.0;
+        let peak = script.target(after_s + quarter_s).unwrap();
+        assert!((peak.position_mm[0] - options.stroke_mm).abs() < 1e-3);
+        assert!((peak.position_mm[2] + options.depth_mm).abs() < 1e-4);
+        for i in 0..1000 {
+            let x = script
+                .target(after_s + i as f64 * 0.01)
+                .unwrap()
+                .position_mm[0];
+            assert!(x.abs() <= options.stroke_mm + 1e-3);
+        }
+    }
+
+    #[test]
+    fn follow_holds_the_last_target() {
+        let mailbox = Arc::new(LatestValue::new());
+        let script = HandScript::Follow(mailbox.clone());
+        assert_eq!(script.target(0.0), None);
+        assert_eq!(script.start_mm(), [0.0; 3]);
+        mailbox.store([1.0, 2.0, 3.0]);
+        assert_eq!(
+            script.target(1.0).unwrap(),
+            HandTarget::at_rest([1.0, 2.0, 3.0])
+        );
+        assert_eq!(
+            script.target(2.0).unwrap(),
+            HandTarget::at_rest([1.0, 2.0, 3.0])
+        );
+    }
+
+    #[test]
+    fn cli_forms_parse_and_bad_ones_are_named() {
+        assert_eq!("press".parse::<ScriptKind>(), Ok(ScriptKind::Press));
+        assert_eq!(
+            "press-stroke".parse::<ScriptKind>(),
+            Ok(ScriptKind::PressStroke)
+        );
+        assert_eq!("hold".parse::<ScriptKind>(), Ok(ScriptKind::Hold));
+        let err = "poke".parse::<ScriptKind>().unwrap_err();
+        assert!(err.to_string().contains("poke"));
+        assert_eq!(parse_vec3_mm("1, -2.5,3"), Ok([1.0, -2.5, 3.0]));
+        for bad in ["", "1,2", "1,2,3,4", "a,b,c", "1,NaN,2", "1,inf,2"] {
+            assert!(parse_vec3_mm(bad).is_err(), "{bad:?} accepted");
+        }
+        let err = ScriptKind::Press
+            .build(&ScriptOptions {
+                depth_mm: -1.0,
+                ..ScriptOptions::default()
+            })
+            .unwrap_err();
+        assert!(err.to_string().contains("depth_mm"));
+    }
+}

@@ -1,0 +1,68 @@
+//! Everything needed to start one hapticserver.
+//!
+//! Owns: [`HapticConfig`] and its defaults (scene "pad", 1 kHz, 100 us spin accuracy, device safety limits,
+//! the client network default). Must not: open anything (that is [`crate::haptic_server`]).
+
+use sinew_protocol::network::NetworkOptions;
+
+use crate::device::Device;
+use crate::safety::SafetyConfig;
+
+/// Default loop rate, Hz.
+pub const DEFAULT_LOOP_RATE_HZ: u32 = 1000;
+/// Default spin accuracy for the pacer, ns (spin the last 100 us before each deadline).
+pub const DEFAULT_SPIN_ACCURACY_NS: u32 = 100_000;
+/// Default scene.
+pub const DEFAULT_SCENE: &str = "pad";
+
+/// Configuration of one hapticserver.
+pub struct HapticConfig {
+    /// Scene name (a key segment).
+    pub scene: String,
+    /// Device id (a key segment), e.g. "left".
+    pub device_id: String,
+    /// Tool the device asks to drive; empty = whichever tool the world binds to this device id.
+    pub tool: String,
+    /// zenoh endpoints.
+    pub network: NetworkOptions,
+    /// The device to serve.
+    pub device: Box<dyn Device>,
+    /// Loop rate, Hz.
+    pub loop_rate_hz: u32,
+    /// Pacer spin accuracy, ns: 0 = plain sleep only (tests on shared cores), 100_000 for a real device.
+    pub spin_accuracy_ns: u32,
+    /// Safety limits; `None` = the device's own limits with default timing. Always tightened to the device's
+    /// limits at start, never loosened.
+    pub safety: Option<SafetyConfig>,
+}
+
+impl std::fmt::Debug for HapticConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HapticConfig")
+            .field("scene", &self.scene)
+            .field("device_id", &self.device_id)
+            .field("tool", &self.tool)
+            .field("network", &self.network)
+            .field("device", &self.device.model().name)
+            .field("loop_rate_hz", &self.loop_rate_hz)
+            .field("spin_accuracy_ns", &self.spin_accuracy_ns)
+            .field("safety", &self.safety)
+            .finish()
+    }
+}
+
+impl HapticConfig {
+    /// Defaults for serving `device` as `device_id` in `scene`.
+    pub fn new(scene: &str, device_id: &str, device: Box<dyn Device>) -> Self {
+        Self {
+            scene: scene.to_owned(),
+            device_id: device_id.to_owned(),
+            tool: String::new(),
+            network: NetworkOptions::client_default(),
+            device,
+            loop_rate_hz: DEFAULT_LOOP_RATE_HZ,
+            spin_accuracy_ns: DEFAULT_SPIN_ACCURACY_NS,
+            safety: None,
+        }
+    }
+}

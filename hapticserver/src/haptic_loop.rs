@@ -1,0 +1,347 @@
+//! One tick of the device loop, independent of zenoh and of wall-clock time.
+//!
+//! Owns: the per-device loop state: the [`Device`], the [`ForceSafety`] filter, pose sequencing and encoding
+//! into a reused buffer, round-trip measurement from echoed poses, and the loop's counters and histograms.
+//! [`HapticLoop::tick`] is the whole 1 kHz body: read the device, publish the pose, take the newest force
+//! command, measure the round trip, filter, render. Time and the publish sink are passed in, so tests drive it
+//! on virtual time with a closure as the network.
+//!
+//! Must not: sleep, spawn, lock (except `try_lock`), log, or allocate in a tick (the encode buffer and
+//! histograms are allocated once at construction). Pacing and zenoh live in [`crate::haptic_server`].
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use sinew_protocol::rt::LatencyHistogram;
+use sinew_protocol::{DevicePose, ForceMode, encode};
+
+use crate::clock::ns_to_s;
+use crate::device::Device;
+use crate::force_inbox::{ForceInbox, ReceivedForce};
+use crate::report::HapticReport;
+use crate::safety::ForceSafety;
+
+/// Scalar loop counters (`Copy`, copied into the report).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct LoopCounters {
+    ticks: u64,
+    poses_published: u64,
+    publish_errors: u64,
+    device_read_errors: u64,
+    device_write_errors: u64,
+    overruns: u64,
+    max_rendered_force_n: f32,
+    last_rendered_force_n: [f32; 3],
+    last_commanded_force_n: [f32; 3],
+    last_position_mm: [f32; 3],
+}
+
+/// The state of one device loop.
+pub struct HapticLoop {
+    device: Box<dyn Device>,
+    safety: ForceSafety,
+    inbox: Arc<ForceInbox>,
+    period: Duration,
+    dt_s: f32,
+    pose_seq: u64,
+    pose_bytes: Vec<u8>,
+    seen_writes: u64,
+    latest: Option<ReceivedForce>,
+    last_echo_seq: u64,
+    last_round_trip_us: u32,
+    shutting_down: bool,
+    round_trip: LatencyHistogram,
+    interval_deviation: LatencyHistogram,
+    counters: LoopCounters,
+}
+
+impl std::fmt::Debug for HapticLoop {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HapticLoop")
+            .field("period", &self.period)
+            .field("pose_seq", &self.pose_seq)
+            .field("counters", &self.counters)
+            .field("safety", &self.safety)
+            .finish_non_exhaustive()
+    }
+}
+
+fn norm3(v: &[f32; 3]) -> f32 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+impl HapticLoop {
+    /// A loop driving `device` at `period`, reading commands from `inbox`, rendering through `safety`.
+    pub fn new(
+        device: Box<dyn Device>,
+        safety: ForceSafety,
+        inbox: Arc<ForceInbox>,
+        period: Duration,
+    ) -> Self {
+        Self {
+            device,
+            safety,
+            inbox,
+            period,
+            dt_s: period.as_secs_f32(),
+            pose_seq: 0,
+            // A DevicePose is under 100 bytes on the wire; room to spare so encode never reallocates.
+            pose_bytes: Vec::with_capacity(256),
+            seen_writes: 0,
+            latest: None,
+            last_echo_seq: 0,
+            last_round_trip_us: 0,
+            shutting_down: false,
+            round_trip: LatencyHistogram::new(),
+            interval_deviation: LatencyHistogram::new(),
+            counters: LoopCounters::default(),
+        }
+    }
+
+    /// Ticks run.
+    pub fn ticks(&self) -> u64 {
+        self.counters.ticks
+    }
+
+    /// The force rendered on the latest tick, N.
+    pub fn rendered_force_n(&self) -> [f32; 3] {
+        self.counters.last_rendered_force_n
+    }
+
+    /// The safety filter.
+    pub fn safety(&self) -> &ForceSafety {
+        &self.safety
+    }
+
+    /// Record the pacer's overrun count (it owns the schedule).
+    pub fn set_overruns(&mut self, overruns: u64) {
+        self.counters.overruns = overruns;
+    }
+
+    /// Ignore commands from now on, so the safety filter ramps the force to zero.
+    pub fn begin_shutdown(&mut self) {
+        self.shutting_down = true;
+    }
+
+    /// One loop iteration at `now_ns` (the [`crate::clock::MonotonicClock`]). `interval` is the measured time
+    /// since the previous tick (None on the first). `publish` sends an encoded [`DevicePose`] and says whether
+    /// the network took it. Returns the force rendered, N.
+    ///
+    /// Real-time contract: no allocation (beyond what `publish` does), never blocks, never panics, never
+    /// renders a non-finite force.
+    pub fn tick(
+        &mut self,
+        now_ns: u64,
+        interval: Option<Duration>,
+        publish: &mut dyn FnMut(&[u8]) -> bool,
+    ) -> [f32; 3] {
+        self.counters.ticks += 1;
+        if let Some(interval) = interval {
+            self.interval_deviation
+                .record(interval.abs_diff(self.period));
+        }
+
+        // 1. Sense and publish.
+        match self.device.read(self.dt_s) {
+            Ok(reading) => {
+                self.pose_seq += 1;
+                let pose = DevicePose {
+                    seq: self.pose_seq,
+                    device_time_ns: now_ns,
+                    position_mm: reading.position_mm,
+                    orientation_xyzw: reading.orientation_xyzw,
+                    linear_velocity_mm_s: reading.linear_velocity_mm_s,
+                    buttons: reading.buttons,
+                    jaw_angle_rad: reading.jaw_angle_rad,
+                    round_trip_us: self.last_round_trip_us,
+                };
+                encode(&pose, &mut self.pose_bytes);
+                if publish(&self.pose_bytes) {
+                    self.counters.poses_published += 1;
+                } else {
+                    self.counters.publish_errors += 1;
+                }
+                self.counters.last_position_mm = reading.position_mm;
+            }
+            Err(_) => self.counters.device_read_errors += 1,
+        }
+
+        // 2. Newest command, and the round trip of the pose it answers.
+        if let Some(received) = self.inbox.latest().take_newer(&mut self.seen_writes) {
+            self.latest = Some(received);
+            let command = received.command;
+            self.counters.last_commanded_force_n = command.force_n;
+            let echoes_our_pose = command.echo_pose_seq > self.last_echo_seq
+                && command.echo_pose_seq <= self.pose_seq
+                && command.echo_device_time_ns <= now_ns;
+            if echoes_our_pose {
+                self.last_echo_seq = command.echo_pose_seq;
+                let round_trip_ns = now_ns - command.echo_device_time_ns;
+                self.round_trip.record_ns(round_trip_ns);
+                self.last_round_trip_us = u32::try_from(round_trip_ns / 1000).unwrap_or(u32::MAX);
+            }
+        }
+
+        // 3. Safety, the only way to the motor.
+        let latest = if self.shutting_down {
+            None
+        } else {
+            self.latest.map(|received| {
+                let force_n = match received.command.mode {
+                    ForceMode::Direct => received.command.force_n,
+                };
+                (ns_to_s(received.received_ns), force_n)
+            })
+        };
+        let force_n = self.safety.filter(ns_to_s(now_ns), self.dt_s, latest);
+
+        // 4. Render.
+        if self.device.write_force(force_n).is_err() {
+            self.counters.device_write_errors += 1;
+        }
+        self.counters.last_rendered_force_n = force_n;
+        self.counters.max_rendered_force_n =
+            self.counters.max_rendered_force_n.max(norm3(&force_n));
+        force_n
+    }
+
+    /// Command exactly zero force, outside the safety filter (zero is always safe). Used when the loop ends.
+    pub fn write_zero_force(&mut self) {
+        if self.device.write_force([0.0; 3]).is_err() {
+            self.counters.device_write_errors += 1;
+        }
+        self.counters.last_rendered_force_n = [0.0; 3];
+    }
+
+    /// Copy the loop's state into `report`. No allocation (histograms are copied in place).
+    pub fn write_report(&self, report: &mut HapticReport) {
+        let c = &self.counters;
+        report.ticks = c.ticks;
+        report.poses_published = c.poses_published;
+        report.publish_errors = c.publish_errors;
+        report.forces_received = self.inbox.received();
+        report.round_trip.copy_from(&self.round_trip);
+        report.last_round_trip_us = self.last_round_trip_us;
+        report
+            .interval_deviation
+            .copy_from(&self.interval_deviation);
+        report.overruns = c.overruns;
+        report.max_rendered_force_n = c.max_rendered_force_n;
+        report.last_rendered_force_n = c.last_rendered_force_n;
+        report.last_commanded_force_n = c.last_commanded_force_n;
+        report.last_position_mm = c.last_position_mm;
+        report.safety = self.safety.counters();
+        report.decode_rejects = self.inbox.rejects();
+        report.device_read_errors = c.device_read_errors;
+        report.device_write_errors = c.device_write_errors;
+    }
+
+    /// Publish into the shared report if nobody holds it right now. Never blocks; returns whether it published.
+    pub fn try_publish_report(&self, shared: &Mutex<HapticReport>) -> bool {
+        match shared.try_lock() {
+            Ok(mut report) => {
+                self.write_report(&mut report);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hand_script::HandScript;
+    use crate::safety::SafetyConfig;
+    use crate::sim_device::SimDevice;
+    use sinew_protocol::codec::encode_to_vec;
+    use sinew_protocol::{ForceCommand, decode};
+
+    const PERIOD: Duration = Duration::from_millis(1);
+
+    fn make_loop(inbox: &Arc<ForceInbox>) -> HapticLoop {
+        let device = SimDevice::new(HandScript::Hold {
+            position_mm: [0.0; 3],
+        });
+        let safety = ForceSafety::new(SafetyConfig::new(3.3)).unwrap();
+        HapticLoop::new(Box::new(device), safety, inbox.clone(), PERIOD)
+    }
+
+    #[test]
+    fn poses_carry_sequence_time_and_round_trip() {
+        let inbox = Arc::new(ForceInbox::new());
+        let mut haptic = make_loop(&inbox);
+        let mut sent: Vec<DevicePose> = Vec::new();
+        let mut sink = |bytes: &[u8]| {
+            sent.push(decode::<DevicePose>(bytes).unwrap());
+            true
+        };
+        let ms = 1_000_000u64;
+        haptic.tick(ms, None, &mut sink);
+        haptic.tick(2 * ms, Some(PERIOD), &mut sink);
+        // The server answers pose 2 and its answer arrives 300 us later.
+        let answer = ForceCommand {
+            seq: 1,
+            echo_pose_seq: 2,
+            echo_device_time_ns: 2 * ms,
+            force_n: [0.0, 0.0, 1.0],
+            ..ForceCommand::default()
+        };
+        inbox
+            .accept(&encode_to_vec(&answer), 2 * ms + 300_000)
+            .unwrap();
+        let force = haptic.tick(3 * ms, Some(PERIOD), &mut sink);
+        haptic.tick(4 * ms, Some(PERIOD), &mut sink);
+        let seqs: Vec<u64> = sent.iter().map(|p| p.seq).collect();
+        assert_eq!(seqs, [1, 2, 3, 4]);
+        assert_eq!(sent[1].device_time_ns, 2 * ms);
+        assert_eq!(sent[2].round_trip_us, 0, "measured after pose 3 was read");
+        assert_eq!(sent[3].round_trip_us, 1000);
+        assert!(
+            (force[2] - 0.2).abs() < 1e-6,
+            "rate limited first step: {force:?}"
+        );
+
+        let mut report = HapticReport::new("left");
+        haptic.write_report(&mut report);
+        assert_eq!(report.ticks, 4);
+        assert_eq!(report.poses_published, 4);
+        assert_eq!(report.forces_received, 1);
+        assert_eq!(report.round_trip.count(), 1);
+        assert_eq!(report.last_commanded_force_n, [0.0, 0.0, 1.0]);
+        assert!((report.last_rendered_force_n[2] - 0.4).abs() < 1e-6);
+    }
+
+    #[test]
+    fn foreign_echoes_are_not_round_trips_and_shutdown_ramps_to_zero() {
+        let inbox = Arc::new(ForceInbox::new());
+        let mut haptic = make_loop(&inbox);
+        let mut sink = |_: &[u8]| true;
+        let ms = 1_000_000u64;
+        // An echo of a pose this server never sent (a previous run): rendered, but no round trip.
+        let stray = ForceCommand {
+            echo_pose_seq: 1000,
+            echo_device_time_ns: 5,
+            force_n: [1.0, 0.0, 0.0],
+            ..ForceCommand::default()
+        };
+        for tick in 1..=40u64 {
+            inbox.accept(&encode_to_vec(&stray), tick * ms).unwrap();
+            haptic.tick(tick * ms, Some(PERIOD), &mut sink);
+        }
+        assert_eq!(haptic.rendered_force_n(), [1.0, 0.0, 0.0]);
+        let mut report = HapticReport::new("left");
+        haptic.write_report(&mut report);
+        assert_eq!(report.round_trip.count(), 0);
+
+        haptic.begin_shutdown();
+        let mut tick = 41u64;
+        while haptic.rendered_force_n() != [0.0; 3] && tick < 100 {
+            inbox.accept(&encode_to_vec(&stray), tick * ms).unwrap();
+            haptic.tick(tick * ms, Some(PERIOD), &mut sink);
+            tick += 1;
+        }
+        assert!(tick <= 41 + 21, "ramp took {} ticks", tick - 41);
+        assert_eq!(haptic.rendered_force_n(), [0.0; 3]);
+    }
+}

@@ -1,0 +1,382 @@
+//! A running hapticserver: zenoh declarations, the paced device-loop thread, the hello thread, and the handle.
+//!
+//! Owns: [`HapticServer::start`], which opens the zenoh session, declares the presence token, the pose
+//! publisher (congestion drop, express), the force subscriber (its callback feeds a
+//! [`crate::force_inbox::ForceInbox`]) and the hello publisher, then spawns the named device-loop thread
+//! (`hapticserver-<id>`, paced by [`Pacer`]) and a hello thread (1 Hz); and [`HapticHandle`], which reports,
+//! stops (ramping the force to zero, undeclaring everything) or kills the server.
+//!
+//! Must not: do any per-tick work itself (that is [`crate::haptic_loop`]), use a tokio timer for the loop, or
+//! let the loop wait on a lock (reports are published with `try_lock`).
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use sinew_protocol::codec::encode_to_vec;
+use sinew_protocol::keys::SceneKeys;
+use sinew_protocol::rt::Pacer;
+use sinew_protocol::{ParticipantHello, Role};
+use zenoh::Wait;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::qos::CongestionControl;
+
+use crate::clock::MonotonicClock;
+use crate::error::HapticError;
+use crate::force_inbox::ForceInbox;
+use crate::haptic_config::HapticConfig;
+use crate::haptic_loop::HapticLoop;
+use crate::report::HapticReport;
+use crate::safety::{ForceSafety, SafetyConfig};
+use crate::zenoh_session::open_session;
+
+/// How often the hello is repeated.
+pub const HELLO_PERIOD: Duration = Duration::from_secs(1);
+/// How often the loop publishes its report.
+pub const REPORT_PERIOD: Duration = Duration::from_millis(100);
+
+fn lock_report(report: &Mutex<HapticReport>) -> MutexGuard<'_, HapticReport> {
+    match report.lock() {
+        Ok(guard) => guard,
+        Err(poisoned) => poisoned.into_inner(),
+    }
+}
+
+/// Starts hapticservers.
+#[derive(Debug)]
+pub struct HapticServer;
+
+impl HapticServer {
+    /// Open zenoh, declare presence, pose, force and hello, and start the device loop. Returns once the loop
+    /// thread runs; every declaration is undone when the handle stops or drops.
+    pub fn start(config: HapticConfig) -> Result<HapticHandle, HapticError> {
+        let HapticConfig {
+            scene,
+            device_id,
+            tool,
+            network,
+            device,
+            loop_rate_hz,
+            spin_accuracy_ns,
+            safety,
+        } = config;
+        if !(1..=20_000).contains(&loop_rate_hz) {
+            return Err(HapticError::LoopRate {
+                rate_hz: loop_rate_hz,
+            });
+        }
+        let keys = SceneKeys::new(&scene)?;
+        let pose_key = keys.device_pose(&device_id)?;
+        let force_key = keys.device_force(&device_id)?;
+        let presence_key = keys.presence(Role::Haptic, &device_id)?;
+        let hello_key = keys.hello(Role::Haptic, &device_id)?;
+
+        let model = device.model();
+        let safety_config = match safety {
+            Some(config) => config.limited_to(&model),
+            None => SafetyConfig::for_device(&model),
+        };
+        let safety = ForceSafety::new(safety_config)?;
+        let hello_bytes = encode_to_vec(&ParticipantHello {
+            participant_id: device_id.clone(),
+            role: Role::Haptic,
+            device_model: model.name.clone(),
+            max_force_n: safety_config.max_force_n,
+            tool,
+        });
+
+        let session = open_session(&network)?;
+        let token = session
+            .liveliness()
+            .declare_token(presence_key.clone())
+            .wait()
+            .map_err(HapticError::zenoh(format!(
+                "declaring the presence token {presence_key}"
+            )))?;
+        let pose_publisher = session
+            .declare_publisher(pose_key.clone())
+            .congestion_control(CongestionControl::Drop)
+            .express(true)
+            .wait()
+            .map_err(HapticError::zenoh(format!(
+                "declaring the pose publisher on {pose_key}"
+            )))?;
+        let hello_publisher = session
+            .declare_publisher(hello_key.clone())
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(HapticError::zenoh(format!(
+                "declaring the hello publisher on {hello_key}"
+            )))?;
+
+        let clock = MonotonicClock::start();
+        let inbox = Arc::new(ForceInbox::new());
+        let callback_inbox = inbox.clone();
+        let subscriber = session
+            .declare_subscriber(force_key.clone())
+            .callback(move |sample: zenoh::sample::Sample| {
+                let received_ns = clock.now_ns();
+                let payload = sample.payload().to_bytes();
+                // A refused payload is counted by class in the inbox; nothing else to do with it here.
+                let _ = callback_inbox.accept(&payload, received_ns);
+            })
+            .wait()
+            .map_err(HapticError::zenoh(format!(
+                "declaring the force subscriber on {force_key}"
+            )))?;
+
+        let period = Duration::from_nanos(1_000_000_000 / u64::from(loop_rate_hz));
+        let mut handle = HapticHandle {
+            device_id: device_id.clone(),
+            pose_key,
+            force_key,
+            session: Some(session),
+            token: Some(token),
+            subscriber: Some(subscriber),
+            loop_thread: None,
+            hello_thread: None,
+            stop: Arc::new(AtomicBool::new(false)),
+            abrupt: Arc::new(AtomicBool::new(false)),
+            report: Arc::new(Mutex::new(HapticReport::new(&device_id))),
+            inbox: inbox.clone(),
+        };
+
+        let device_loop = DeviceLoop {
+            haptic: HapticLoop::new(device, safety, inbox, period),
+            publisher: pose_publisher,
+            clock,
+            period,
+            spin_accuracy_ns,
+            report_every_ticks: (REPORT_PERIOD.as_nanos() / period.as_nanos().max(1)).max(1) as u64,
+            wind_down_ticks: (safety_config.ramp_to_zero_s / period.as_secs_f64()).ceil() as u64
+                + 2,
+            report: handle.report.clone(),
+            stop: handle.stop.clone(),
+            abrupt: handle.abrupt.clone(),
+        };
+        let loop_name = format!("hapticserver-{device_id}");
+        handle.loop_thread = Some(
+            std::thread::Builder::new()
+                .name(loop_name.clone())
+                .spawn(move || device_loop.run())
+                .map_err(|source| HapticError::Thread {
+                    name: loop_name,
+                    source,
+                })?,
+        );
+        let hello_name = format!("hapticserver-{device_id}-hello");
+        let stop = handle.stop.clone();
+        handle.hello_thread = Some(
+            std::thread::Builder::new()
+                .name(hello_name.clone())
+                .spawn(move || run_hello(&hello_publisher, &hello_bytes, &stop))
+                .map_err(|source| HapticError::Thread {
+                    name: hello_name,
+                    source,
+                })?,
+        );
+        tracing::info!(
+            device = %device_id,
+            model = %model.name,
+            max_force_n = safety_config.max_force_n,
+            rate_hz = loop_rate_hz,
+            pose = %handle.pose_key,
+            force = %handle.force_key,
+            "hapticserver started"
+        );
+        Ok(handle)
+    }
+}
+
+/// Everything the device-loop thread owns.
+struct DeviceLoop {
+    haptic: HapticLoop,
+    publisher: Publisher<'static>,
+    clock: MonotonicClock,
+    period: Duration,
+    spin_accuracy_ns: u32,
+    report_every_ticks: u64,
+    wind_down_ticks: u64,
+    report: Arc<Mutex<HapticReport>>,
+    stop: Arc<AtomicBool>,
+    abrupt: Arc<AtomicBool>,
+}
+
+impl DeviceLoop {
+    /// The thread body: paced ticks until stopped, then a ramp to zero (unless killed) and a final zero force.
+    fn run(mut self) {
+        lock_report(&self.report).running = true;
+        let publisher = &self.publisher;
+        let mut publish = |bytes: &[u8]| publisher.put(bytes).wait().is_ok();
+        let mut pacer = Pacer::new(self.period, self.spin_accuracy_ns);
+        while !self.stop.load(Ordering::Acquire) {
+            let interval = pacer.wait();
+            self.haptic.set_overruns(pacer.overruns());
+            self.haptic
+                .tick(self.clock.now_ns(), interval, &mut publish);
+            if self.haptic.ticks().is_multiple_of(self.report_every_ticks) {
+                self.haptic.try_publish_report(&self.report);
+            }
+        }
+        if !self.abrupt.load(Ordering::Acquire) {
+            self.haptic.begin_shutdown();
+            for _ in 0..self.wind_down_ticks {
+                if self.haptic.rendered_force_n() == [0.0; 3] {
+                    break;
+                }
+                let interval = pacer.wait();
+                self.haptic
+                    .tick(self.clock.now_ns(), interval, &mut publish);
+            }
+        }
+        self.haptic.write_zero_force();
+        let mut report = lock_report(&self.report);
+        self.haptic.write_report(&mut report);
+        report.running = false;
+    }
+}
+
+/// The hello thread body: announce now, then every [`HELLO_PERIOD`] until stopped (woken by `unpark`).
+fn run_hello(publisher: &Publisher<'static>, hello_bytes: &[u8], stop: &AtomicBool) {
+    while !stop.load(Ordering::Acquire) {
+        if let Err(err) = publisher.put(hello_bytes).wait() {
+            tracing::debug!(%err, "hello not published");
+        }
+        let deadline = Instant::now() + HELLO_PERIOD;
+        loop {
+            if stop.load(Ordering::Acquire) {
+                return;
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                break;
+            }
+            std::thread::park_timeout(deadline - now);
+        }
+    }
+}
+
+/// A running hapticserver. Dropping it stops it (see [`HapticHandle::stop`]).
+pub struct HapticHandle {
+    device_id: String,
+    pose_key: String,
+    force_key: String,
+    session: Option<zenoh::Session>,
+    token: Option<LivelinessToken>,
+    subscriber: Option<Subscriber<()>>,
+    loop_thread: Option<JoinHandle<()>>,
+    hello_thread: Option<JoinHandle<()>>,
+    stop: Arc<AtomicBool>,
+    abrupt: Arc<AtomicBool>,
+    report: Arc<Mutex<HapticReport>>,
+    inbox: Arc<ForceInbox>,
+}
+
+impl std::fmt::Debug for HapticHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HapticHandle")
+            .field("device_id", &self.device_id)
+            .field("pose_key", &self.pose_key)
+            .field("force_key", &self.force_key)
+            .field("running", &self.is_running())
+            .finish_non_exhaustive()
+    }
+}
+
+impl HapticHandle {
+    /// The device id served.
+    pub fn device_id(&self) -> &str {
+        &self.device_id
+    }
+
+    /// The key poses are published on.
+    pub fn pose_key(&self) -> &str {
+        &self.pose_key
+    }
+
+    /// The key force commands are read from.
+    pub fn force_key(&self) -> &str {
+        &self.force_key
+    }
+
+    /// Whether the device loop thread is still running.
+    pub fn is_running(&self) -> bool {
+        self.loop_thread
+            .as_ref()
+            .is_some_and(|thread| !thread.is_finished())
+    }
+
+    /// The latest report (published by the loop about every 100 ms; final after stop), with the inbox
+    /// counters read now.
+    pub fn report(&self) -> HapticReport {
+        let mut report = lock_report(&self.report).clone();
+        report.forces_received = self.inbox.received();
+        report.decode_rejects = self.inbox.rejects();
+        report
+    }
+
+    /// Stop gracefully: the loop ignores further commands, ramps the force to zero within the safety ramp
+    /// time, writes zero, and ends; then the subscriber and presence token are undeclared and the session
+    /// closed. Idempotent. Returns the first failure, after attempting every step.
+    pub fn stop(&mut self) -> Result<(), HapticError> {
+        self.stop.store(true, Ordering::Release);
+        let mut first_error = None;
+        for (thread, name) in [
+            (self.hello_thread.take(), "hello"),
+            (self.loop_thread.take(), "device loop"),
+        ] {
+            if let Some(thread) = thread {
+                thread.thread().unpark();
+                if thread.join().is_err() {
+                    first_error.get_or_insert(HapticError::Panicked {
+                        name: format!("hapticserver-{} {name}", self.device_id),
+                    });
+                }
+            }
+        }
+        if let Some(subscriber) = self.subscriber.take()
+            && let Err(err) = subscriber.undeclare().wait()
+        {
+            first_error.get_or_insert(HapticError::zenoh("undeclaring the force subscriber")(err));
+        }
+        if let Some(token) = self.token.take()
+            && let Err(err) = token.undeclare().wait()
+        {
+            first_error.get_or_insert(HapticError::zenoh("undeclaring the presence token")(err));
+        }
+        if let Some(session) = self.session.take()
+            && let Err(err) = session.close().wait()
+        {
+            first_error.get_or_insert(HapticError::zenoh("closing the session")(err));
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// Stop abruptly, as a crash would look to the network: the loop ends at once (no ramp; the device gets
+    /// zero force) and every zenoh object is dropped without undeclaring first.
+    pub fn kill(mut self) {
+        self.abrupt.store(true, Ordering::Release);
+        self.stop.store(true, Ordering::Release);
+        for thread in [self.hello_thread.take(), self.loop_thread.take()]
+            .into_iter()
+            .flatten()
+        {
+            thread.thread().unpark();
+            // A panicked thread is already gone, which is all a kill wants.
+            let _ = thread.join();
+        }
+        drop(self.subscriber.take());
+        drop(self.token.take());
+        drop(self.session.take());
+    }
+}
+
+impl Drop for HapticHandle {
+    fn drop(&mut self) {
+        if let Err(err) = self.stop() {
+            tracing::warn!(device = %self.device_id, %err, "hapticserver did not stop cleanly");
+        }
+    }
+}

@@ -1,0 +1,39 @@
+//! hapticserver: serves one haptic device to a Sinew scene over zenoh.
+//!
+//! Owns: the device abstraction ([`device`]) and its backends (the simulated hand: [`sim_device`],
+//! [`hand_model`], [`hand_script`]), device-side force safety ([`safety`]), the 1 kHz loop body
+//! ([`haptic_loop`]) and the process around it ([`haptic_server`]: zenoh declarations, threads, handle,
+//! [`report`]).
+//!
+//! Data flow: device --read--> [`haptic_loop::HapticLoop::tick`] --DevicePose, 1 kHz--> server;
+//! server --ForceCommand--> zenoh callback --> [`force_inbox::ForceInbox`] (latest-value mailbox) -->
+//! tick --> [`safety::ForceSafety`] --> device.
+//!
+//! Must not: depend on the server crate or run physics of the scene; the only force that reaches a motor is
+//! one that went through [`safety::ForceSafety`].
+#![warn(missing_docs)]
+
+pub mod clock;
+pub mod device;
+pub mod error;
+pub mod force_inbox;
+pub mod hand_model;
+pub mod hand_script;
+pub mod haptic_config;
+pub mod haptic_loop;
+pub mod haptic_server;
+pub mod report;
+pub mod safety;
+pub mod sim_device;
+pub mod zenoh_session;
+
+pub use device::{Device, DeviceError, DeviceModel, DeviceReading};
+pub use error::HapticError;
+pub use force_inbox::DecodeRejects;
+pub use hand_model::{HandModel, HandParams, HandTarget};
+pub use hand_script::{HandScript, ScriptError, ScriptKind, ScriptOptions, parse_vec3_mm};
+pub use haptic_config::HapticConfig;
+pub use haptic_server::{HapticHandle, HapticServer};
+pub use report::HapticReport;
+pub use safety::{ForceSafety, SafetyConfig, SafetyCounters};
+pub use sim_device::SimDevice;

@@ -1,0 +1,140 @@
+//! `hapticserver`: serve one haptic device to a Sinew scene.
+//!
+//! Owns: flag parsing, logging setup and the status line; everything else is the `hapticserver` library.
+//! Must not: contain loop, safety or device logic.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, ValueEnum};
+use hapticserver::{
+    Device, HapticConfig, HapticServer, ScriptKind, ScriptOptions, SimDevice, parse_vec3_mm,
+};
+use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
+
+/// Device backends this build can drive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum DeviceKind {
+    /// A simulated hand holding a stylus, following --script.
+    Sim,
+}
+
+/// Serve one haptic device (pose out at 1 kHz, force in) to a Sinew scene over zenoh.
+#[derive(Debug, Parser)]
+#[command(name = "hapticserver", version)]
+struct Args {
+    /// Device backend. Only `sim` exists in this build (OpenHaptics comes behind a feature flag).
+    #[arg(long, value_enum, default_value = "sim")]
+    device: DeviceKind,
+    /// Device id: the key segment in sinew/<scene>/device/<id>/...
+    #[arg(long, default_value = "left")]
+    id: String,
+    /// Tool to drive (empty: whichever tool the world binds to this device id).
+    #[arg(long, default_value = "")]
+    tool: String,
+    /// Scene name.
+    #[arg(long, default_value = "pad")]
+    scene: String,
+    /// Simulated hand script: hold, press or press-stroke.
+    #[arg(long, default_value = "press")]
+    script: ScriptKind,
+    /// Press depth below the surface point, mm.
+    #[arg(long)]
+    depth_mm: Option<f32>,
+    /// Surface point to press at (or hold), device frame, mm: x,y,z.
+    #[arg(long, value_parser = parse_vec3_mm, allow_hyphen_values = true)]
+    at_mm: Option<[f32; 3]>,
+    /// zenoh endpoint to connect to (repeatable).
+    #[arg(long, default_value = DEFAULT_ENDPOINT)]
+    connect: Vec<String>,
+    /// zenoh endpoint to listen on (repeatable; default none).
+    #[arg(long)]
+    listen: Vec<String>,
+    /// zenoh config file (JSON5), loaded before the flags above.
+    #[arg(long)]
+    zenoh_config: Option<std::path::PathBuf>,
+    /// Loop rate, Hz.
+    #[arg(long, default_value_t = 1000)]
+    rate_hz: u32,
+    /// Pacer spin accuracy, ns (0 = plain sleep).
+    #[arg(long, default_value_t = hapticserver::haptic_config::DEFAULT_SPIN_ACCURACY_NS)]
+    spin_ns: u32,
+    /// Stop after this many seconds (default: run until killed).
+    #[arg(long)]
+    duration_s: Option<f64>,
+}
+
+fn build_device(args: &Args) -> Result<Box<dyn Device>> {
+    match args.device {
+        DeviceKind::Sim => {
+            let mut options = ScriptOptions::default();
+            if let Some(depth_mm) = args.depth_mm {
+                options.depth_mm = depth_mm;
+            }
+            if let Some(at_mm) = args.at_mm {
+                options.at_mm = at_mm;
+            }
+            let script = args
+                .script
+                .build(&options)
+                .with_context(|| format!("building the `{}` script", args.script))?;
+            Ok(Box::new(SimDevice::new(script)))
+        }
+    }
+}
+
+fn main() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .init();
+    let args = Args::parse();
+    if let Some(duration_s) = args.duration_s
+        && !(duration_s.is_finite() && duration_s >= 0.0)
+    {
+        bail!("--duration-s {duration_s} must be a finite number of seconds >= 0");
+    }
+
+    let mut config = HapticConfig::new(&args.scene, &args.id, build_device(&args)?);
+    config.tool = args.tool.clone();
+    config.loop_rate_hz = args.rate_hz;
+    config.spin_accuracy_ns = args.spin_ns;
+    config.network = NetworkOptions {
+        config_file: args.zenoh_config.clone(),
+        listen: args.listen.clone(),
+        connect: args.connect.clone(),
+        mode: None,
+    };
+    let mut handle = HapticServer::start(config).with_context(|| {
+        format!(
+            "starting hapticserver `{}` in scene `{}`",
+            args.id, args.scene
+        )
+    })?;
+
+    let started = Instant::now();
+    let deadline = args
+        .duration_s
+        .map(|s| started + Duration::from_secs_f64(s));
+    let mut next_status = started + Duration::from_secs(1);
+    loop {
+        let now = Instant::now();
+        if deadline.is_some_and(|deadline| now >= deadline) {
+            break;
+        }
+        if !handle.is_running() {
+            bail!("the device loop of `{}` ended unexpectedly", args.id);
+        }
+        if now >= next_status {
+            println!("{}", handle.report());
+            next_status += Duration::from_secs(1);
+        }
+        let wake = deadline.map_or(next_status, |deadline| deadline.min(next_status));
+        std::thread::sleep(wake.saturating_duration_since(Instant::now()));
+    }
+    handle.stop().context("stopping the hapticserver")?;
+    println!("final: {}", handle.report());
+    Ok(())
+}

@@ -1,0 +1,112 @@
+//! What a running hapticserver reports about itself.
+//!
+//! Owns: [`HapticReport`], the low-rate snapshot the device loop publishes (about every 100 ms, by `try_lock`, so
+//! the loop never waits) and [`crate::HapticHandle::report`] hands out, and its one-line status text.
+//!
+//! Must not: be written from anywhere but the device loop (plus the inbox counters filled in by the handle).
+
+use std::fmt;
+
+use sinew_protocol::rt::LatencyHistogram;
+
+use crate::force_inbox::DecodeRejects;
+use crate::safety::SafetyCounters;
+
+/// A snapshot of a hapticserver's health and state.
+#[derive(Debug, Clone)]
+pub struct HapticReport {
+    /// Device id.
+    pub device_id: String,
+    /// The device loop is running.
+    pub running: bool,
+    /// Loop ticks run.
+    pub ticks: u64,
+    /// Poses handed to zenoh.
+    pub poses_published: u64,
+    /// Poses zenoh refused.
+    pub publish_errors: u64,
+    /// Valid force commands received.
+    pub forces_received: u64,
+    /// Pose -> rendered force round trips (pose read to the tick that first renders the force answering it), ns.
+    pub round_trip: LatencyHistogram,
+    /// The latest round trip, microseconds (0 = none yet).
+    pub last_round_trip_us: u32,
+    /// |actual tick interval - period|, ns.
+    pub interval_deviation: LatencyHistogram,
+    /// Periods skipped because the loop ran late (VM stalls).
+    pub overruns: u64,
+    /// Largest force magnitude rendered, N.
+    pub max_rendered_force_n: f32,
+    /// Force rendered on the latest tick, N, device frame.
+    pub last_rendered_force_n: [f32; 3],
+    /// The latest command's force before safety, N, device frame (zero before any command).
+    pub last_commanded_force_n: [f32; 3],
+    /// Stylus position on the latest tick, mm, device frame.
+    pub last_position_mm: [f32; 3],
+    /// How often each safety rule fired.
+    pub safety: SafetyCounters,
+    /// Refused force payloads.
+    pub decode_rejects: DecodeRejects,
+    /// Failed device reads.
+    pub device_read_errors: u64,
+    /// Failed device force writes.
+    pub device_write_errors: u64,
+}
+
+impl HapticReport {
+    /// An empty report for `device_id` (allocates its histograms once).
+    pub fn new(device_id: &str) -> Self {
+        Self {
+            device_id: device_id.to_owned(),
+            running: false,
+            ticks: 0,
+            poses_published: 0,
+            publish_errors: 0,
+            forces_received: 0,
+            round_trip: LatencyHistogram::new(),
+            last_round_trip_us: 0,
+            interval_deviation: LatencyHistogram::new(),
+            overruns: 0,
+            max_rendered_force_n: 0.0,
+            last_rendered_force_n: [0.0; 3],
+            last_commanded_force_n: [0.0; 3],
+            last_position_mm: [0.0; 3],
+            safety: SafetyCounters::default(),
+            decode_rejects: DecodeRejects::default(),
+            device_read_errors: 0,
+            device_write_errors: 0,
+        }
+    }
+
+    /// Magnitude of the force rendered on the latest tick, N.
+    pub fn last_rendered_force_magnitude_n(&self) -> f32 {
+        let f = self.last_rendered_force_n;
+        (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
+    }
+}
+
+impl fmt::Display for HapticReport {
+    /// One status line: ticks, round trip percentiles, force, position, problems.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let p = self.last_position_mm;
+        write!(
+            f,
+            "{id}: ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
+             forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej}",
+            id = self.device_id,
+            ticks = self.ticks,
+            p50 = self.round_trip.percentile_us(50.0),
+            p99 = self.round_trip.percentile_us(99.0),
+            n = self.round_trip.count(),
+            force = self.last_rendered_force_magnitude_n(),
+            x = p[0],
+            y = p[1],
+            z = p[2],
+            rx = self.forces_received,
+            over = self.overruns,
+            stale = self.safety.stale_events,
+            clamped = self.safety.clamped,
+            rej = self.decode_rejects.total(),
+        )
+    }
+}

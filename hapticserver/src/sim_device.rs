@@ -1,0 +1,181 @@
+//! A simulated haptic device: a scripted hand holding a stylus that the rendered force really pushes.
+//!
+//! Owns: script time, the current hand target and the force last written, and a [`HandModel`]. Each
+//! [`Device::read`] advances script time by `dt_s`, samples the [`HandScript`] and integrates the stylus under
+//! the hand and the last written force, so a force field resists the scripted motion exactly as it would
+//! resist a surgeon's hand.
+//!
+//! Must not: filter or clamp forces beyond refusing non-finite ones (that is [`crate::safety`]); it renders
+//! what it is given, like a motor.
+
+use crate::device::{Device, DeviceError, DeviceModel, DeviceReading};
+use crate::hand_model::{HandModel, HandParams, HandTarget};
+use crate::hand_script::HandScript;
+
+/// Model name announced for the simulated device.
+pub const SIM_MODEL_NAME: &str = "sim-hand";
+
+/// Limits of the simulated device: a Touch-like 3.3 N peak force in a generous +/-150 mm cube.
+pub fn sim_device_model() -> DeviceModel {
+    DeviceModel {
+        name: SIM_MODEL_NAME.to_owned(),
+        max_force_n: 3.3,
+        max_force_rate_n_per_s: 200.0,
+        workspace_min_mm: [-150.0; 3],
+        workspace_max_mm: [150.0; 3],
+    }
+}
+
+/// The simulated device.
+#[derive(Debug)]
+pub struct SimDevice {
+    script: HandScript,
+    hand: HandModel,
+    model: DeviceModel,
+    target: HandTarget,
+    script_time_s: f64,
+    force_n: [f32; 3],
+}
+
+impl SimDevice {
+    /// A device whose hand follows `script`, with the default hand and limits. The stylus starts at rest on
+    /// the script's first target.
+    pub fn new(script: HandScript) -> Self {
+        Self::with_params(script, HandParams::default(), sim_device_model())
+    }
+
+    /// A device with explicit hand parameters and limits.
+    pub fn with_params(script: HandScript, params: HandParams, model: DeviceModel) -> Self {
+        let start_mm = script.start_mm();
+        Self {
+            script,
+            hand: HandModel::new(params, start_mm),
+            model,
+            target: HandTarget::at_rest(start_mm),
+            script_time_s: 0.0,
+            force_n: [0.0; 3],
+        }
+    }
+
+    /// Script time, s.
+    pub fn script_time_s(&self) -> f64 {
+        self.script_time_s
+    }
+
+    /// The hand's current target.
+    pub fn target(&self) -> HandTarget {
+        self.target
+    }
+
+    /// The force being rendered, N.
+    pub fn force_n(&self) -> [f32; 3] {
+        self.force_n
+    }
+}
+
+impl Device for SimDevice {
+    fn model(&self) -> DeviceModel {
+        self.model.clone()
+    }
+
+    /// Advance script time and the stylus by `dt_s`. Real-time: no allocation, never panics.
+    fn read(&mut self, dt_s: f32) -> Result<DeviceReading, DeviceError> {
+        if dt_s.is_finite() && dt_s > 0.0 {
+            self.script_time_s += f64::from(dt_s);
+        }
+        if let Some(target) = self.script.target(self.script_time_s) {
+            self.target = target;
+        } else {
+            // A Follow script with nothing new: hold the last target still.
+            self.target.velocity_mm_s = [0.0; 3];
+        }
+        self.hand.step(dt_s, &self.target, self.force_n);
+        self.hand
+            .confine(self.model.workspace_min_mm, self.model.workspace_max_mm);
+        Ok(DeviceReading {
+            position_mm: self.hand.position_mm(),
+            linear_velocity_mm_s: self.hand.velocity_mm_s(),
+            ..DeviceReading::default()
+        })
+    }
+
+    /// Render `force_n` from the next read on. A non-finite force is refused and the motor goes to zero.
+    fn write_force(&mut self, force_n: [f32; 3]) -> Result<(), DeviceError> {
+        if force_n.iter().all(|c| c.is_finite()) {
+            self.force_n = force_n;
+            Ok(())
+        } else {
+            self.force_n = [0.0; 3];
+            Err(DeviceError::NonFiniteForce)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hand_script::{ScriptKind, ScriptOptions};
+
+    #[test]
+    fn press_with_no_tissue_reaches_depth() {
+        let options = ScriptOptions {
+            descend_s: 0.5,
+            depth_mm: 5.0,
+            ..ScriptOptions::default()
+        };
+        let mut device = SimDevice::new(ScriptKind::Press.build(&options).unwrap());
+        assert_eq!(device.read(0.0).unwrap().position_mm, [0.0, 0.0, 20.0]);
+        let mut reading = DeviceReading::default();
+        for _ in 0..1000 {
+            reading = device.read(0.001).unwrap();
+            device.write_force([0.0; 3]).unwrap();
+        }
+        assert!((reading.position_mm[2] + 5.0).abs() < 0.05, "{reading:?}");
+        assert!((device.script_time_s() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn rendered_force_resists_the_hand() {
+        // A stiff floor at z = 0 rendered from the device's own position: the hand aims 5 mm below it and the
+        // stylus settles where hand spring and floor balance: 0.4 (-5 - z) = 0.5 z  ->  z = -2.22 mm.
+        let options = ScriptOptions {
+            descend_s: 0.5,
+            depth_mm: 5.0,
+            ..ScriptOptions::default()
+        };
+        let mut device = SimDevice::new(ScriptKind::Press.build(&options).unwrap());
+        let floor_n_per_mm = 0.5;
+        let mut reading = DeviceReading::default();
+        for _ in 0..2000 {
+            reading = device.read(0.001).unwrap();
+            let penetration_mm = (-reading.position_mm[2]).max(0.0);
+            device
+                .write_force([0.0, 0.0, floor_n_per_mm * penetration_mm])
+                .unwrap();
+        }
+        let expected_mm = -5.0 * 0.4 / 0.9;
+        assert!(
+            (reading.position_mm[2] - expected_mm).abs() < 0.05,
+            "{reading:?}"
+        );
+        assert!(
+            device.target().position_mm[2] < reading.position_mm[2] - 2.0,
+            "stylus lags the target"
+        );
+    }
+
+    #[test]
+    fn non_finite_force_is_refused() {
+        let mut device = SimDevice::new(HandScript::Hold {
+            position_mm: [0.0; 3],
+        });
+        device.write_force([1.0, 0.0, 0.0]).unwrap();
+        assert_eq!(
+            device.write_force([f32::NAN, 0.0, 0.0]),
+            Err(DeviceError::NonFiniteForce)
+        );
+        assert_eq!(device.force_n(), [0.0; 3]);
+        let reading = device.read(0.001).unwrap();
+        assert!(reading.position_mm.iter().all(|c| c.is_finite()));
+    }
+}

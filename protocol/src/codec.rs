@@ -1,0 +1,206 @@
+//! The versioned envelope around every message, and its typed errors.
+//!
+//! Layout on the wire: `[version: u16 little-endian][kind: u8][postcard body]`. The version leads every
+//! message so a peer built against another protocol revision is recognised before anything is parsed.
+//! Decoding checks, in order: length, version, kind, body (postcard, no trailing bytes), then the
+//! message's own [`Message::validate`] (finite numbers, unit quaternions, index ranges).
+
+use serde::{Serialize, de::DeserializeOwned};
+use thiserror::Error;
+
+/// Protocol revision carried by every message. Bump on any incompatible change.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Bytes of envelope before the postcard body.
+pub const HEADER_LEN: usize = 3;
+
+/// Which message a payload carries (the byte after the version).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum MessageKind {
+    /// [`crate::DevicePose`]
+    DevicePose = 1,
+    /// [`crate::ForceCommand`]
+    ForceCommand = 2,
+    /// [`crate::SceneSnapshot`]
+    SceneSnapshot = 3,
+    /// [`crate::MeshDelta`]
+    MeshDelta = 4,
+    /// [`crate::ToolStates`]
+    ToolStates = 5,
+    /// [`crate::ServerStats`]
+    ServerStats = 6,
+    /// [`crate::ParticipantHello`]
+    ParticipantHello = 7,
+}
+
+impl MessageKind {
+    /// Human-readable name used in error messages and counters.
+    pub fn name(self) -> &'static str {
+        match self {
+            MessageKind::DevicePose => "DevicePose",
+            MessageKind::ForceCommand => "ForceCommand",
+            MessageKind::SceneSnapshot => "SceneSnapshot",
+            MessageKind::MeshDelta => "MeshDelta",
+            MessageKind::ToolStates => "ToolStates",
+            MessageKind::ServerStats => "ServerStats",
+            MessageKind::ParticipantHello => "ParticipantHello",
+        }
+    }
+}
+
+/// Why a payload was refused. Every variant names the message kind it was expected to be.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum DecodeError {
+    /// Shorter than the envelope header.
+    #[error("{kind}: truncated payload ({len} bytes, header needs {HEADER_LEN})", kind = expected.name())]
+    Truncated {
+        /// The kind the receiver expected.
+        expected: MessageKind,
+        /// Payload length in bytes.
+        len: usize,
+    },
+    /// Built against another protocol revision.
+    #[error("{kind}: protocol version {got}, this build speaks {PROTOCOL_VERSION}", kind = expected.name())]
+    WrongVersion {
+        /// The kind the receiver expected.
+        expected: MessageKind,
+        /// Version found on the wire.
+        got: u16,
+    },
+    /// The kind byte names another message.
+    #[error("{kind}: payload carries message kind byte {got}", kind = expected.name())]
+    WrongKind {
+        /// The kind the receiver expected.
+        expected: MessageKind,
+        /// Kind byte found on the wire.
+        got: u8,
+    },
+    /// The body does not parse (truncated, garbage, trailing bytes).
+    #[error("{kind}: malformed body: {detail}", kind = expected.name())]
+    Malformed {
+        /// The kind the receiver expected.
+        expected: MessageKind,
+        /// What postcard reported.
+        detail: String,
+    },
+    /// The body parses but a field is out of its domain (NaN, non-unit quaternion, bad index).
+    #[error("{kind}: invalid field `{field}`: {reason}", kind = expected.name())]
+    Invalid {
+        /// The kind the receiver expected.
+        expected: MessageKind,
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+}
+
+impl DecodeError {
+    /// Short class name for per-kind rejection counters.
+    pub fn class(&self) -> &'static str {
+        match self {
+            DecodeError::Truncated { .. } => "truncated",
+            DecodeError::WrongVersion { .. } => "wrong_version",
+            DecodeError::WrongKind { .. } => "wrong_kind",
+            DecodeError::Malformed { .. } => "malformed",
+            DecodeError::Invalid { .. } => "invalid",
+        }
+    }
+}
+
+/// A field that failed validation: (field name, reason).
+pub type FieldError = (&'static str, &'static str);
+
+/// A wire message: serde-serialisable, with a fixed kind and a domain check.
+pub trait Message: Serialize + DeserializeOwned {
+    /// The kind byte written after the version.
+    const KIND: MessageKind;
+    /// Check field domains after parsing. Never panics.
+    fn validate(&self) -> Result<(), FieldError>;
+}
+
+/// Encode `msg` into `out` (cleared first). Reuses `out`'s capacity: no allocation once it is large enough.
+pub fn encode<M: Message>(msg: &M, out: &mut Vec<u8>) {
+    out.clear();
+    out.extend_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+    out.push(M::KIND as u8);
+    // Serialising plain data into a Vec cannot fail: postcard only errors on unsupported serde features
+    // (none used here) or a full fixed buffer (a Vec grows).
+    if let Err(err) = postcard::to_io(msg, &mut *out) {
+        debug_assert!(false, "postcard encode of {} failed: {err}", M::KIND.name());
+    }
+}
+
+/// Encode into a fresh buffer (for non-real-time paths).
+pub fn encode_to_vec<M: Message>(msg: &M) -> Vec<u8> {
+    let mut out = Vec::with_capacity(64);
+    encode(msg, &mut out);
+    out
+}
+
+/// Decode and validate a payload expected to carry `M`. Never panics, whatever the bytes.
+pub fn decode<M: Message>(bytes: &[u8]) -> Result<M, DecodeError> {
+    let expected = M::KIND;
+    if bytes.len() < HEADER_LEN {
+        return Err(DecodeError::Truncated {
+            expected,
+            len: bytes.len(),
+        });
+    }
+    let version = u16::from_le_bytes([bytes[0], bytes[1]]);
+    if version != PROTOCOL_VERSION {
+        return Err(DecodeError::WrongVersion {
+            expected,
+            got: version,
+        });
+    }
+    if bytes[2] != expected as u8 {
+        return Err(DecodeError::WrongKind {
+            expected,
+            got: bytes[2],
+        });
+    }
+    let (msg, rest) =
+        postcard::take_from_bytes::<M>(&bytes[HEADER_LEN..]).map_err(|e| DecodeError::Malformed {
+            expected,
+            detail: e.to_string(),
+        })?;
+    if !rest.is_empty() {
+        return Err(DecodeError::Malformed {
+            expected,
+            detail: format!("{} trailing bytes", rest.len()),
+        });
+    }
+    msg.validate()
+        .map_err(|(field, reason)| DecodeError::Invalid {
+            expected,
+            field,
+            reason,
+        })?;
+    Ok(msg)
+}
+
+/// Helpers for [`Message::validate`] implementations.
+pub mod check {
+    use super::FieldError;
+
+    /// All components finite.
+    pub fn finite(field: &'static str, values: &[f32]) -> Result<(), FieldError> {
+        if values.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err((field, "not finite"))
+        }
+    }
+
+    /// A unit quaternion (norm within 1e-3 of one), components finite.
+    pub fn unit_quaternion(field: &'static str, q: &[f32; 4]) -> Result<(), FieldError> {
+        finite(field, q)?;
+        let norm = q.iter().map(|c| c * c).sum::<f32>().sqrt();
+        if (norm - 1.0).abs() > 1e-3 {
+            return Err((field, "quaternion is not unit length"));
+        }
+        Ok(())
+    }
+}

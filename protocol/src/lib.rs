@@ -1,0 +1,20 @@
+//! sinew-protocol: the wire contract between the Sinew server, hapticservers and viewers.
+//!
+//! Owns: every message that crosses zenoh ([`messages`]), the key expressions they travel on ([`keys`]),
+//! the versioned envelope and its typed decode errors ([`codec`]), mesh-position quantization ([`quantize`]),
+//! and the zenoh endpoint options every role shares ([`network`]). It also holds the three tiny real-time
+//! primitives every role uses ([`rt`]: latest-value mailbox, latency histogram, loop pacer) so the roles need
+//! not depend on each other.
+//!
+//! Must not: open a zenoh session, touch parry, or know about the simulation. Plain data only.
+#![warn(missing_docs)]
+
+pub mod codec;
+pub mod keys;
+pub mod messages;
+pub mod network;
+pub mod quantize;
+pub mod rt;
+
+pub use codec::{DecodeError, Message, MessageKind, PROTOCOL_VERSION, decode, encode};
+pub use messages::*;

@@ -1,0 +1,17 @@
+//! Every message that crosses zenoh, one file each. Each struct's doc states direction, rate, reliability and units.
+
+mod force;
+mod hello;
+mod mesh_delta;
+mod pose;
+mod snapshot;
+mod stats;
+mod tools;
+
+pub use force::{ForceCommand, ForceMode};
+pub use hello::{ParticipantHello, Role};
+pub use mesh_delta::MeshDelta;
+pub use pose::DevicePose;
+pub use snapshot::{ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShape};
+pub use stats::{DeviceStats, RejectCounts, ServerStats};
+pub use tools::{ToolState, ToolStates};

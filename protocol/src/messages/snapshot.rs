@@ -1,0 +1,109 @@
+//! Scene snapshot: the whole replicated state, for late joiners and gap recovery.
+
+use serde::{Deserialize, Serialize};
+
+use crate::codec::{FieldError, Message, MessageKind, check};
+use crate::quantize::QuantBounds;
+use super::tools::ToolStates;
+
+/// A tool's collision shape, millimetres, in the tool frame (capsule axis along local z).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum ToolShape {
+    /// A ball of the given radius centred on the tool origin.
+    Sphere {
+        /// Radius, mm.
+        radius_mm: f32,
+    },
+    /// A capsule along local z, centred on the tool origin.
+    Capsule {
+        /// Half the segment length, mm.
+        half_length_mm: f32,
+        /// Radius, mm.
+        radius_mm: f32,
+    },
+}
+
+/// Static description of a tool.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ToolInfo {
+    /// Tool index (matches [`crate::ToolState::tool`]).
+    pub tool: u16,
+    /// Tool name from the world file.
+    pub name: String,
+    /// Device id bound to it.
+    pub device_id: String,
+    /// Collision shape.
+    pub shape: ToolShape,
+}
+
+/// One deformable object's full replicated state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectSnapshot {
+    /// Object index (matches [`crate::MeshDelta::object`]).
+    pub object: u16,
+    /// Object name from the world file (also its key segment).
+    pub name: String,
+    /// Quantization bounds, fixed for the session.
+    pub bounds: QuantBounds,
+    /// Surface triangles, vertex indices, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+    /// Quantized vertex positions.
+    pub positions_q: Vec<[u16; 3]>,
+    /// Frame of the last delta already folded into `positions_q`.
+    pub frame: u64,
+}
+
+/// Everything a viewer (or a hapticserver) needs to start replicating.
+///
+/// Direction: server -> querier, as the reply to a zenoh query on `sinew/<scene>/snapshot`. Rate: on join and
+/// after a detected gap. Reliability: query/reply. Units: see the fields.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneSnapshot {
+    /// Scene name.
+    pub scene: String,
+    /// Publish frame the snapshot was taken at.
+    pub frame: u64,
+    /// Deformable objects.
+    pub objects: Vec<ObjectSnapshot>,
+    /// Tool descriptions.
+    pub tools: Vec<ToolInfo>,
+    /// Tool states at `frame`.
+    pub tool_states: ToolStates,
+}
+
+impl Message for SceneSnapshot {
+    const KIND: MessageKind = MessageKind::SceneSnapshot;
+    fn validate(&self) -> Result<(), FieldError> {
+        for (i, object) in self.objects.iter().enumerate() {
+            if object.object as usize != i {
+                return Err(("objects.object", "indices are not 0..n in order"));
+            }
+            object.bounds.validate()?;
+            let n = object.positions_q.len() as u64;
+            if object
+                .triangles
+                .iter()
+                .any(|t| t.iter().any(|&v| u64::from(v) >= n))
+            {
+                return Err(("objects.triangles", "vertex index out of range"));
+            }
+            if object.frame > self.frame {
+                return Err(("objects.frame", "after the snapshot frame"));
+            }
+        }
+        for tool in &self.tools {
+            let dims: &[f32] = match &tool.shape {
+                ToolShape::Sphere { radius_mm } => &[*radius_mm],
+                ToolShape::Capsule {
+                    half_length_mm,
+                    radius_mm,
+                } => &[*half_length_mm, *radius_mm],
+            };
+            check::finite("tools.shape", dims)?;
+            if dims.iter().any(|d| *d < 0.0) {
+                return Err(("tools.shape", "negative dimension"));
+            }
+        }
+        self.tool_states.validate()
+    }
+}

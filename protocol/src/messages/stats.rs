@@ -1,0 +1,86 @@
+//! Server stats: server -> anyone.
+
+use serde::{Deserialize, Serialize};
+
+use crate::codec::{FieldError, Message, MessageKind, check};
+
+/// Inbound messages the server refused, by reason.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub struct RejectCounts {
+    /// Too short, or a body that does not parse.
+    pub malformed: u64,
+    /// Another protocol version.
+    pub wrong_version: u64,
+    /// Parsed, but a field out of domain (NaN pose, non-unit quaternion).
+    pub invalid: u64,
+    /// A pose from a device no tool is bound to.
+    pub unknown_device: u64,
+}
+
+impl RejectCounts {
+    /// Sum of all reasons.
+    pub fn total(&self) -> u64 {
+        self.malformed + self.wrong_version + self.invalid + self.unknown_device
+    }
+}
+
+/// Per-device view from the server.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct DeviceStats {
+    /// Device id.
+    pub device_id: String,
+    /// Liveliness token present and poses arriving: its tool is active.
+    pub active: bool,
+    /// Poses accepted.
+    pub poses_received: u64,
+    /// Forces published.
+    pub forces_sent: u64,
+    /// The device's last reported pose->force round trip, microseconds (0 = unknown).
+    pub last_round_trip_us: u32,
+    /// Largest force magnitude sent, newtons.
+    pub max_force_n: f32,
+}
+
+/// Server health, published at 1 Hz on `sinew/<scene>/stats`.
+///
+/// Direction: server -> anyone. Rate: 1 Hz. Reliability: best effort. Units: microseconds, bytes, seconds.
+/// Tick percentiles cover the whole run so far.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct ServerStats {
+    /// Simulated time, seconds.
+    pub sim_time_s: f64,
+    /// Sim ticks run.
+    pub ticks: u64,
+    /// Tick compute time, median, microseconds.
+    pub tick_p50_us: f32,
+    /// Tick compute time, 99th percentile, microseconds.
+    pub tick_p99_us: f32,
+    /// Tick compute time, maximum, microseconds.
+    pub tick_max_us: f32,
+    /// Ticks that started late by more than a whole period (VM stalls).
+    pub overruns: u64,
+    /// Steps in which the tissue produced a non-finite value and was restored.
+    pub sim_faults: u64,
+    /// Mesh delta messages published.
+    pub deltas_sent: u64,
+    /// Mesh delta bytes published.
+    pub delta_bytes_sent: u64,
+    /// Refused inbound messages.
+    pub rejected: RejectCounts,
+    /// One entry per tool-bound device.
+    pub devices: Vec<DeviceStats>,
+}
+
+impl Message for ServerStats {
+    const KIND: MessageKind = MessageKind::ServerStats;
+    fn validate(&self) -> Result<(), FieldError> {
+        check::finite(
+            "tick_us",
+            &[self.tick_p50_us, self.tick_p99_us, self.tick_max_us],
+        )?;
+        if !self.sim_time_s.is_finite() {
+            return Err(("sim_time_s", "not finite"));
+        }
+        Ok(())
+    }
+}

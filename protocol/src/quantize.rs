@@ -1,0 +1,109 @@
+//! Quantization of mesh positions for the wire.
+//!
+//! Each object carries fixed bounds for the session; a coordinate is stored as a `u16` count of quanta from
+//! `min_mm`. One quantum per axis is `(max_mm - min_mm) / 65535`; rounding to nearest makes the worst-case
+//! error half a quantum per axis, [`QuantBounds::max_error_mm`] along the diagonal. Positions outside the
+//! bounds clamp to them (the server counts those and sizes the bounds with margin so it does not happen).
+
+use serde::{Deserialize, Serialize};
+
+use crate::codec::FieldError;
+
+/// Largest quantized value per axis.
+pub const QUANT_MAX: f32 = 65535.0;
+
+/// Axis-aligned quantization bounds, mm.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct QuantBounds {
+    /// Lower corner, mm.
+    pub min_mm: [f32; 3],
+    /// Upper corner, mm.
+    pub max_mm: [f32; 3],
+}
+
+impl QuantBounds {
+    /// Quantum per axis, mm.
+    pub fn quantum_mm(&self) -> [f32; 3] {
+        std::array::from_fn(|a| (self.max_mm[a] - self.min_mm[a]) / QUANT_MAX)
+    }
+
+    /// Worst-case distance between a position inside the bounds and its dequantized value, mm.
+    pub fn max_error_mm(&self) -> f32 {
+        let q = self.quantum_mm();
+        0.5 * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt()
+    }
+
+    /// Quantize a position. Returns the quanta and whether any axis was clamped. Non-finite axes map to 0 and
+    /// count as clamped. No allocation, never panics.
+    pub fn quantize(&self, position_mm: [f32; 3]) -> ([u16; 3], bool) {
+        let mut clamped = false;
+        let q = std::array::from_fn(|a| {
+            let extent = self.max_mm[a] - self.min_mm[a];
+            let t = (position_mm[a] - self.min_mm[a]) / extent * QUANT_MAX;
+            if !t.is_finite() {
+                clamped = true;
+                return 0;
+            }
+            let r = t.round();
+            if !(0.0..=QUANT_MAX).contains(&r) {
+                clamped = true;
+            }
+            r.clamp(0.0, QUANT_MAX) as u16
+        });
+        (q, clamped)
+    }
+
+    /// Position of a quantized value, mm.
+    pub fn dequantize(&self, q: [u16; 3]) -> [f32; 3] {
+        std::array::from_fn(|a| {
+            self.min_mm[a] + f32::from(q[a]) / QUANT_MAX * (self.max_mm[a] - self.min_mm[a])
+        })
+    }
+
+    /// Finite, with `max > min` on every axis.
+    pub fn validate(&self) -> Result<(), FieldError> {
+        crate::codec::check::finite("bounds", &self.min_mm)?;
+        crate::codec::check::finite("bounds", &self.max_mm)?;
+        if (0..3).any(|a| self.max_mm[a] <= self.min_mm[a]) {
+            return Err(("bounds", "max not above min"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantization_error_stays_within_half_a_quantum() {
+        let bounds = QuantBounds {
+            min_mm: [-60.0, -50.0, -40.0],
+            max_mm: [60.0, 50.0, 40.0],
+        };
+        let quantum = bounds.quantum_mm();
+        let mut rng = fastrand::Rng::with_seed(7);
+        for _ in 0..10_000 {
+            let p: [f32; 3] = std::array::from_fn(|a| {
+                bounds.min_mm[a] + rng.f32() * (bounds.max_mm[a] - bounds.min_mm[a])
+            });
+            let (q, clamped) = bounds.quantize(p);
+            assert!(!clamped);
+            let back = bounds.dequantize(q);
+            for a in 0..3 {
+                assert!((back[a] - p[a]).abs() <= 0.5 * quantum[a] * 1.01 + 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn outside_and_non_finite_positions_clamp() {
+        let bounds = QuantBounds {
+            min_mm: [0.0; 3],
+            max_mm: [1.0; 3],
+        };
+        assert_eq!(bounds.quantize([2.0, -1.0, 0.5]).1, true);
+        assert_eq!(bounds.quantize([2.0, -1.0, 0.5]).0[..2], [65535, 0]);
+        assert_eq!(bounds.quantize([f32::NAN, 0.0, 0.0]), ([0, 0, 0], true));
+    }
+}

@@ -1,0 +1,13 @@
+//! Real-time primitives shared by every role: no I/O, no zenoh.
+//!
+//! - [`LatestValue`]: single-slot mailbox from a zenoh callback to a hot loop.
+//! - [`LatencyHistogram`]: fixed-size, allocation-free percentile recorder.
+//! - [`Pacer`]: fixed-rate loop pacing with spin_sleep, counting overruns instead of bursting to catch up.
+
+mod latency_histogram;
+mod latest_value;
+mod pacer;
+
+pub use latency_histogram::LatencyHistogram;
+pub use latest_value::LatestValue;
+pub use pacer::Pacer;

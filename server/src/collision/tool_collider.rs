@@ -1,0 +1,126 @@
+//! Tool shapes and pushing points out of them.
+
+use nalgebra::{UnitQuaternion, Vector3};
+use parry3d::bounding_volume::{Aabb, BoundingVolume};
+use parry3d::query::{Ray, RayCast};
+use parry3d::shape::{Ball, Capsule, Shape};
+
+use super::glam_boundary::{from_parry, pose, to_parry};
+use crate::world::ToolShapeSpec;
+
+/// A tool's parry shape.
+#[derive(Debug, Clone)]
+pub enum ToolCollider {
+    /// Sphere.
+    Ball(Ball),
+    /// Capsule along local z.
+    Capsule(Capsule),
+}
+
+impl ToolCollider {
+    /// From the world spec.
+    pub fn from_spec(spec: &ToolShapeSpec) -> Self {
+        match *spec {
+            ToolShapeSpec::Sphere { radius_mm } => ToolCollider::Ball(Ball::new(radius_mm)),
+            ToolShapeSpec::Capsule {
+                half_length_mm,
+                radius_mm,
+            } => ToolCollider::Capsule(Capsule::new_z(half_length_mm, radius_mm)),
+        }
+    }
+
+    fn shape(&self) -> &dyn Shape {
+        match self {
+            ToolCollider::Ball(b) => b,
+            ToolCollider::Capsule(c) => c,
+        }
+    }
+
+    /// World-space box of the tool at a pose, loosened by `margin_mm`.
+    pub fn aabb(&self, position_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>, margin_mm: f32) -> Aabb {
+        self.shape().compute_aabb(&pose(position_mm, rotation)).loosened(margin_mm)
+    }
+
+    /// If `point_mm` is inside the tool, move it along `push_dir` (unit) until it leaves the tool: returns the
+    /// exit point on the tool surface and the tool's outward unit normal there. None when the point is
+    /// outside. Uses a parry ray cast from inside (non-solid) for the exit. No allocation, never returns
+    /// non-finite values.
+    pub fn push_out_along(
+        &self,
+        position_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        point_mm: &Vector3<f32>,
+        push_dir: &Vector3<f32>,
+    ) -> Option<(Vector3<f32>, Vector3<f32>)> {
+        let tool_pose = pose(position_mm, rotation);
+        let p = to_parry(point_mm);
+        if !self.shape().contains_point(&tool_pose, p) {
+            return None;
+        }
+        let ray = Ray::new(p, to_parry(push_dir));
+        let max_toi = 2.0 * self.shape().compute_local_aabb().extents().length() + 1.0;
+        let toi = match self {
+            ToolCollider::Ball(b) => b.cast_ray(&tool_pose, &ray, max_toi, false),
+            ToolCollider::Capsule(c) => c.cast_ray(&tool_pose, &ray, max_toi, false),
+        }?;
+        let exit = point_mm + push_dir * toi;
+        let normal = exit - self.core_point(position_mm, rotation, &exit);
+        let len = normal.norm();
+        if !(len > 1e-7) || !exit.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        Some((exit, normal / len))
+    }
+
+    /// Closest point to `p` on the tool's core (ball centre, capsule segment): both shapes are swept spheres,
+    /// so the outward normal at a surface point is the direction from its core point.
+    fn core_point(&self, position_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>, p: &Vector3<f32>) -> Vector3<f32> {
+        match self {
+            ToolCollider::Ball(_) => *position_mm,
+            ToolCollider::Capsule(c) => {
+                let a = position_mm + rotation * from_parry(c.segment.a);
+                let b = position_mm + rotation * from_parry(c.segment.b);
+                let ab = b - a;
+                let t = ((p - a).dot(&ab) / ab.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+                a + ab * t
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_inside_a_ball_are_pushed_down_to_its_lower_surface() {
+        let tool = ToolCollider::from_spec(&ToolShapeSpec::Sphere { radius_mm: 5.0 });
+        let centre = Vector3::new(0.0, 0.0, 3.0);
+        let q = UnitQuaternion::identity();
+        let down = -Vector3::z();
+        let (exit, normal) = tool.push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, 0.0), &down).unwrap();
+        assert!((exit - Vector3::new(0.0, 0.0, -2.0)).norm() < 1e-4, "{exit:?}");
+        assert!((normal - down).norm() < 1e-4);
+        // Off-axis: exits on the sphere below, normal radial.
+        let (exit, normal) = tool.push_out_along(&centre, &q, &Vector3::new(3.0, 0.0, 0.0), &down).unwrap();
+        assert!((exit - Vector3::new(3.0, 0.0, -1.0)).norm() < 1e-4, "{exit:?}");
+        assert!((normal - Vector3::new(0.6, 0.0, -0.8)).norm() < 1e-4);
+        assert!(tool.push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, -2.5), &down).is_none());
+    }
+
+    #[test]
+    fn capsule_normal_points_away_from_its_axis() {
+        let tool = ToolCollider::from_spec(&ToolShapeSpec::Capsule {
+            half_length_mm: 10.0,
+            radius_mm: 2.0,
+        });
+        // Capsule lying along x (rotated 90 degrees about y), centred 1 mm above the origin.
+        let q = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f32::consts::FRAC_PI_2);
+        let centre = Vector3::new(0.0, 0.0, 1.0);
+        let (exit, normal) = tool
+            .push_out_along(&centre, &q, &Vector3::new(5.0, 0.0, 0.0), &-Vector3::z())
+            .unwrap();
+        assert!((exit - Vector3::new(5.0, 0.0, -1.0)).norm() < 1e-3, "{exit:?}");
+        assert!((normal + Vector3::z()).norm() < 1e-3, "{normal:?}");
+    }
+}

@@ -1,0 +1,88 @@
+//! Probing: the tool pushes surface nodes out of itself; the tissue's reaction on those nodes is the tool force.
+//!
+//! Each tissue node found inside the tool is pushed into the tissue (along minus its rest outward normal) until
+//! it reaches the tool surface, and its velocity loses the component pointing back out against the push (the
+//! surface yields). Pushing along the tissue normal, not radially, keeps a sheet from sliding round a tool and
+//! wrapping over it. Held nodes act on the tool through its surface normal `n_i` there: with `f_i` the node's
+//! internal force, the tool feels `(f_i . n_i) n_i` when `f_i . n_i < 0` (frictionless, push-only). The sum
+//! points out of the tissue, grows with depth, and resists lateral strokes through the dent's walls.
+
+use nalgebra::UnitQuaternion;
+
+use crate::collision::ToolCollider;
+use crate::tissue::{MassSpringModel, TissueState, Vec3};
+
+/// The nodes one tool holds in one object, and the directions it pushes them. Reused every tick.
+#[derive(Debug, Clone, Default)]
+pub struct ProbeContacts {
+    /// Candidate nodes from the broad phase.
+    pub candidates: Vec<u32>,
+    /// Nodes held this tick (subset of candidates).
+    pub held: Vec<u32>,
+    /// Tool outward normal (unit) at each held node.
+    pub normals: Vec<Vec3>,
+}
+
+impl ProbeContacts {
+    /// Contacts with room for `capacity` nodes (so a tick does not allocate).
+    pub fn with_capacity(capacity: usize) -> Self {
+        Self {
+            candidates: Vec::with_capacity(capacity),
+            held: Vec::with_capacity(capacity),
+            normals: Vec::with_capacity(capacity),
+        }
+    }
+
+    /// Forget last tick's contacts (keeps capacity).
+    pub fn clear(&mut self) {
+        self.candidates.clear();
+        self.held.clear();
+        self.normals.clear();
+    }
+
+    /// Push every candidate node that is inside the tool out to its surface; record the held nodes.
+    /// Fixed nodes are not moved. No allocation beyond capacity, never panics.
+    pub fn project(
+        &mut self,
+        tool: &ToolCollider,
+        position_mm: &Vec3,
+        rotation: &UnitQuaternion<f32>,
+        model: &MassSpringModel,
+        state: &mut TissueState,
+    ) {
+        self.held.clear();
+        self.normals.clear();
+        for &node in &self.candidates {
+            let i = node as usize;
+            if model.is_fixed(i) {
+                continue;
+            }
+            let push_dir = -model.rest_normals()[i];
+            if let Some((surface, normal)) =
+                tool.push_out_along(position_mm, rotation, &state.positions_mm[i], &push_dir)
+            {
+                state.positions_mm[i] = surface;
+                let v = &mut state.velocities_mm_s[i];
+                let against_push = v.dot(&push_dir);
+                if against_push < 0.0 {
+                    *v -= push_dir * against_push;
+                }
+                self.held.push(node);
+                self.normals.push(normal);
+            }
+        }
+    }
+
+    /// Force the tissue exerts on the tool through the held nodes, N. No allocation.
+    pub fn reaction_force_n(&self, model: &MassSpringModel, state: &TissueState) -> Vec3 {
+        let mut force = Vec3::zeros();
+        for (&node, dir) in self.held.iter().zip(&self.normals) {
+            let f = model.node_force(node as usize, &state.positions_mm, &state.velocities_mm_s);
+            let normal = f.dot(dir);
+            if normal < 0.0 {
+                force += dir * normal;
+            }
+        }
+        force
+    }
+}

@@ -1,0 +1,311 @@
+//! The deterministic simulation core: objects, tools, and one fixed-dt step.
+//!
+//! Owns: the per-tick pipeline `tools <- device poses; broad phase; substeps (integrate, push out of tools);
+//! tool reaction forces; refit colliders; fault containment`. Time and dt come in as arguments, so tests run
+//! on virtual time and a recording replays exactly. Must not: touch zenoh, threads or wall-clock time.
+
+use nalgebra::{Quaternion, UnitQuaternion};
+use thiserror::Error;
+
+use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
+use crate::interaction::ProbeContacts;
+use crate::tissue::{Integrator, MassSpringModel, TissueState, Vec3, integrator_for};
+use crate::world::{ToolShapeSpec, World};
+
+/// Why a world could not become a simulation.
+#[derive(Debug, Error)]
+pub enum SimBuildError {
+    /// parry refused an object's surface.
+    #[error("object `{object}`: collision mesh: {message}")]
+    Collider {
+        /// Object name.
+        object: String,
+        /// parry's reason.
+        message: String,
+    },
+}
+
+/// One deformable object in the simulation.
+#[derive(Debug)]
+pub struct SimObject {
+    /// Name from the world file.
+    pub name: String,
+    /// Topology and material.
+    pub model: MassSpringModel,
+    /// Positions and velocities.
+    pub state: TissueState,
+    integrator: Box<dyn Integrator>,
+    collider: SurfaceCollider,
+    marks: NodeMarks,
+    max_dt_s: f32,
+}
+
+impl SimObject {
+    /// The integrator's name.
+    pub fn integrator_name(&self) -> &'static str {
+        self.integrator.name()
+    }
+}
+
+/// One tool in the simulation.
+#[derive(Debug)]
+pub struct SimTool {
+    /// Name from the world file.
+    pub name: String,
+    /// Bound device id.
+    pub device_id: String,
+    /// Shape as specified.
+    pub shape_spec: ToolShapeSpec,
+    collider: ToolCollider,
+    /// Device frame origin in the world, mm.
+    pub device_origin_in_world_mm: Vec3,
+    /// Server-side force limit, N.
+    pub max_force_n: f32,
+    /// Tool origin in the world, mm.
+    pub position_mm: Vec3,
+    /// Tool orientation in the world.
+    pub rotation: UnitQuaternion<f32>,
+    /// A device drives it (released tools do not touch the tissue).
+    pub active: bool,
+    /// One contact set per object.
+    contacts: Vec<ProbeContacts>,
+}
+
+/// What drives a tool this tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToolCommand {
+    /// False releases the tool: it stops touching the tissue.
+    pub active: bool,
+    /// Device position in the device frame, mm.
+    pub position_device_mm: [f32; 3],
+    /// Device orientation, unit quaternion (x, y, z, w).
+    pub orientation_xyzw: [f32; 4],
+}
+
+impl Default for ToolCommand {
+    fn default() -> Self {
+        Self {
+            active: false,
+            position_device_mm: [0.0; 3],
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        }
+    }
+}
+
+/// What a tool felt this tick.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ToolOutput {
+    /// Force the tissue exerts on the tool, world frame, N; finite, clamped to the tool's limit.
+    pub force_world_n: Vec3,
+    /// Tissue nodes held by the tool.
+    pub held_nodes: u32,
+    /// Touches tissue.
+    pub in_contact: bool,
+    /// The raw force exceeded the limit and was scaled down.
+    pub clamped: bool,
+}
+
+/// What happened in one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepReport {
+    /// Integrator substeps run (summed over objects).
+    pub substeps: u32,
+    /// Objects that produced a non-finite state and were reset to rest this step.
+    pub faults: u32,
+    /// Nodes held by all tools.
+    pub held_nodes: u32,
+}
+
+/// The whole simulated scene.
+#[derive(Debug)]
+pub struct Sim {
+    /// Deformable objects, in world-file order.
+    pub objects: Vec<SimObject>,
+    /// Tools, in world-file order.
+    pub tools: Vec<SimTool>,
+    collision_margin_mm: f32,
+    time_s: f64,
+    steps: u64,
+}
+
+impl Sim {
+    /// Build the simulation of a validated world.
+    pub fn new(world: &World) -> Result<Self, SimBuildError> {
+        let mut objects = Vec::with_capacity(world.objects.len());
+        for spec in &world.objects {
+            let model = MassSpringModel::build(spec);
+            let state = TissueState::at_rest(&model);
+            let collider = SurfaceCollider::new(model.rest_positions_mm(), model.triangles()).map_err(|e| {
+                SimBuildError::Collider {
+                    object: spec.name.clone(),
+                    message: format!("{e:?}"),
+                }
+            })?;
+            objects.push(SimObject {
+                name: spec.name.clone(),
+                marks: NodeMarks::new(model.node_count()),
+                integrator: integrator_for(spec.integrator),
+                collider,
+                state,
+                model,
+                max_dt_s: spec.dt_s,
+            });
+        }
+        let tools = world
+            .tools
+            .iter()
+            .map(|spec| SimTool {
+                name: spec.name.clone(),
+                device_id: spec.device_id.clone(),
+                shape_spec: spec.shape,
+                collider: ToolCollider::from_spec(&spec.shape),
+                device_origin_in_world_mm: Vec3::from(spec.device_origin_in_world_mm),
+                max_force_n: spec.max_force_n,
+                position_mm: Vec3::from(spec.device_origin_in_world_mm),
+                rotation: UnitQuaternion::identity(),
+                active: false,
+                contacts: objects
+                    .iter()
+                    .map(|_| ProbeContacts::with_capacity(4096))
+                    .collect(),
+            })
+            .collect();
+        Ok(Self {
+            objects,
+            tools,
+            collision_margin_mm: world.collision_margin_mm,
+            time_s: 0.0,
+            steps: 0,
+        })
+    }
+
+    /// Simulated time, seconds.
+    pub fn time_s(&self) -> f64 {
+        self.time_s
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Advance by `dt_s`. `commands` and `outputs` are indexed like [`Sim::tools`] (shorter slices leave the
+    /// remaining tools released / unreported). Real-time contract: no allocation after the first contacts
+    /// have grown their buffers; never panics; never outputs a non-finite force.
+    pub fn step(&mut self, dt_s: f32, commands: &[ToolCommand], outputs: &mut [ToolOutput]) -> StepReport {
+        let mut report = StepReport::default();
+        self.apply_commands(commands);
+
+        // Broad phase once per tick, on last tick's refitted surfaces, loosened by the margin.
+        let margin = self.collision_margin_mm;
+        for tool in &mut self.tools {
+            for (object, contacts) in self.objects.iter_mut().zip(tool.contacts.iter_mut()) {
+                contacts.clear();
+                if tool.active {
+                    let aabb = tool.collider.aabb(&tool.position_mm, &tool.rotation, margin);
+                    object
+                        .collider
+                        .nodes_near(&aabb, &mut object.marks, &mut contacts.candidates);
+                }
+            }
+        }
+
+        for (o, object) in self.objects.iter_mut().enumerate() {
+            let substeps = (dt_s / object.max_dt_s).ceil().max(1.0) as u32;
+            let h = dt_s / substeps as f32;
+            for _ in 0..substeps {
+                object.integrator.step(&object.model, &mut object.state, h);
+                for tool in self.tools.iter_mut().filter(|t| t.active) {
+                    tool.contacts[o].project(
+                        &tool.collider,
+                        &tool.position_mm,
+                        &tool.rotation,
+                        &object.model,
+                        &mut object.state,
+                    );
+                }
+            }
+            report.substeps += substeps;
+            if !object.state.is_finite() {
+                object.state.reset_to_rest(&object.model);
+                for tool in &mut self.tools {
+                    tool.contacts[o].clear();
+                }
+                report.faults += 1;
+            }
+            object.collider.refit(&object.state.positions_mm);
+        }
+
+        for (t, tool) in self.tools.iter().enumerate() {
+            let mut force = Vec3::zeros();
+            let mut held = 0;
+            for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
+                force += contacts.reaction_force_n(&object.model, &object.state);
+                held += contacts.held.len() as u32;
+            }
+            report.held_nodes += held;
+            if let Some(out) = outputs.get_mut(t) {
+                *out = limit_force(force, tool.max_force_n, held);
+            }
+        }
+        self.time_s += f64::from(dt_s);
+        self.steps += 1;
+        report
+    }
+
+    fn apply_commands(&mut self, commands: &[ToolCommand]) {
+        for (t, tool) in self.tools.iter_mut().enumerate() {
+            let Some(command) = commands.get(t) else {
+                tool.active = false;
+                continue;
+            };
+            let p = command.position_device_mm;
+            let q = command.orientation_xyzw;
+            let finite = p.iter().chain(q.iter()).all(|c| c.is_finite());
+            let norm = q.iter().map(|c| c * c).sum::<f32>().sqrt();
+            if !command.active || !finite || !(norm > 0.5) {
+                tool.active = false;
+                continue;
+            }
+            tool.active = true;
+            tool.position_mm = tool.device_origin_in_world_mm + Vec3::from(p);
+            tool.rotation = UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]));
+        }
+    }
+}
+
+/// Clamp to `max_force_n`, and never pass a non-finite force. Pure.
+fn limit_force(force: Vec3, max_force_n: f32, held: u32) -> ToolOutput {
+    let mut out = ToolOutput {
+        held_nodes: held,
+        in_contact: held > 0,
+        ..ToolOutput::default()
+    };
+    if !force.iter().all(|c| c.is_finite()) {
+        out.clamped = true;
+        return out;
+    }
+    let magnitude = force.norm();
+    if magnitude > max_force_n {
+        out.force_world_n = force * (max_force_n / magnitude);
+        out.clamped = true;
+    } else {
+        out.force_world_n = force;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn limit_force_clamps_and_drops_non_finite() {
+        let out = limit_force(Vec3::new(0.0, 0.0, 10.0), 3.0, 4);
+        assert!((out.force_world_n.norm() - 3.0).abs() < 1e-5 && out.clamped && out.in_contact);
+        let out = limit_force(Vec3::new(f32::NAN, 0.0, 1.0), 3.0, 1);
+        assert_eq!(out.force_world_n, Vec3::zeros());
+        let out = limit_force(Vec3::new(0.0, 1.0, 0.0), 3.0, 0);
+        assert!(!out.clamped && !out.in_contact && out.force_world_n.y == 1.0);
+    }
+}

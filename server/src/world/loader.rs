@@ -1,0 +1,480 @@
+//! Validating a parsed world file into a [`World`]. Each check names the file, the key and the line.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use thiserror::Error;
+use toml::Spanned;
+
+use super::file_format::{
+    FixedSection, IntegratorName, MaterialSection, ObjectSection, ShapeSection, ToolSection, WorldFile,
+};
+use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh};
+
+/// Why a world was refused. The server does not start with a world that fails here.
+#[derive(Debug, Error)]
+pub enum WorldError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {message}")]
+    Read {
+        /// World file.
+        file: PathBuf,
+        /// The I/O error.
+        message: String,
+    },
+    /// TOML syntax, an unknown key, a missing key or a wrong type.
+    #[error("{file}:{line}: {message}")]
+    Syntax {
+        /// World file.
+        file: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What the TOML parser reported (it names the key).
+        message: String,
+    },
+    /// A value out of its domain.
+    #[error("{file}:{line}: `{key}`: {message}")]
+    Invalid {
+        /// World file.
+        file: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// Dotted key, e.g. `objects[0].material.stiffness_n_per_mm`.
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A mesh file that is missing, unreadable or not a valid surface.
+    #[error("{file}:{line}: `{key}` = {mesh:?}: {source}")]
+    Mesh {
+        /// World file.
+        file: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// Dotted key of the mesh entry.
+        key: String,
+        /// Mesh path as written.
+        mesh: String,
+        /// What is wrong with it.
+        source: MeshError,
+    },
+}
+
+/// A validated world: everything the server needs to build the scene.
+#[derive(Debug, Clone)]
+pub struct World {
+    /// The file it came from.
+    pub source: PathBuf,
+    /// Scene name (key segment).
+    pub scene: String,
+    /// Sim tick rate, Hz.
+    pub tick_hz: f64,
+    /// Mesh-delta / tool-state publish rate, Hz.
+    pub publish_hz: f64,
+    /// A device with no pose for this long has its tool released, seconds.
+    pub pose_timeout_s: f64,
+    /// Broad-phase loosening around each tool, mm.
+    pub collision_margin_mm: f32,
+    /// Deformable objects.
+    pub objects: Vec<ObjectSpec>,
+    /// Tools.
+    pub tools: Vec<ToolSpec>,
+}
+
+/// One deformable object.
+#[derive(Debug, Clone)]
+pub struct ObjectSpec {
+    /// Name (key segment).
+    pub name: String,
+    /// Surface, mm.
+    pub mesh: SurfaceMesh,
+    /// Time integrator.
+    pub integrator: IntegratorName,
+    /// Integration step, seconds (the tick is split into substeps of at most this).
+    pub dt_s: f32,
+    /// Quantization bounds are the rest bounding box grown by this, mm.
+    pub quant_margin_mm: f32,
+    /// Material.
+    pub material: MaterialSpec,
+    /// Fixed-node selections.
+    pub fixed: Vec<FixedSelection>,
+}
+
+/// How node masses are given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MassSpec {
+    /// Total mass, distributed by vertex area share.
+    TotalKg(f32),
+    /// Area density: density times thickness, distributed by vertex area share.
+    Density {
+        /// kg/m^3.
+        kg_per_m3: f32,
+        /// Thickness of the sheet, mm.
+        thickness_mm: f32,
+    },
+}
+
+/// Mass-spring material.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MaterialSpec {
+    /// Node masses.
+    pub mass: MassSpec,
+    /// Per-edge spring stiffness, N/mm.
+    pub stiffness_n_per_mm: f32,
+    /// Per-edge damping along the edge, N s/mm.
+    pub damping_n_s_per_mm: f32,
+    /// Spring from each free node to its rest position (the underlying tissue), N/mm.
+    pub anchor_stiffness_n_per_mm: f32,
+    /// Viscous drag on every node, 1/s.
+    pub drag_per_s: f32,
+}
+
+/// A set of fixed nodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FixedSelection {
+    /// Nodes inside the box.
+    Box {
+        /// Lower corner, mm.
+        min_mm: [f32; 3],
+        /// Upper corner, mm.
+        max_mm: [f32; 3],
+    },
+    /// Nodes on or beyond the plane (signed distance along `normal` >= -tolerance).
+    Plane {
+        /// A point of the plane, mm.
+        point_mm: [f32; 3],
+        /// Unit normal pointing to the selected side.
+        normal: [f32; 3],
+        /// Tolerance, mm.
+        tolerance_mm: f32,
+    },
+}
+
+impl FixedSelection {
+    /// Whether the selection contains `p`.
+    pub fn contains(&self, p: [f32; 3]) -> bool {
+        match self {
+            FixedSelection::Box { min_mm, max_mm } => (0..3).all(|a| p[a] >= min_mm[a] && p[a] <= max_mm[a]),
+            FixedSelection::Plane {
+                point_mm,
+                normal,
+                tolerance_mm,
+            } => (0..3).map(|a| (p[a] - point_mm[a]) * normal[a]).sum::<f32>() >= -tolerance_mm,
+        }
+    }
+}
+
+/// A tool's collision shape, mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ToolShapeSpec {
+    /// Ball.
+    Sphere {
+        /// Radius, mm.
+        radius_mm: f32,
+    },
+    /// Capsule along the tool's local z.
+    Capsule {
+        /// Half segment length, mm.
+        half_length_mm: f32,
+        /// Radius, mm.
+        radius_mm: f32,
+    },
+}
+
+/// A tool and the device that drives it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolSpec {
+    /// Name.
+    pub name: String,
+    /// Device id bound to it (key segment).
+    pub device_id: String,
+    /// Collision shape.
+    pub shape: ToolShapeSpec,
+    /// Where the device frame's origin sits in the world, mm (device axes are world axes).
+    pub device_origin_in_world_mm: [f32; 3],
+    /// Largest force the server will ever send for this tool, N (the device's own maximum also applies).
+    pub max_force_n: f32,
+}
+
+/// Read, parse and validate a world file (mesh paths are relative to it).
+pub fn load_world(path: &Path) -> Result<World, WorldError> {
+    let text = std::fs::read_to_string(path).map_err(|e| WorldError::Read {
+        file: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    parse_world(path, &text)
+}
+
+/// Parse and validate world text; `path` names it in errors and anchors relative mesh paths.
+pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
+    let file: WorldFile = toml::from_str(text).map_err(|e| WorldError::Syntax {
+        file: path.to_owned(),
+        line: e.span().map_or(1, |s| line_of(text, s.start)),
+        message: e.message().trim().to_owned(),
+    })?;
+    let cx = Context { path, text };
+    let base = path.parent().unwrap_or(Path::new("."));
+
+    let scene = file.scene.get_ref().clone();
+    if let Err(e) = sinew_protocol::keys::validate_segment("scene", &scene) {
+        return Err(cx.invalid(&file.scene, "scene", e.to_string()));
+    }
+    let tick_hz = *file.sim.tick_hz.get_ref();
+    cx.check(&file.sim.tick_hz, "sim.tick_hz", tick_hz > 0.0 && tick_hz <= 10_000.0, "must be in (0, 10000] Hz")?;
+    let publish_hz = *file.sim.publish_hz.get_ref();
+    cx.check(
+        &file.sim.publish_hz,
+        "sim.publish_hz",
+        publish_hz > 0.0 && publish_hz <= tick_hz,
+        "must be in (0, sim.tick_hz] Hz",
+    )?;
+    let pose_timeout_s = *file.sim.pose_timeout_s.get_ref();
+    cx.check(&file.sim.pose_timeout_s, "sim.pose_timeout_s", pose_timeout_s > 0.0 && pose_timeout_s.is_finite(), "must be positive")?;
+    let margin = *file.collision.margin_mm.get_ref();
+    cx.check(&file.collision.margin_mm, "collision.margin_mm", margin >= 0.0 && margin.is_finite(), "must be >= 0")?;
+
+    if file.objects.is_empty() {
+        return Err(WorldError::Invalid {
+            file: path.to_owned(),
+            line: 1,
+            key: "objects".into(),
+            message: "a world needs at least one [[objects]] entry".into(),
+        });
+    }
+    let tick_dt_s = (1.0 / tick_hz) as f32;
+    let mut objects = Vec::with_capacity(file.objects.len());
+    for (i, object) in file.objects.iter().enumerate() {
+        let spec = cx.object(i, object, base, tick_dt_s)?;
+        if objects.iter().any(|o: &ObjectSpec| o.name == spec.name) {
+            return Err(cx.invalid(&object.name, &format!("objects[{i}].name"), "duplicate object name"));
+        }
+        objects.push(spec);
+    }
+    let mut tools: Vec<ToolSpec> = Vec::with_capacity(file.tools.len());
+    for (i, tool) in file.tools.iter().enumerate() {
+        let spec = cx.tool(i, tool)?;
+        if tools.iter().any(|t| t.name == spec.name) {
+            return Err(cx.invalid(&tool.name, &format!("tools[{i}].name"), "duplicate tool name"));
+        }
+        if tools.iter().any(|t| t.device_id == spec.device_id) {
+            return Err(cx.invalid(&tool.device, &format!("tools[{i}].device"), "device already drives another tool"));
+        }
+        tools.push(spec);
+    }
+    Ok(World {
+        source: path.to_owned(),
+        scene,
+        tick_hz,
+        publish_hz,
+        pose_timeout_s,
+        collision_margin_mm: margin,
+        objects,
+        tools,
+    })
+}
+
+fn line_of(text: &str, byte: usize) -> usize {
+    text.as_bytes()[..byte.min(text.len())].iter().filter(|&&b| b == b'\n').count() + 1
+}
+
+struct Context<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Context<'_> {
+    fn line(&self, span: Range<usize>) -> usize {
+        line_of(self.text, span.start)
+    }
+
+    fn invalid<T>(&self, at: &Spanned<T>, key: &str, message: impl Into<String>) -> WorldError {
+        WorldError::Invalid {
+            file: self.path.to_owned(),
+            line: self.line(at.span()),
+            key: key.to_owned(),
+            message: message.into(),
+        }
+    }
+
+    fn check<T>(&self, at: &Spanned<T>, key: &str, ok: bool, message: &str) -> Result<(), WorldError> {
+        if ok { Ok(()) } else { Err(self.invalid(at, key, message)) }
+    }
+
+    fn positive(&self, at: &Spanned<f32>, key: &str) -> Result<f32, WorldError> {
+        let v = *at.get_ref();
+        self.check(at, key, v.is_finite() && v > 0.0, &format!("must be a positive number (got {v})"))?;
+        Ok(v)
+    }
+
+    fn non_negative(&self, at: &Option<Spanned<f32>>, key: &str) -> Result<f32, WorldError> {
+        let Some(at) = at else { return Ok(0.0) };
+        let v = *at.get_ref();
+        self.check(at, key, v.is_finite() && v >= 0.0, &format!("must be >= 0 (got {v})"))?;
+        Ok(v)
+    }
+
+    fn object(&self, i: usize, object: &ObjectSection, base: &Path, tick_dt_s: f32) -> Result<ObjectSpec, WorldError> {
+        let key = |k: &str| format!("objects[{i}].{k}");
+        let name = object.name.get_ref().clone();
+        if let Err(e) = sinew_protocol::keys::validate_segment("object", &name) {
+            return Err(self.invalid(&object.name, &key("name"), e.to_string()));
+        }
+        let dt_s = self.positive(&object.dt_s, &key("dt_s"))?;
+        self.check(&object.dt_s, &key("dt_s"), dt_s <= tick_dt_s, &format!("must not exceed the tick period {tick_dt_s} s"))?;
+        let quant_margin_mm = self.positive(&object.quant_margin_mm, &key("quant_margin_mm"))?;
+        let material = self.material(i, &object.material)?;
+        let mut fixed = Vec::with_capacity(object.fixed.len());
+        for (f, selection) in object.fixed.iter().enumerate() {
+            fixed.push(self.fixed(&key(&format!("fixed[{f}]")), selection)?);
+        }
+        let mesh_path = base.join(object.mesh.get_ref());
+        let mesh = load_obj_mesh(&mesh_path, object.units.to_mm()).map_err(|source| WorldError::Mesh {
+            file: self.path.to_owned(),
+            line: self.line(object.mesh.span()),
+            key: key("mesh"),
+            mesh: object.mesh.get_ref().clone(),
+            source,
+        })?;
+        let spec = ObjectSpec {
+            name,
+            mesh,
+            integrator: object.integrator,
+            dt_s,
+            quant_margin_mm,
+            material,
+            fixed,
+        };
+        // The integrator must be stable at this dt for this stiffness and mass.
+        let model = crate::tissue::MassSpringModel::build(&spec);
+        let stable_dt_s = model.stable_dt_bound_s();
+        if dt_s > stable_dt_s {
+            return Err(self.invalid(
+                &object.dt_s,
+                &key("dt_s"),
+                format!(
+                    "{dt_s} s is above the stability bound {stable_dt_s:.6} s for {:?} with this stiffness, damping and mass (lower dt_s, or raise mass)",
+                    object.integrator
+                ),
+            ));
+        }
+        if model.free_node_count() == 0 {
+            return Err(self.invalid(&object.name, &key("fixed"), "every node is fixed: nothing can deform"));
+        }
+        Ok(spec)
+    }
+
+    fn material(&self, i: usize, m: &MaterialSection) -> Result<MaterialSpec, WorldError> {
+        let key = |k: &str| format!("objects[{i}].material.{k}");
+        let mass = match (&m.mass_kg, &m.density_kg_per_m3, &m.thickness_mm) {
+            (Some(total), None, None) => MassSpec::TotalKg(self.positive(total, &key("mass_kg"))?),
+            (None, Some(density), Some(thickness)) => MassSpec::Density {
+                kg_per_m3: self.positive(density, &key("density_kg_per_m3"))?,
+                thickness_mm: self.positive(thickness, &key("thickness_mm"))?,
+            },
+            _ => {
+                return Err(self.invalid(
+                    &m.stiffness_n_per_mm,
+                    &key("mass_kg"),
+                    "give either mass_kg, or density_kg_per_m3 with thickness_mm",
+                ));
+            }
+        };
+        let stiffness = self.positive(&m.stiffness_n_per_mm, &key("stiffness_n_per_mm"))?;
+        let damping = *m.damping_n_s_per_mm.get_ref();
+        self.check(
+            &m.damping_n_s_per_mm,
+            &key("damping_n_s_per_mm"),
+            damping.is_finite() && damping >= 0.0,
+            &format!("must be >= 0 (got {damping})"),
+        )?;
+        Ok(MaterialSpec {
+            mass,
+            stiffness_n_per_mm: stiffness,
+            damping_n_s_per_mm: damping,
+            anchor_stiffness_n_per_mm: self.non_negative(&m.anchor_stiffness_n_per_mm, &key("anchor_stiffness_n_per_mm"))?,
+            drag_per_s: self.non_negative(&m.drag_per_s, &key("drag_per_s"))?,
+        })
+    }
+
+    fn fixed(&self, key: &str, selection: &Spanned<FixedSection>) -> Result<FixedSelection, WorldError> {
+        let finite = |v: &[f32]| v.iter().all(|c| c.is_finite());
+        match selection.get_ref() {
+            FixedSection::Box { min_mm, max_mm } => {
+                let ok = finite(min_mm) && finite(max_mm) && (0..3).all(|a| min_mm[a] <= max_mm[a]);
+                self.check(selection, key, ok, "box needs finite min_mm <= max_mm on every axis")?;
+                Ok(FixedSelection::Box {
+                    min_mm: *min_mm,
+                    max_mm: *max_mm,
+                })
+            }
+            FixedSection::Plane {
+                point_mm,
+                normal,
+                tolerance_mm,
+            } => {
+                let len = normal.iter().map(|c| c * c).sum::<f32>().sqrt();
+                let ok = finite(point_mm) && finite(normal) && len > 1e-6 && tolerance_mm.is_finite() && *tolerance_mm >= 0.0;
+                self.check(selection, key, ok, "plane needs a finite point_mm, a non-zero normal and tolerance_mm >= 0")?;
+                Ok(FixedSelection::Plane {
+                    point_mm: *point_mm,
+                    normal: normal.map(|c| c / len),
+                    tolerance_mm: *tolerance_mm,
+                })
+            }
+        }
+    }
+
+    fn tool(&self, i: usize, tool: &ToolSection) -> Result<ToolSpec, WorldError> {
+        let key = |k: &str| format!("tools[{i}].{k}");
+        let device_id = tool.device.get_ref().clone();
+        if let Err(e) = sinew_protocol::keys::validate_segment("device", &device_id) {
+            return Err(self.invalid(&tool.device, &key("device"), e.to_string()));
+        }
+        if tool.name.get_ref().is_empty() {
+            return Err(self.invalid(&tool.name, &key("name"), "empty"));
+        }
+        let dims_ok = |dims: &[f32]| dims.iter().all(|d| d.is_finite() && *d > 0.0);
+        let shape = match tool.shape.get_ref() {
+            ShapeSection::Sphere { radius_mm } => {
+                self.check(&tool.shape, &key("shape"), dims_ok(&[*radius_mm]), "radius_mm must be positive")?;
+                ToolShapeSpec::Sphere { radius_mm: *radius_mm }
+            }
+            ShapeSection::Capsule {
+                half_length_mm,
+                radius_mm,
+            } => {
+                self.check(
+                    &tool.shape,
+                    &key("shape"),
+                    dims_ok(&[*half_length_mm, *radius_mm]),
+                    "half_length_mm and radius_mm must be positive",
+                )?;
+                ToolShapeSpec::Capsule {
+                    half_length_mm: *half_length_mm,
+                    radius_mm: *radius_mm,
+                }
+            }
+            ShapeSection::Mesh { .. } => {
+                return Err(self.invalid(
+                    &tool.shape,
+                    &key("shape"),
+                    "mesh tool shapes are not supported yet: use sphere or capsule",
+                ));
+            }
+        };
+        self.check(
+            &tool.device,
+            &key("device_origin_in_world_mm"),
+            tool.device_origin_in_world_mm.iter().all(|c| c.is_finite()),
+            "must be finite",
+        )?;
+        let max_force_n = self.positive(&tool.max_force_n, &key("max_force_n"))?;
+        Ok(ToolSpec {
+            name: tool.name.get_ref().clone(),
+            device_id,
+            shape,
+            device_origin_in_world_mm: tool.device_origin_in_world_mm,
+            max_force_n,
+        })
+    }
+}

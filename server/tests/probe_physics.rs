@@ -1,0 +1,127 @@
+//! Probing the shipped pad on virtual time: the force points along the pad's outward normal (+z), grows
+//! with depth, stays finite and bounded, and the tissue relaxes when the tool is released.
+
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::world::load_world;
+
+fn pad() -> Sim {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    Sim::new(&load_world(&path).expect("pad world loads")).expect("pad builds")
+}
+
+fn press(depth_mm: f32) -> ToolCommand {
+    press_at(0.0, depth_mm)
+}
+
+/// Press at device x (the left device's origin is world x = -18, the right one's +18).
+fn press_at(x_mm: f32, depth_mm: f32) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        // Sphere radius 4: centre at 4 - depth puts its bottom `depth` below the rest surface.
+        position_device_mm: [x_mm, 0.0, 4.0 - depth_mm],
+        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+    }
+}
+
+/// Lower the tool to `depth` over `ramp_s`, hold for `hold_s`, return the last output.
+fn settle(sim: &mut Sim, commands: &mut [ToolCommand; 2], tool: usize, depth_mm: f32, ramp_s: f32, hold_s: f32) -> ToolOutput {
+    let dt = 0.001;
+    let mut out = [ToolOutput::default(); 2];
+    let start = 4.0 - commands[tool].position_device_mm[2];
+    let ticks = (ramp_s / dt) as usize;
+    for k in 0..ticks {
+        let d = start + (depth_mm - start) * (k + 1) as f32 / ticks as f32;
+        commands[tool] = press_at(commands[tool].position_device_mm[0], d);
+        sim.step(dt, commands, &mut out);
+    }
+    for _ in 0..(hold_s / dt) as usize {
+        let report = sim.step(dt, commands, &mut out);
+        assert_eq!(report.faults, 0);
+    }
+    out[tool]
+}
+
+#[test]
+fn probe_force_points_out_of_the_pad_and_grows_with_depth() {
+    let mut sim = pad();
+    let mut commands = [press(-2.0), press(-2.0)];
+    let mut last = 0.0;
+    for depth in [2.0, 4.0, 6.0] {
+        let out = settle(&mut sim, &mut commands, 0, depth, 0.3, 0.3);
+        let f = out.force_world_n;
+        println!("depth {depth} mm: force {f:?} ({} held nodes)", out.held_nodes);
+        assert!(out.in_contact);
+        assert!(f.z > 0.0 && f.z > 0.95 * f.norm(), "force {f:?} not along +z");
+        assert!(f.z > last * 1.2, "force did not grow with depth: {} then {}", last, f.z);
+        assert!(f.norm() <= 3.3 + 1e-4);
+        last = f.z;
+    }
+    assert!(last > 0.3, "6 mm deep gives only {last} N");
+}
+
+#[test]
+fn a_tool_out_of_contact_feels_nothing() {
+    let mut sim = pad();
+    let mut commands = [press(-2.0), press(-2.0)];
+    let left = settle(&mut sim, &mut commands, 0, 5.0, 0.2, 0.2);
+    commands[1] = press(-16.0);
+    let mut out = [ToolOutput::default(); 2];
+    sim.step(0.001, &commands, &mut out);
+    assert!(left.in_contact);
+    assert_eq!(out[1].force_world_n.norm(), 0.0);
+    assert!(!out[1].in_contact);
+}
+
+#[test]
+fn two_tools_pressing_deform_the_tissue_between_them_with_bounded_forces() {
+    let mut sim = pad();
+    // Tools 12 mm apart (world x = -6 and +6): 4 mm of tissue between the spheres.
+    let mut commands = [press_at(12.0, -2.0), press_at(-12.0, -2.0)];
+    settle(&mut sim, &mut commands, 0, 6.0, 0.3, 0.1);
+    let right = settle(&mut sim, &mut commands, 1, 6.0, 0.3, 0.3);
+    let mut out = [ToolOutput::default(); 2];
+    sim.step(0.001, &commands, &mut out);
+    // The node midway between the tools (world x = 0) sags below the rest plane.
+    let pad = &sim.objects[0];
+    let mid = pad
+        .model
+        .rest_positions_mm()
+        .iter()
+        .position(|p| p.x.abs() < 0.01 && p.y.abs() < 0.01)
+        .unwrap();
+    assert!(pad.state.positions_mm[mid].z < -0.05, "midpoint z {}", pad.state.positions_mm[mid].z);
+    for o in out.iter().chain([&right]) {
+        assert!(o.force_world_n.iter().all(|c| c.is_finite()));
+        assert!(o.force_world_n.norm() <= 3.3 + 1e-4);
+        assert!(o.force_world_n.z > 0.0);
+    }
+}
+
+#[test]
+fn released_tissue_relaxes_to_rest() {
+    let mut sim = pad();
+    let mut commands = [press(-2.0), press(-2.0)];
+    settle(&mut sim, &mut commands, 0, 6.0, 0.2, 0.2);
+    let deepest = |sim: &Sim| sim.objects[0].state.positions_mm.iter().map(|p| -p.z).fold(0.0f32, f32::max);
+    assert!(deepest(&sim) > 4.0);
+    commands[0].active = false;
+    let mut out = [ToolOutput::default(); 2];
+    for _ in 0..1000 {
+        sim.step(0.001, &commands, &mut out);
+    }
+    assert_eq!(out[0].force_world_n.norm(), 0.0);
+    assert!(deepest(&sim) < 0.05, "still {} mm deep after 1 s", deepest(&sim));
+}
+
+#[test]
+fn non_finite_tool_pose_releases_the_tool_instead_of_corrupting_the_tissue() {
+    let mut sim = pad();
+    let mut commands = [press(-2.0), press(-2.0)];
+    settle(&mut sim, &mut commands, 0, 4.0, 0.1, 0.1);
+    commands[0].position_device_mm[2] = f32::NAN;
+    let mut out = [ToolOutput::default(); 2];
+    let report = sim.step(0.001, &commands, &mut out);
+    assert_eq!(report.faults, 0);
+    assert_eq!(out[0].force_world_n.norm(), 0.0);
+    assert!(sim.objects[0].state.is_finite());
+}

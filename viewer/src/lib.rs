@@ -1,0 +1,30 @@
+//! sinew-viewer: a thin client that replicates a Sinew scene from mesh deltas and draws it.
+//!
+//! Owns: the scene replica and its delta rules ([`replica`]), the zenoh client that keeps it in sync
+//! ([`client`], with its shared state machine in `sync_state`), the viewer's counters ([`viewer_stats`]), and
+//! drawing: offscreen PNG ([`render`]) and an interactive window ([`window`]), both through [`scene_view`].
+//!
+//! Must not: depend on the server crate, write to the scene, or run physics. The replica is plain data and is
+//! usable (and tested) without zenoh or a GPU.
+#![warn(missing_docs)]
+
+mod bounded_queue;
+pub mod camera_framing;
+pub mod client;
+pub mod error;
+pub mod network_config;
+mod rate_meter;
+pub mod render;
+pub mod replica;
+pub mod scene_view;
+mod sync_state;
+pub mod viewer_stats;
+pub mod window;
+
+pub use camera_framing::{CameraFraming, frame_replica};
+pub use client::{ViewerClient, ViewerConfig, ViewerHandle};
+pub use error::ViewerError;
+pub use render::{RenderStats, render_image, render_png};
+pub use replica::{DeltaOutcome, ReplicaError, ReplicaObject, SceneReplica};
+pub use viewer_stats::{DecodeErrorCounts, ViewerStats};
+pub use window::{display_available, run_window};

@@ -1,0 +1,54 @@
+//! Turns the shared [`NetworkOptions`] into a zenoh [`zenoh::Config`].
+//!
+//! Owns: the one place the viewer builds a zenoh config (file first, then the option entries on top).
+//! Must not: open a session or pick endpoints of its own; defaults live in `sinew_protocol::network`.
+
+use sinew_protocol::network::NetworkOptions;
+
+use crate::error::ViewerError;
+
+/// A zenoh config from `network`: its config file (if any), overridden by its entries.
+pub fn zenoh_config(network: &NetworkOptions) -> Result<zenoh::Config, ViewerError> {
+    let mut config = match &network.config_file {
+        Some(path) => zenoh::Config::from_file(path).map_err(|e| {
+            ViewerError::zenoh(format!("loading config file {}", path.display()), e)
+        })?,
+        None => zenoh::Config::default(),
+    };
+    for (key, value) in network.config_entries() {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| ViewerError::zenoh(format!("setting `{key}` to {value}"), e))?;
+    }
+    Ok(config)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_client_options_make_a_config() {
+        assert!(zenoh_config(&NetworkOptions::client_default()).is_ok());
+    }
+
+    #[test]
+    fn bad_endpoint_is_a_clear_error() {
+        let options = NetworkOptions {
+            connect: vec!["nonsense".to_owned()],
+            ..NetworkOptions::default()
+        };
+        let err = zenoh_config(&options).unwrap_err().to_string();
+        assert!(err.contains("connect/endpoints"), "{err}");
+    }
+
+    #[test]
+    fn missing_config_file_names_the_file() {
+        let options = NetworkOptions {
+            config_file: Some("/nonexistent/sinew-zenoh.json5".into()),
+            ..NetworkOptions::default()
+        };
+        let err = zenoh_config(&options).unwrap_err().to_string();
+        assert!(err.contains("/nonexistent/sinew-zenoh.json5"), "{err}");
+    }
+}

@@ -1,0 +1,125 @@
+//! Offscreen rendering of a replica to an RGB image or a PNG file, with no display.
+//!
+//! Owns: the offscreen path (kiss3d 0.47 `OffscreenSurface`, which runs on Mesa lavapipe when no GPU exists).
+//! Each call renders on its own short-lived thread `sinew-viewer-render`, because kiss3d keeps its GPU context
+//! in thread-locals and panics (rather than returning an error) when no adapter exists: the thread boundary
+//! turns that panic into [`ViewerError::NoGpuAdapter`] and leaves the caller's thread clean.
+//!
+//! Must not: open a window, talk to zenoh, or hold GPU state between calls.
+
+use std::path::Path;
+use std::time::Instant;
+
+use image::RgbImage;
+use kiss3d::scene::SceneNode3d;
+use kiss3d::window::OffscreenSurface;
+
+use crate::camera_framing::frame_replica;
+use crate::error::ViewerError;
+use crate::replica::SceneReplica;
+use crate::scene_view::{BACKGROUND_RGB, SceneView, add_lights, configure_window, make_camera};
+
+/// Largest accepted image side, pixels.
+const MAX_SIDE_PX: u32 = 16384;
+
+/// What one offscreen render drew.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderStats {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Object meshes drawn.
+    pub objects: usize,
+    /// Triangles drawn over all objects.
+    pub triangles: usize,
+    /// Tools drawn.
+    pub tools: usize,
+    /// Pixels that differ from the background.
+    pub covered_pixels: u64,
+    /// Wall time from surface creation to read-back, milliseconds.
+    pub render_ms: f64,
+}
+
+/// Render `replica` offscreen into a `width` x `height` RGB image (top-left origin).
+pub fn render_image(
+    replica: &SceneReplica,
+    width: u32,
+    height: u32,
+) -> Result<(RgbImage, RenderStats), ViewerError> {
+    if !(1..=MAX_SIDE_PX).contains(&width) || !(1..=MAX_SIDE_PX).contains(&height) {
+        return Err(ViewerError::BadImageSize { width, height });
+    }
+    let name = "sinew-viewer-render";
+    std::thread::scope(|scope| {
+        let thread = std::thread::Builder::new()
+            .name(name.to_owned())
+            .spawn_scoped(scope, || render_on_this_thread(replica, width, height))
+            .map_err(|source| ViewerError::Thread { name, source })?;
+        thread.join().map_err(|payload| {
+            let detail = crate::error::panic_detail(payload.as_ref());
+            if detail.contains("adapter") {
+                ViewerError::NoGpuAdapter { detail }
+            } else {
+                ViewerError::Render(detail)
+            }
+        })
+    })
+}
+
+/// Render `replica` offscreen and write it to `path` as PNG.
+pub fn render_png(
+    replica: &SceneReplica,
+    path: &Path,
+    width: u32,
+    height: u32,
+) -> Result<RenderStats, ViewerError> {
+    let (image, stats) = render_image(replica, width, height)?;
+    image.save(path).map_err(|source| ViewerError::Image {
+        path: path.to_owned(),
+        source,
+    })?;
+    Ok(stats)
+}
+
+/// Count pixels that differ from the background by more than a small tolerance.
+pub fn covered_pixels(image: &RgbImage) -> u64 {
+    image
+        .pixels()
+        .filter(|p| {
+            p.0.iter()
+                .zip(BACKGROUND_RGB)
+                .any(|(&c, b)| c.abs_diff(b) > 6)
+        })
+        .count() as u64
+}
+
+fn render_on_this_thread(replica: &SceneReplica, width: u32, height: u32) -> (RgbImage, RenderStats) {
+    kiss3d::pollster::block_on(async {
+        let started = Instant::now();
+        // The surface first: it installs the thread-local GPU context the nodes below need.
+        let mut surface = OffscreenSurface::new(width, height).await;
+        configure_window(surface.window_mut());
+        let mut scene = SceneNode3d::empty();
+        add_lights(&mut scene);
+        let mut view = SceneView::new();
+        view.sync(&mut scene, replica);
+        let mut camera = make_camera(&frame_replica(replica));
+        let image = surface.render_image_3d(&mut scene, &mut camera).await;
+        let counts = view.counts();
+        let stats = RenderStats {
+            width: image.width(),
+            height: image.height(),
+            objects: counts.objects,
+            triangles: counts.triangles,
+            tools: counts.tools,
+            covered_pixels: covered_pixels(&image),
+            render_ms: started.elapsed().as_secs_f64() * 1e3,
+        };
+        // Nodes before the surface: dropping the surface resets kiss3d's thread-local managers.
+        drop(view);
+        drop(scene);
+        drop(surface);
+        (image, stats)
+    })
+}

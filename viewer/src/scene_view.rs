@@ -1,0 +1,276 @@
+//! kiss3d scene nodes mirroring a [`SceneReplica`]: one mesh per object, one sphere or capsule per tool.
+//!
+//! Owns: the look of the scene (colours, materials, lights, background) and keeping the nodes in step with the
+//! replica: new vertex positions are written into the existing GPU meshes (and normals recomputed) when only
+//! positions moved; the nodes are rebuilt when the layout changed (another snapshot with other objects).
+//!
+//! Must not: create windows or surfaces, or be used from more than one thread. kiss3d keeps its GPU context and
+//! resource managers in thread-locals: the window or offscreen surface must exist, on the calling thread, before
+//! [`SceneView::sync`] creates the first node.
+
+use kiss3d::camera::OrbitCamera3d;
+use kiss3d::color::Color;
+use kiss3d::glamx::{Quat, Vec3};
+use kiss3d::light::Light;
+use kiss3d::scene::SceneNode3d;
+use kiss3d::window::Window;
+use sinew_protocol::{ToolInfo, ToolShape, ToolState};
+
+use crate::camera_framing::{CameraFraming, FIELD_OF_VIEW_RAD};
+use crate::replica::{ReplicaObject, SceneReplica};
+
+/// Background, 8-bit RGB as it appears in the rendered image.
+pub const BACKGROUND_RGB: [u8; 3] = [28, 31, 38];
+/// Soft-tissue pink.
+const TISSUE: Color = Color::new(0.93, 0.56, 0.58, 1.0);
+/// Tool, free.
+const TOOL_STEEL: Color = Color::new(0.62, 0.65, 0.70, 1.0);
+/// Tool touching tissue.
+const TOOL_CONTACT: Color = Color::new(0.90, 0.22, 0.16, 1.0);
+/// Tool with no device bound.
+const TOOL_INACTIVE: Color = Color::new(0.30, 0.31, 0.34, 1.0);
+
+/// Background as a kiss3d colour.
+pub fn background_color() -> Color {
+    let [r, g, b] = BACKGROUND_RGB.map(|c| f32::from(c) / 255.0);
+    Color::new(r, g, b, 1.0)
+}
+
+/// Background, ambient light and shadows for a window or offscreen surface (same `Window` type underneath).
+pub fn configure_window(window: &mut Window) {
+    window.set_background_color(background_color());
+    window.set_ambient(0.35);
+    window.set_shadows_enabled(false);
+}
+
+/// Add the scene's lights (kiss3d has none by default): a key light from above-front-left and a weaker fill
+/// from the other side, both directional so millimetre distances do not matter.
+pub fn add_lights(scene: &mut SceneNode3d) {
+    scene.add_light(
+        Light::directional(Vec3::new(0.35, 0.45, -1.0))
+            .with_intensity(3.0)
+            .with_casts_shadows(false),
+    );
+    scene.add_light(
+        Light::directional(Vec3::new(-0.5, -0.2, -0.6))
+            .with_intensity(1.0)
+            .with_casts_shadows(false),
+    );
+}
+
+/// An orbit camera placed by `framing`, z up.
+pub fn make_camera(framing: &CameraFraming) -> OrbitCamera3d {
+    let mut camera = OrbitCamera3d::new_with_frustum(
+        FIELD_OF_VIEW_RAD,
+        framing.znear_mm,
+        framing.zfar_mm,
+        Vec3::from(framing.eye_mm),
+        Vec3::from(framing.target_mm),
+    );
+    camera.set_up_axis(Vec3::Z);
+    camera.look_at(Vec3::from(framing.eye_mm), Vec3::from(framing.target_mm));
+    camera
+}
+
+/// What a set of nodes was built for; a change means rebuild instead of update.
+#[derive(Debug, Clone, PartialEq)]
+struct Layout {
+    objects: Vec<(String, usize, Vec<[u32; 3]>)>,
+    tools: Vec<ToolInfo>,
+}
+
+impl Layout {
+    fn of(replica: &SceneReplica) -> Self {
+        Self {
+            objects: replica
+                .objects()
+                .iter()
+                .map(|o| (o.name().to_owned(), o.vertex_count(), o.triangles().to_vec()))
+                .collect(),
+            tools: replica.tools().to_vec(),
+        }
+    }
+
+    fn matches(&self, replica: &SceneReplica) -> bool {
+        self.objects.len() == replica.objects().len()
+            && self.tools == replica.tools()
+            && self
+                .objects
+                .iter()
+                .zip(replica.objects())
+                .all(|((name, count, triangles), o)| {
+                    name == o.name() && *count == o.vertex_count() && triangles == o.triangles()
+                })
+    }
+}
+
+struct ToolNode {
+    tool: u16,
+    node: SceneNode3d,
+}
+
+/// The kiss3d nodes of one replica.
+pub struct SceneView {
+    group: Option<SceneNode3d>,
+    objects: Vec<Option<SceneNode3d>>,
+    tools: Vec<ToolNode>,
+    layout: Option<Layout>,
+    revision: Option<u64>,
+    scratch: Vec<Vec3>,
+}
+
+impl Default for SceneView {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What a [`SceneView`] currently draws.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SceneViewCounts {
+    /// Object meshes.
+    pub objects: usize,
+    /// Triangles over all object meshes.
+    pub triangles: usize,
+    /// Tool nodes.
+    pub tools: usize,
+}
+
+impl SceneView {
+    /// No nodes yet.
+    pub fn new() -> Self {
+        Self {
+            group: None,
+            objects: Vec::new(),
+            tools: Vec::new(),
+            layout: None,
+            revision: None,
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Bring the nodes under `scene` in step with `replica`. Cheap when the replica's revision did not move.
+    /// Returns whether the nodes were rebuilt (the caller may want to re-frame the camera).
+    pub fn sync(&mut self, scene: &mut SceneNode3d, replica: &SceneReplica) -> bool {
+        if self.revision == Some(replica.revision()) && self.layout.is_some() {
+            return false;
+        }
+        let rebuild = !self.layout.as_ref().is_some_and(|l| l.matches(replica));
+        if rebuild {
+            self.build(scene, replica);
+        } else {
+            self.update(replica);
+        }
+        self.revision = Some(replica.revision());
+        rebuild
+    }
+
+    /// What is drawn.
+    pub fn counts(&self) -> SceneViewCounts {
+        let layout = self.layout.as_ref();
+        SceneViewCounts {
+            objects: self.objects.iter().flatten().count(),
+            triangles: layout.map_or(0, |l| l.objects.iter().map(|o| o.2.len()).sum()),
+            tools: self.tools.len(),
+        }
+    }
+
+    fn build(&mut self, scene: &mut SceneNode3d, replica: &SceneReplica) {
+        if let Some(mut old) = self.group.take() {
+            old.remove();
+        }
+        let mut group = scene.add_group();
+        self.objects = replica
+            .objects()
+            .iter()
+            .map(|object| add_object_mesh(&mut group, object))
+            .collect();
+        self.tools = replica
+            .tools()
+            .iter()
+            .map(|info| ToolNode {
+                tool: info.tool,
+                node: add_tool_shape(&mut group, info),
+            })
+            .collect();
+        self.group = Some(group);
+        self.layout = Some(Layout::of(replica));
+        self.update_tools(replica);
+    }
+
+    fn update(&mut self, replica: &SceneReplica) {
+        for (node, object) in self.objects.iter_mut().zip(replica.objects()) {
+            let Some(node) = node else { continue };
+            self.scratch.clear();
+            self.scratch
+                .extend(object.positions_mm_iter().map(Vec3::from));
+            let positions = &self.scratch;
+            node.modify_vertices(&mut |coords: &mut Vec<Vec3>| {
+                if coords.len() == positions.len() {
+                    coords.copy_from_slice(positions);
+                }
+            });
+            node.recompute_normals();
+        }
+        self.update_tools(replica);
+    }
+
+    fn update_tools(&mut self, replica: &SceneReplica) {
+        let states = &replica.tool_states().tools;
+        for tool in &mut self.tools {
+            match states.iter().find(|s| s.tool == tool.tool) {
+                Some(state) => place_tool(&mut tool.node, state),
+                None => {
+                    tool.node.set_visible(false);
+                }
+            }
+        }
+    }
+}
+
+/// A mesh node for `object`, or `None` for an object with nothing to draw.
+fn add_object_mesh(group: &mut SceneNode3d, object: &ReplicaObject) -> Option<SceneNode3d> {
+    if object.triangles().is_empty() || object.vertex_count() == 0 {
+        return None;
+    }
+    let vertices: Vec<Vec3> = object.positions_mm_iter().map(Vec3::from).collect();
+    let node = group
+        .add_trimesh(vertices, object.triangles().to_vec(), Vec3::ONE, false)
+        .set_color(TISSUE)
+        .set_roughness(0.65)
+        .set_metallic(0.0)
+        .enable_backface_culling(false);
+    Some(node)
+}
+
+/// A sphere or capsule node for a tool (kiss3d capsules run along local y; Sinew capsules along local z).
+fn add_tool_shape(group: &mut SceneNode3d, info: &ToolInfo) -> SceneNode3d {
+    let mut node = match info.shape {
+        ToolShape::Sphere { radius_mm } => group.add_sphere(radius_mm.max(0.1)),
+        ToolShape::Capsule {
+            half_length_mm,
+            radius_mm,
+        } => group.add_capsule(radius_mm.max(0.1), 2.0 * half_length_mm),
+    };
+    node.set_color(TOOL_STEEL)
+        .set_metallic(0.5)
+        .set_roughness(0.35)
+        .set_visible(false)
+}
+
+fn place_tool(node: &mut SceneNode3d, state: &ToolState) {
+    let [x, y, z, w] = state.orientation_xyzw;
+    let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
+    let tool_from_kiss3d_capsule = Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    let color = if !state.active {
+        TOOL_INACTIVE
+    } else if state.in_contact {
+        TOOL_CONTACT
+    } else {
+        TOOL_STEEL
+    };
+    node.set_position(Vec3::from(state.position_mm))
+        .set_rotation(world_from_tool * tool_from_kiss3d_capsule)
+        .set_color(color)
+        .set_visible(true);
+}

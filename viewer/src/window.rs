@@ -1,0 +1,69 @@
+//! Interactive window: draws the live replica of a running viewer until the window closes.
+//!
+//! Owns: the on-screen render loop (kiss3d 0.47 `Window`, orbit camera: left-drag rotates, right-drag pans,
+//! scroll zooms). Each frame it copies the replica's new positions into the GPU meshes if the replica moved.
+//!
+//! Must not: run anywhere but the process's main thread (winit's rule on Linux), or be called without a
+//! display: kiss3d panics when it cannot open a window, so the display variables are checked first and any
+//! remaining panic is turned into [`ViewerError::Window`].
+
+use std::panic::AssertUnwindSafe;
+
+use kiss3d::scene::SceneNode3d;
+use kiss3d::window::Window;
+
+use crate::camera_framing::frame_replica;
+use crate::client::ViewerHandle;
+use crate::error::{ViewerError, panic_detail};
+use crate::scene_view::{SceneView, add_lights, configure_window, make_camera};
+
+/// Whether a display server is advertised (X11 `DISPLAY` or `WAYLAND_DISPLAY`).
+pub fn display_available() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|var| std::env::var_os(var).is_some_and(|v| !v.is_empty()))
+}
+
+/// Open a `width` x `height` window titled `title` and draw `viewer`'s live replica until the window closes.
+/// Call from the main thread.
+pub fn run_window(
+    viewer: &ViewerHandle,
+    title: &str,
+    width: u32,
+    height: u32,
+) -> Result<(), ViewerError> {
+    if !display_available() {
+        return Err(ViewerError::NoDisplay);
+    }
+    std::panic::catch_unwind(AssertUnwindSafe(|| {
+        kiss3d::pollster::block_on(window_loop(viewer, title, width, height));
+    }))
+    .map_err(|payload| ViewerError::Window(panic_detail(payload.as_ref())))
+}
+
+async fn window_loop(viewer: &ViewerHandle, title: &str, width: u32, height: u32) {
+    // The window first: it installs the thread-local GPU context the nodes below need.
+    let mut window = Window::new_with_size(title, width, height).await;
+    configure_window(&mut window);
+    let mut scene = SceneNode3d::empty();
+    add_lights(&mut scene);
+    let mut view = SceneView::new();
+    let mut camera = make_camera(&viewer.with_replica(frame_replica));
+    let mut framed_on_objects = false;
+    while window.render_3d(&mut scene, &mut camera).await {
+        let (rebuilt, has_objects) = viewer.with_replica(|replica| {
+            (
+                view.sync(&mut scene, replica),
+                !replica.objects().is_empty(),
+            )
+        });
+        // Frame the camera once, when the first snapshot brings objects; then the user drives it.
+        if rebuilt && has_objects && !framed_on_objects {
+            camera = make_camera(&viewer.with_replica(frame_replica));
+            framed_on_objects = true;
+        }
+    }
+    drop(view);
+    drop(scene);
+    drop(window);
+}
