@@ -40,6 +40,18 @@ pub struct DeviceReading {
     pub jaw_angle_rad: f32,
 }
 
+impl DeviceReading {
+    /// Every field is finite (a reading that is not must not be published).
+    pub fn is_finite(&self) -> bool {
+        self.position_mm
+            .iter()
+            .chain(&self.orientation_xyzw)
+            .chain(&self.linear_velocity_mm_s)
+            .chain(std::iter::once(&self.jaw_angle_rad))
+            .all(|c| c.is_finite())
+    }
+}
+
 impl Default for DeviceReading {
     fn default() -> Self {
         Self {

@@ -143,7 +143,7 @@ impl HapticLoop {
 
         // 1. Sense and publish.
         match self.device.read(self.dt_s) {
-            Ok(reading) => {
+            Ok(reading) if reading.is_finite() => {
                 self.pose_seq += 1;
                 let pose = DevicePose {
                     seq: self.pose_seq,
@@ -163,7 +163,8 @@ impl HapticLoop {
                 }
                 self.counters.last_position_mm = reading.position_mm;
             }
-            Err(_) => self.counters.device_read_errors += 1,
+            // A failed or non-finite reading is not published; the force path below still runs.
+            Ok(_) | Err(_) => self.counters.device_read_errors += 1,
         }
 
         // 2. Newest command, and the round trip of the pose it answers.

@@ -165,6 +165,25 @@ mod tests {
     }
 
     #[test]
+    fn follow_tracks_targets_set_from_outside_and_holds_the_last() {
+        let mailbox = std::sync::Arc::new(sinew_protocol::rt::LatestValue::new());
+        let mut device = SimDevice::new(HandScript::Follow(mailbox.clone()));
+        for _ in 0..100 {
+            assert_eq!(device.read(0.001).unwrap().position_mm, [0.0; 3]);
+        }
+        mailbox.store([3.0, -4.0, 5.0]);
+        let mut reading = DeviceReading::default();
+        for _ in 0..500 {
+            reading = device.read(0.001).unwrap();
+        }
+        let p = reading.position_mm;
+        assert!(
+            (p[0] - 3.0).abs() < 0.01 && (p[1] + 4.0).abs() < 0.01 && (p[2] - 5.0).abs() < 0.01,
+            "{p:?}"
+        );
+    }
+
+    #[test]
     fn non_finite_force_is_refused() {
         let mut device = SimDevice::new(HandScript::Hold {
             position_mm: [0.0; 3],

@@ -161,11 +161,12 @@ pub fn decode<M: Message>(bytes: &[u8]) -> Result<M, DecodeError> {
             got: bytes[2],
         });
     }
-    let (msg, rest) =
-        postcard::take_from_bytes::<M>(&bytes[HEADER_LEN..]).map_err(|e| DecodeError::Malformed {
+    let (msg, rest) = postcard::take_from_bytes::<M>(&bytes[HEADER_LEN..]).map_err(|e| {
+        DecodeError::Malformed {
             expected,
             detail: e.to_string(),
-        })?;
+        }
+    })?;
     if !rest.is_empty() {
         return Err(DecodeError::Malformed {
             expected,

@@ -69,7 +69,9 @@ impl SceneKeys {
 
     /// The device id in a pose (or force) key, if `key` is one of this scene's device keys.
     pub fn device_id_of<'k>(&self, key: &'k str) -> Option<&'k str> {
-        let rest = key.strip_prefix(self.prefix.as_str())?.strip_prefix("/device/")?;
+        let rest = key
+            .strip_prefix(self.prefix.as_str())?
+            .strip_prefix("/device/")?;
         let (id, tail) = rest.split_once('/')?;
         (tail == "pose" || tail == "force").then_some(id)
     }
@@ -109,7 +111,11 @@ impl SceneKeys {
     /// `sinew/<scene>/presence/<role>/<id>`: a zenoh liveliness token.
     pub fn presence(&self, role: crate::Role, id: &str) -> Result<String, KeyError> {
         validate_segment("participant", id)?;
-        Ok(format!("{}/presence/{}/{id}", self.prefix, role.key_segment()))
+        Ok(format!(
+            "{}/presence/{}/{id}",
+            self.prefix,
+            role.key_segment()
+        ))
     }
 
     /// Every presence token of one role.

@@ -135,12 +135,11 @@ impl Sim {
         for spec in &world.objects {
             let model = MassSpringModel::build(spec);
             let state = TissueState::at_rest(&model);
-            let collider = SurfaceCollider::new(model.rest_positions_mm(), model.triangles()).map_err(|e| {
-                SimBuildError::Collider {
+            let collider = SurfaceCollider::new(model.rest_positions_mm(), model.triangles())
+                .map_err(|e| SimBuildError::Collider {
                     object: spec.name.clone(),
                     message: format!("{e:?}"),
-                }
-            })?;
+                })?;
             objects.push(SimObject {
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
@@ -192,7 +191,12 @@ impl Sim {
     /// Advance by `dt_s`. `commands` and `outputs` are indexed like [`Sim::tools`] (shorter slices leave the
     /// remaining tools released / unreported). Real-time contract: no allocation after the first contacts
     /// have grown their buffers; never panics; never outputs a non-finite force.
-    pub fn step(&mut self, dt_s: f32, commands: &[ToolCommand], outputs: &mut [ToolOutput]) -> StepReport {
+    pub fn step(
+        &mut self,
+        dt_s: f32,
+        commands: &[ToolCommand],
+        outputs: &mut [ToolOutput],
+    ) -> StepReport {
         let mut report = StepReport::default();
         self.apply_commands(commands);
 
@@ -202,7 +206,9 @@ impl Sim {
             for (object, contacts) in self.objects.iter_mut().zip(tool.contacts.iter_mut()) {
                 contacts.clear();
                 if tool.active {
-                    let aabb = tool.collider.aabb(&tool.position_mm, &tool.rotation, margin);
+                    let aabb = tool
+                        .collider
+                        .aabb(&tool.position_mm, &tool.rotation, margin);
                     object
                         .collider
                         .nodes_near(&aabb, &mut object.marks, &mut contacts.candidates);
@@ -269,7 +275,8 @@ impl Sim {
             }
             tool.active = true;
             tool.position_mm = tool.device_origin_in_world_mm + Vec3::from(p);
-            tool.rotation = UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]));
+            tool.rotation =
+                UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]));
         }
     }
 }

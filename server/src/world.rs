@@ -9,7 +9,7 @@ mod mesh_file;
 
 pub use file_format::{IntegratorName, LengthUnit};
 pub use loader::{
-    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ToolShapeSpec, ToolSpec, World, WorldError, load_world,
-    parse_world,
+    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ToolShapeSpec, ToolSpec, World, WorldError,
+    load_world, parse_world,
 };
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_surface};

@@ -24,7 +24,14 @@ fn press_at(x_mm: f32, depth_mm: f32) -> ToolCommand {
 }
 
 /// Lower the tool to `depth` over `ramp_s`, hold for `hold_s`, return the last output.
-fn settle(sim: &mut Sim, commands: &mut [ToolCommand; 2], tool: usize, depth_mm: f32, ramp_s: f32, hold_s: f32) -> ToolOutput {
+fn settle(
+    sim: &mut Sim,
+    commands: &mut [ToolCommand; 2],
+    tool: usize,
+    depth_mm: f32,
+    ramp_s: f32,
+    hold_s: f32,
+) -> ToolOutput {
     let dt = 0.001;
     let mut out = [ToolOutput::default(); 2];
     let start = 4.0 - commands[tool].position_device_mm[2];
@@ -49,10 +56,21 @@ fn probe_force_points_out_of_the_pad_and_grows_with_depth() {
     for depth in [2.0, 4.0, 6.0] {
         let out = settle(&mut sim, &mut commands, 0, depth, 0.3, 0.3);
         let f = out.force_world_n;
-        println!("depth {depth} mm: force {f:?} ({} held nodes)", out.held_nodes);
+        println!(
+            "depth {depth} mm: force {f:?} ({} held nodes)",
+            out.held_nodes
+        );
         assert!(out.in_contact);
-        assert!(f.z > 0.0 && f.z > 0.95 * f.norm(), "force {f:?} not along +z");
-        assert!(f.z > last * 1.2, "force did not grow with depth: {} then {}", last, f.z);
+        assert!(
+            f.z > 0.0 && f.z > 0.95 * f.norm(),
+            "force {f:?} not along +z"
+        );
+        assert!(
+            f.z > last * 1.2,
+            "force did not grow with depth: {} then {}",
+            last,
+            f.z
+        );
         assert!(f.norm() <= 3.3 + 1e-4);
         last = f.z;
     }
@@ -89,7 +107,11 @@ fn two_tools_pressing_deform_the_tissue_between_them_with_bounded_forces() {
         .iter()
         .position(|p| p.x.abs() < 0.01 && p.y.abs() < 0.01)
         .unwrap();
-    assert!(pad.state.positions_mm[mid].z < -0.05, "midpoint z {}", pad.state.positions_mm[mid].z);
+    assert!(
+        pad.state.positions_mm[mid].z < -0.05,
+        "midpoint z {}",
+        pad.state.positions_mm[mid].z
+    );
     for o in out.iter().chain([&right]) {
         assert!(o.force_world_n.iter().all(|c| c.is_finite()));
         assert!(o.force_world_n.norm() <= 3.3 + 1e-4);
@@ -102,7 +124,14 @@ fn released_tissue_relaxes_to_rest() {
     let mut sim = pad();
     let mut commands = [press(-2.0), press(-2.0)];
     settle(&mut sim, &mut commands, 0, 6.0, 0.2, 0.2);
-    let deepest = |sim: &Sim| sim.objects[0].state.positions_mm.iter().map(|p| -p.z).fold(0.0f32, f32::max);
+    let deepest = |sim: &Sim| {
+        sim.objects[0]
+            .state
+            .positions_mm
+            .iter()
+            .map(|p| -p.z)
+            .fold(0.0f32, f32::max)
+    };
     assert!(deepest(&sim) > 4.0);
     commands[0].active = false;
     let mut out = [ToolOutput::default(); 2];
@@ -110,7 +139,11 @@ fn released_tissue_relaxes_to_rest() {
         sim.step(0.001, &commands, &mut out);
     }
     assert_eq!(out[0].force_world_n.norm(), 0.0);
-    assert!(deepest(&sim) < 0.05, "still {} mm deep after 1 s", deepest(&sim));
+    assert!(
+        deepest(&sim) < 0.05,
+        "still {} mm deep after 1 s",
+        deepest(&sim)
+    );
 }
 
 #[test]

@@ -1,1 +1,10 @@
-//! placeholder
+//! sinew: the system crate. Wires the three roles together for the demo (`sinew demo`) and for the
+//! workspace-level end-to-end tests in `tests/tests/`.
+//!
+//! Owns: [`harness`] (start a server, simulated hapticservers and viewers on a loopback zenoh endpoint, each
+//! with its own real zenoh session, and measure across them) and [`demo`] (the live demo with its per-second
+//! lines and final summary). Must not: contain role logic; everything here calls the role crates' public APIs.
+#![warn(missing_docs)]
+
+pub mod demo;
+pub mod harness;

@@ -76,7 +76,8 @@ pub fn frame_box(min_mm: [f32; 3], max_mm: [f32; 3]) -> CameraFraming {
             .sum::<f32>()
             .sqrt();
     let radius = radius.max(5.0);
-    let distance = radius / (0.5 * FIELD_OF_VIEW_RAD).sin();
+    // The bounding sphere just fits; flat scenes seen at an angle look small at that distance, so come closer.
+    let distance = 0.85 * radius / (0.5 * FIELD_OF_VIEW_RAD).sin();
     // In front (-y) and above (+z), about 50 degrees down.
     let direction = [0.0, -0.64, 0.77];
     let eye_mm = std::array::from_fn(|a| centre[a] + direction[a] * distance);

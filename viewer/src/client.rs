@@ -100,7 +100,9 @@ impl ViewerClient {
             .liveliness()
             .declare_token(&presence_key)
             .wait()
-            .map_err(|e| ViewerError::zenoh(format!("declaring presence token {presence_key}"), e))?;
+            .map_err(|e| {
+                ViewerError::zenoh(format!("declaring presence token {presence_key}"), e)
+            })?;
         handle.token = Some(token);
 
         // Subscribe before the first snapshot query, so no delta published after the snapshot is missed.
@@ -165,7 +167,9 @@ impl ViewerClient {
                 }
             })
             .wait()
-            .map_err(|e| ViewerError::zenoh(format!("watching server presence {servers_key}"), e))?;
+            .map_err(|e| {
+                ViewerError::zenoh(format!("watching server presence {servers_key}"), e)
+            })?;
         handle.subscribers.push(subscriber);
 
         let worker = SyncWorker {
@@ -248,7 +252,10 @@ impl SyncWorker {
             let in_sync = match self.fetch_snapshot() {
                 Ok(snapshot) => {
                     let frame = snapshot.frame;
-                    let in_sync = self.shared.lock().install_snapshot(snapshot, started.elapsed());
+                    let in_sync = self
+                        .shared
+                        .lock()
+                        .install_snapshot(snapshot, started.elapsed());
                     self.shared.snapshot_ready.notify_all();
                     tracing::info!(
                         frame,
@@ -322,7 +329,9 @@ impl SyncWorker {
                     Ok(sample) => {
                         let payload = sample.payload().to_bytes();
                         let decoded = decode::<SceneSnapshot>(&payload);
-                        self.shared.lock().on_snapshot_payload(payload.len(), &decoded);
+                        self.shared
+                            .lock()
+                            .on_snapshot_payload(payload.len(), &decoded);
                         match decoded {
                             Ok(snapshot) => return Ok(snapshot),
                             Err(err) => last_problem = format!("undecodable reply: {err}"),

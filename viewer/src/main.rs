@@ -152,7 +152,11 @@ fn stats_line(stats: &ViewerStats) -> String {
             "waiting for snapshot: queries {} failed {} server {}",
             stats.snapshot_queries,
             stats.snapshot_failures,
-            if stats.server_present { "present" } else { "not seen" }
+            if stats.server_present {
+                "present"
+            } else {
+                "not seen"
+            }
         );
     }
     format!(

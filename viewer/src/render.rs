@@ -14,7 +14,7 @@ use image::RgbImage;
 use kiss3d::scene::SceneNode3d;
 use kiss3d::window::OffscreenSurface;
 
-use crate::camera_framing::frame_replica;
+use crate::camera_framing::{CameraFraming, frame_replica};
 use crate::error::ViewerError;
 use crate::replica::SceneReplica;
 use crate::scene_view::{BACKGROUND_RGB, SceneView, add_lights, configure_window, make_camera};
@@ -41,9 +41,20 @@ pub struct RenderStats {
     pub render_ms: f64,
 }
 
-/// Render `replica` offscreen into a `width` x `height` RGB image (top-left origin).
+/// Render `replica` offscreen into a `width` x `height` RGB image (top-left origin), the camera framed on
+/// everything the replica holds ([`frame_replica`]).
 pub fn render_image(
     replica: &SceneReplica,
+    width: u32,
+    height: u32,
+) -> Result<(RgbImage, RenderStats), ViewerError> {
+    render_image_framed(replica, &frame_replica(replica), width, height)
+}
+
+/// Render `replica` offscreen from a given camera placement (to compare frames from a fixed viewpoint).
+pub fn render_image_framed(
+    replica: &SceneReplica,
+    framing: &CameraFraming,
     width: u32,
     height: u32,
 ) -> Result<(RgbImage, RenderStats), ViewerError> {
@@ -54,7 +65,9 @@ pub fn render_image(
     std::thread::scope(|scope| {
         let thread = std::thread::Builder::new()
             .name(name.to_owned())
-            .spawn_scoped(scope, || render_on_this_thread(replica, width, height))
+            .spawn_scoped(scope, || {
+                render_on_this_thread(replica, framing, width, height)
+            })
             .map_err(|source| ViewerError::Thread { name, source })?;
         thread.join().map_err(|payload| {
             let detail = crate::error::panic_detail(payload.as_ref());
@@ -94,7 +107,12 @@ pub fn covered_pixels(image: &RgbImage) -> u64 {
         .count() as u64
 }
 
-fn render_on_this_thread(replica: &SceneReplica, width: u32, height: u32) -> (RgbImage, RenderStats) {
+fn render_on_this_thread(
+    replica: &SceneReplica,
+    framing: &CameraFraming,
+    width: u32,
+    height: u32,
+) -> (RgbImage, RenderStats) {
     kiss3d::pollster::block_on(async {
         let started = Instant::now();
         // The surface first: it installs the thread-local GPU context the nodes below need.
@@ -104,7 +122,7 @@ fn render_on_this_thread(replica: &SceneReplica, width: u32, height: u32) -> (Rg
         add_lights(&mut scene);
         let mut view = SceneView::new();
         view.sync(&mut scene, replica);
-        let mut camera = make_camera(&frame_replica(replica));
+        let mut camera = make_camera(framing);
         let image = surface.render_image_3d(&mut scene, &mut camera).await;
         let counts = view.counts();
         let stats = RenderStats {

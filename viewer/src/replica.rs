@@ -24,7 +24,9 @@ pub enum DeltaOutcome {
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum ReplicaError {
     /// The delta does not follow the object's frame: something was missed.
-    #[error("gap on object {object}: replica at frame {have_frame}, delta {frame} follows frame {prev_frame}")]
+    #[error(
+        "gap on object {object}: replica at frame {have_frame}, delta {frame} follows frame {prev_frame}"
+    )]
     Gap {
         /// Object index.
         object: u16,
@@ -44,7 +46,9 @@ pub enum ReplicaError {
         objects: usize,
     },
     /// A vertex index past the end of the object's vertices (a protocol error).
-    #[error("delta for object {object} names vertex {index}, but the object has {vertex_count} vertices")]
+    #[error(
+        "delta for object {object} names vertex {index}, but the object has {vertex_count} vertices"
+    )]
     IndexOutOfRange {
         /// Object index.
         object: u16,
@@ -220,13 +224,13 @@ impl SceneReplica {
     /// position is written, so a refused delta changes nothing. Never panics, whatever the delta holds.
     pub fn apply_delta(&mut self, delta: &MeshDelta) -> Result<DeltaOutcome, ReplicaError> {
         let objects = self.objects.len();
-        let object = self
-            .objects
-            .get_mut(usize::from(delta.object))
-            .ok_or(ReplicaError::UnknownObject {
-                object: delta.object,
-                objects,
-            })?;
+        let object =
+            self.objects
+                .get_mut(usize::from(delta.object))
+                .ok_or(ReplicaError::UnknownObject {
+                    object: delta.object,
+                    objects,
+                })?;
         if delta.frame <= object.frame {
             return Ok(DeltaOutcome::Stale);
         }
@@ -361,7 +365,11 @@ impl SceneReplica {
         SceneSnapshot {
             scene: self.scene.clone(),
             frame: self.frame(),
-            objects: self.objects.iter().map(ReplicaObject::to_snapshot).collect(),
+            objects: self
+                .objects
+                .iter()
+                .map(ReplicaObject::to_snapshot)
+                .collect(),
             tools: self.tools.clone(),
             tool_states: self.tool_states.clone(),
         }
@@ -676,12 +684,20 @@ mod tests {
         resnapshot.objects[0].frame = last_delta_frame;
         replica.apply_snapshot(resnapshot);
         assert_eq!(replica.quantized(0), server_q.as_slice());
-        for (replica_mm, truth_mm) in replica.object(0).unwrap().positions_mm_iter().zip(&server_mm) {
+        for (replica_mm, truth_mm) in replica
+            .object(0)
+            .unwrap()
+            .positions_mm_iter()
+            .zip(&server_mm)
+        {
             let err: f32 = (0..3)
                 .map(|a| (replica_mm[a] - truth_mm[a]).powi(2))
                 .sum::<f32>()
                 .sqrt();
-            assert!(err <= BOUNDS.max_error_mm() * 1.001 + 1e-5, "error {err} mm");
+            assert!(
+                err <= BOUNDS.max_error_mm() * 1.001 + 1e-5,
+                "error {err} mm"
+            );
         }
     }
 }

@@ -12,6 +12,7 @@ use kiss3d::camera::OrbitCamera3d;
 use kiss3d::color::Color;
 use kiss3d::glamx::{Quat, Vec3};
 use kiss3d::light::Light;
+use kiss3d::post_processing::Tonemap;
 use kiss3d::scene::SceneNode3d;
 use kiss3d::window::Window;
 use sinew_protocol::{ToolInfo, ToolShape, ToolState};
@@ -22,24 +23,35 @@ use crate::replica::{ReplicaObject, SceneReplica};
 /// Background, 8-bit RGB as it appears in the rendered image.
 pub const BACKGROUND_RGB: [u8; 3] = [28, 31, 38];
 /// Soft-tissue pink.
-const TISSUE: Color = Color::new(0.93, 0.56, 0.58, 1.0);
+const TISSUE: Color = Color::new(0.92, 0.46, 0.50, 1.0);
 /// Tool, free.
 const TOOL_STEEL: Color = Color::new(0.62, 0.65, 0.70, 1.0);
 /// Tool touching tissue.
 const TOOL_CONTACT: Color = Color::new(0.90, 0.22, 0.16, 1.0);
+/// Ambient light level (kiss3d default 0.2).
+const AMBIENT: f32 = 0.15;
+/// Key light intensity (kiss3d default 3.0 saturates the pale tissue colour).
+const KEY_LIGHT_INTENSITY: f32 = 1.5;
+/// Fill light intensity.
+const FILL_LIGHT_INTENSITY: f32 = 0.35;
 /// Tool with no device bound.
 const TOOL_INACTIVE: Color = Color::new(0.30, 0.31, 0.34, 1.0);
 
-/// Background as a kiss3d colour.
+/// Background as a kiss3d clear colour. kiss3d clears its linear HDR film with it and encodes the film with
+/// gamma 2.2 on output (`tonemap_ops.wgsl`), so the value is linearised here to come out as [`BACKGROUND_RGB`].
 pub fn background_color() -> Color {
-    let [r, g, b] = BACKGROUND_RGB.map(|c| f32::from(c) / 255.0);
+    let [r, g, b] = BACKGROUND_RGB.map(|c| (f32::from(c) / 255.0).powf(2.2));
     Color::new(r, g, b, 1.0)
 }
 
-/// Background, ambient light and shadows for a window or offscreen surface (same `Window` type underneath).
+/// Background, ambient light, tonemapping and shadows for a window or offscreen surface (the same `Window`
+/// type underneath). No tonemapping curve: the lights are set so nothing saturates, and the background comes
+/// out exactly as [`BACKGROUND_RGB`].
 pub fn configure_window(window: &mut Window) {
     window.set_background_color(background_color());
-    window.set_ambient(0.35);
+    window.set_ambient(AMBIENT);
+    window.set_tonemap(Tonemap::None);
+    window.set_bloom_enabled(false);
     window.set_shadows_enabled(false);
 }
 
@@ -47,13 +59,13 @@ pub fn configure_window(window: &mut Window) {
 /// from the other side, both directional so millimetre distances do not matter.
 pub fn add_lights(scene: &mut SceneNode3d) {
     scene.add_light(
-        Light::directional(Vec3::new(0.35, 0.45, -1.0))
-            .with_intensity(3.0)
+        Light::directional(Vec3::new(0.6, 0.5, -0.6))
+            .with_intensity(KEY_LIGHT_INTENSITY)
             .with_casts_shadows(false),
     );
     scene.add_light(
         Light::directional(Vec3::new(-0.5, -0.2, -0.6))
-            .with_intensity(1.0)
+            .with_intensity(FILL_LIGHT_INTENSITY)
             .with_casts_shadows(false),
     );
 }
@@ -85,7 +97,13 @@ impl Layout {
             objects: replica
                 .objects()
                 .iter()
-                .map(|o| (o.name().to_owned(), o.vertex_count(), o.triangles().to_vec()))
+                .map(|o| {
+                    (
+                        o.name().to_owned(),
+                        o.vertex_count(),
+                        o.triangles().to_vec(),
+                    )
+                })
                 .collect(),
             tools: replica.tools().to_vec(),
         }
@@ -237,7 +255,7 @@ fn add_object_mesh(group: &mut SceneNode3d, object: &ReplicaObject) -> Option<Sc
     let node = group
         .add_trimesh(vertices, object.triangles().to_vec(), Vec3::ONE, false)
         .set_color(TISSUE)
-        .set_roughness(0.65)
+        .set_roughness(0.9)
         .set_metallic(0.0)
         .enable_backface_culling(false);
     Some(node)

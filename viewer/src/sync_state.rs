@@ -120,7 +120,11 @@ impl SyncState {
     }
 
     /// A tool-state payload arrived (one per server publish frame).
-    pub(crate) fn on_tools(&mut self, payload_len: usize, decoded: Result<ToolStates, DecodeError>) {
+    pub(crate) fn on_tools(
+        &mut self,
+        payload_len: usize,
+        decoded: Result<ToolStates, DecodeError>,
+    ) {
         self.counters.bytes_received += payload_len as u64;
         match decoded {
             Ok(tool_states) => {
@@ -198,7 +202,11 @@ impl SyncState {
 
     /// Install a fetched snapshot and replay the buffered deltas over it. Returns true when the replica is now
     /// in sync; false when the replay revealed a gap or a protocol error (another snapshot is then due).
-    pub(crate) fn install_snapshot(&mut self, snapshot: SceneSnapshot, fetch_time: Duration) -> bool {
+    pub(crate) fn install_snapshot(
+        &mut self,
+        snapshot: SceneSnapshot,
+        fetch_time: Duration,
+    ) -> bool {
         self.replica.apply_snapshot(snapshot);
         self.counters.snapshots_fetched += 1;
         self.fetch_time.record(fetch_time);
@@ -302,7 +310,11 @@ mod tests {
         let mut state = SyncState::new(16);
         assert!(state.needs_snapshot());
         // Published around the snapshot: 9 is folded into it, 11 and 12 follow it.
-        for d in [delta(8, 9, 0, 9), delta(10, 11, 1, 11), delta(11, 12, 2, 12)] {
+        for d in [
+            delta(8, 9, 0, 9),
+            delta(10, 11, 1, 11),
+            delta(11, 12, 2, 12),
+        ] {
             assert!(!state.on_delta(40, Ok(d)));
         }
         assert_eq!(state.stats().deltas_buffered, 3);

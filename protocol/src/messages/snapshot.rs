@@ -2,9 +2,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::tools::ToolStates;
 use crate::codec::{FieldError, Message, MessageKind, check};
 use crate::quantize::QuantBounds;
-use super::tools::ToolStates;
 
 /// A tool's collision shape, millimetres, in the tool frame (capsule axis along local z).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -158,7 +158,10 @@ mod tests {
     #[test]
     fn buckets_are_monotonic_and_cover_extremes() {
         let mut last = 0;
-        for v in (0..1_000_000u64).step_by(37).chain([u64::MAX / 2, u64::MAX]) {
+        for v in (0..1_000_000u64)
+            .step_by(37)
+            .chain([u64::MAX / 2, u64::MAX])
+        {
             let b = bucket_of(v);
             assert!(b >= last && b < BUCKETS);
             last = b;

@@ -20,5 +20,8 @@ pub fn from_parry(v: Vector) -> Vector3<f32> {
 #[inline]
 pub fn pose(translation_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>) -> Pose {
     let q = rotation.quaternion();
-    Pose::from_parts(to_parry(translation_mm), Quat::from_xyzw(q.i, q.j, q.k, q.w))
+    Pose::from_parts(
+        to_parry(translation_mm),
+        Quat::from_xyzw(q.i, q.j, q.k, q.w),
+    )
 }

@@ -59,7 +59,11 @@ impl SurfaceCollider {
     /// Build from positions and triangles (validated beforehand: indices in range).
     pub fn new(positions_mm: &[Vec3], triangles: &[[u32; 3]]) -> Result<Self, TriMeshBuilderError> {
         let vertices: Vec<Vector> = positions_mm.iter().map(to_parry).collect();
-        let mesh = TriMesh::with_flags(vertices.clone(), triangles.to_vec(), TriMeshFlags::DEFORMABLE)?;
+        let mesh = TriMesh::with_flags(
+            vertices.clone(),
+            triangles.to_vec(),
+            TriMeshFlags::DEFORMABLE,
+        )?;
         Ok(Self {
             mesh,
             vertices_scratch: vertices,

@@ -37,8 +37,15 @@ impl ToolCollider {
     }
 
     /// World-space box of the tool at a pose, loosened by `margin_mm`.
-    pub fn aabb(&self, position_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>, margin_mm: f32) -> Aabb {
-        self.shape().compute_aabb(&pose(position_mm, rotation)).loosened(margin_mm)
+    pub fn aabb(
+        &self,
+        position_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        margin_mm: f32,
+    ) -> Aabb {
+        self.shape()
+            .compute_aabb(&pose(position_mm, rotation))
+            .loosened(margin_mm)
     }
 
     /// If `point_mm` is inside the tool, move it along `push_dir` (unit) until it leaves the tool: returns the
@@ -74,7 +81,12 @@ impl ToolCollider {
 
     /// Closest point to `p` on the tool's core (ball centre, capsule segment): both shapes are swept spheres,
     /// so the outward normal at a surface point is the direction from its core point.
-    fn core_point(&self, position_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>, p: &Vector3<f32>) -> Vector3<f32> {
+    fn core_point(
+        &self,
+        position_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        p: &Vector3<f32>,
+    ) -> Vector3<f32> {
         match self {
             ToolCollider::Ball(_) => *position_mm,
             ToolCollider::Capsule(c) => {
@@ -98,14 +110,27 @@ mod tests {
         let centre = Vector3::new(0.0, 0.0, 3.0);
         let q = UnitQuaternion::identity();
         let down = -Vector3::z();
-        let (exit, normal) = tool.push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, 0.0), &down).unwrap();
-        assert!((exit - Vector3::new(0.0, 0.0, -2.0)).norm() < 1e-4, "{exit:?}");
+        let (exit, normal) = tool
+            .push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, 0.0), &down)
+            .unwrap();
+        assert!(
+            (exit - Vector3::new(0.0, 0.0, -2.0)).norm() < 1e-4,
+            "{exit:?}"
+        );
         assert!((normal - down).norm() < 1e-4);
         // Off-axis: exits on the sphere below, normal radial.
-        let (exit, normal) = tool.push_out_along(&centre, &q, &Vector3::new(3.0, 0.0, 0.0), &down).unwrap();
-        assert!((exit - Vector3::new(3.0, 0.0, -1.0)).norm() < 1e-4, "{exit:?}");
+        let (exit, normal) = tool
+            .push_out_along(&centre, &q, &Vector3::new(3.0, 0.0, 0.0), &down)
+            .unwrap();
+        assert!(
+            (exit - Vector3::new(3.0, 0.0, -1.0)).norm() < 1e-4,
+            "{exit:?}"
+        );
         assert!((normal - Vector3::new(0.6, 0.0, -0.8)).norm() < 1e-4);
-        assert!(tool.push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, -2.5), &down).is_none());
+        assert!(
+            tool.push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, -2.5), &down)
+                .is_none()
+        );
     }
 
     #[test]
@@ -120,7 +145,10 @@ mod tests {
         let (exit, normal) = tool
             .push_out_along(&centre, &q, &Vector3::new(5.0, 0.0, 0.0), &-Vector3::z())
             .unwrap();
-        assert!((exit - Vector3::new(5.0, 0.0, -1.0)).norm() < 1e-3, "{exit:?}");
+        assert!(
+            (exit - Vector3::new(5.0, 0.0, -1.0)).norm() < 1e-3,
+            "{exit:?}"
+        );
         assert!((normal + Vector3::z()).norm() < 1e-3, "{normal:?}");
     }
 }

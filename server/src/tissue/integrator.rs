@@ -25,7 +25,11 @@ impl Integrator for SymplecticEuler {
     }
 
     fn step(&mut self, model: &MassSpringModel, state: &mut TissueState, dt_s: f32) {
-        model.compute_forces(&state.positions_mm, &state.velocities_mm_s, &mut state.forces_n);
+        model.compute_forces(
+            &state.positions_mm,
+            &state.velocities_mm_s,
+            &mut state.forces_n,
+        );
         let drag_factor = 1.0 / (1.0 + dt_s * model.drag_per_s());
         for (((x, v), f), &w) in state
             .positions_mm

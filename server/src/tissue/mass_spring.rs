@@ -55,7 +55,10 @@ impl MassSpringModel {
 
         let total_area: f32 = area_share_mm2.iter().sum();
         let mass_kg: Vec<f32> = match spec.material.mass {
-            MassSpec::TotalKg(total) => area_share_mm2.iter().map(|a| total * a / total_area).collect(),
+            MassSpec::TotalKg(total) => area_share_mm2
+                .iter()
+                .map(|a| total * a / total_area)
+                .collect(),
             MassSpec::Density {
                 kg_per_m3,
                 thickness_mm,
@@ -172,9 +175,18 @@ impl MassSpringModel {
 
     /// Internal force on every node (springs, edge dampers, anchors), N, written into `forces_n`.
     /// Real-time contract: no allocation, never panics (a zero-length edge contributes nothing).
-    pub fn compute_forces(&self, positions_mm: &[Vec3], velocities_mm_s: &[Vec3], forces_n: &mut [Vec3]) {
+    pub fn compute_forces(
+        &self,
+        positions_mm: &[Vec3],
+        velocities_mm_s: &[Vec3],
+        forces_n: &mut [Vec3],
+    ) {
         let k_anchor = self.anchor_stiffness_n_per_mm;
-        for ((f, x), rest) in forces_n.iter_mut().zip(positions_mm).zip(&self.rest_positions_mm) {
+        for ((f, x), rest) in forces_n
+            .iter_mut()
+            .zip(positions_mm)
+            .zip(&self.rest_positions_mm)
+        {
             *f = (rest - x) * k_anchor;
         }
         for (e, [a, b]) in self.edges.iter().enumerate() {
@@ -191,7 +203,13 @@ impl MassSpringModel {
         let span = self.node_edge_start[i] as usize..self.node_edge_start[i + 1] as usize;
         for &e in &self.node_edges[span] {
             let [a, b] = self.edges[e as usize];
-            let on_a = self.edge_force_on_a(e as usize, a as usize, b as usize, positions_mm, velocities_mm_s);
+            let on_a = self.edge_force_on_a(
+                e as usize,
+                a as usize,
+                b as usize,
+                positions_mm,
+                velocities_mm_s,
+            );
             f += if a as usize == i { on_a } else { -on_a };
         }
         f

@@ -7,7 +7,8 @@ use thiserror::Error;
 use toml::Spanned;
 
 use super::file_format::{
-    FixedSection, IntegratorName, MaterialSection, ObjectSection, ShapeSection, ToolSection, WorldFile,
+    FixedSection, IntegratorName, MaterialSection, ObjectSection, ShapeSection, ToolSection,
+    WorldFile,
 };
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh};
 
@@ -154,12 +155,19 @@ impl FixedSelection {
     /// Whether the selection contains `p`.
     pub fn contains(&self, p: [f32; 3]) -> bool {
         match self {
-            FixedSelection::Box { min_mm, max_mm } => (0..3).all(|a| p[a] >= min_mm[a] && p[a] <= max_mm[a]),
+            FixedSelection::Box { min_mm, max_mm } => {
+                (0..3).all(|a| p[a] >= min_mm[a] && p[a] <= max_mm[a])
+            }
             FixedSelection::Plane {
                 point_mm,
                 normal,
                 tolerance_mm,
-            } => (0..3).map(|a| (p[a] - point_mm[a]) * normal[a]).sum::<f32>() >= -tolerance_mm,
+            } => {
+                (0..3)
+                    .map(|a| (p[a] - point_mm[a]) * normal[a])
+                    .sum::<f32>()
+                    >= -tolerance_mm
+            }
         }
     }
 }
@@ -220,7 +228,12 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         return Err(cx.invalid(&file.scene, "scene", e.to_string()));
     }
     let tick_hz = *file.sim.tick_hz.get_ref();
-    cx.check(&file.sim.tick_hz, "sim.tick_hz", tick_hz > 0.0 && tick_hz <= 10_000.0, "must be in (0, 10000] Hz")?;
+    cx.check(
+        &file.sim.tick_hz,
+        "sim.tick_hz",
+        tick_hz > 0.0 && tick_hz <= 10_000.0,
+        "must be in (0, 10000] Hz",
+    )?;
     let publish_hz = *file.sim.publish_hz.get_ref();
     cx.check(
         &file.sim.publish_hz,
@@ -229,9 +242,19 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         "must be in (0, sim.tick_hz] Hz",
     )?;
     let pose_timeout_s = *file.sim.pose_timeout_s.get_ref();
-    cx.check(&file.sim.pose_timeout_s, "sim.pose_timeout_s", pose_timeout_s > 0.0 && pose_timeout_s.is_finite(), "must be positive")?;
+    cx.check(
+        &file.sim.pose_timeout_s,
+        "sim.pose_timeout_s",
+        pose_timeout_s > 0.0 && pose_timeout_s.is_finite(),
+        "must be positive",
+    )?;
     let margin = *file.collision.margin_mm.get_ref();
-    cx.check(&file.collision.margin_mm, "collision.margin_mm", margin >= 0.0 && margin.is_finite(), "must be >= 0")?;
+    cx.check(
+        &file.collision.margin_mm,
+        "collision.margin_mm",
+        margin >= 0.0 && margin.is_finite(),
+        "must be >= 0",
+    )?;
 
     if file.objects.is_empty() {
         return Err(WorldError::Invalid {
@@ -246,7 +269,11 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
     for (i, object) in file.objects.iter().enumerate() {
         let spec = cx.object(i, object, base, tick_dt_s)?;
         if objects.iter().any(|o: &ObjectSpec| o.name == spec.name) {
-            return Err(cx.invalid(&object.name, &format!("objects[{i}].name"), "duplicate object name"));
+            return Err(cx.invalid(
+                &object.name,
+                &format!("objects[{i}].name"),
+                "duplicate object name",
+            ));
         }
         objects.push(spec);
     }
@@ -254,10 +281,18 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
     for (i, tool) in file.tools.iter().enumerate() {
         let spec = cx.tool(i, tool)?;
         if tools.iter().any(|t| t.name == spec.name) {
-            return Err(cx.invalid(&tool.name, &format!("tools[{i}].name"), "duplicate tool name"));
+            return Err(cx.invalid(
+                &tool.name,
+                &format!("tools[{i}].name"),
+                "duplicate tool name",
+            ));
         }
         if tools.iter().any(|t| t.device_id == spec.device_id) {
-            return Err(cx.invalid(&tool.device, &format!("tools[{i}].device"), "device already drives another tool"));
+            return Err(cx.invalid(
+                &tool.device,
+                &format!("tools[{i}].device"),
+                "device already drives another tool",
+            ));
         }
         tools.push(spec);
     }
@@ -274,7 +309,11 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
 }
 
 fn line_of(text: &str, byte: usize) -> usize {
-    text.as_bytes()[..byte.min(text.len())].iter().filter(|&&b| b == b'\n').count() + 1
+    text.as_bytes()[..byte.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
 }
 
 struct Context<'a> {
@@ -296,31 +335,62 @@ impl Context<'_> {
         }
     }
 
-    fn check<T>(&self, at: &Spanned<T>, key: &str, ok: bool, message: &str) -> Result<(), WorldError> {
-        if ok { Ok(()) } else { Err(self.invalid(at, key, message)) }
+    fn check<T>(
+        &self,
+        at: &Spanned<T>,
+        key: &str,
+        ok: bool,
+        message: &str,
+    ) -> Result<(), WorldError> {
+        if ok {
+            Ok(())
+        } else {
+            Err(self.invalid(at, key, message))
+        }
     }
 
     fn positive(&self, at: &Spanned<f32>, key: &str) -> Result<f32, WorldError> {
         let v = *at.get_ref();
-        self.check(at, key, v.is_finite() && v > 0.0, &format!("must be a positive number (got {v})"))?;
+        self.check(
+            at,
+            key,
+            v.is_finite() && v > 0.0,
+            &format!("must be a positive number (got {v})"),
+        )?;
         Ok(v)
     }
 
     fn non_negative(&self, at: &Option<Spanned<f32>>, key: &str) -> Result<f32, WorldError> {
         let Some(at) = at else { return Ok(0.0) };
         let v = *at.get_ref();
-        self.check(at, key, v.is_finite() && v >= 0.0, &format!("must be >= 0 (got {v})"))?;
+        self.check(
+            at,
+            key,
+            v.is_finite() && v >= 0.0,
+            &format!("must be >= 0 (got {v})"),
+        )?;
         Ok(v)
     }
 
-    fn object(&self, i: usize, object: &ObjectSection, base: &Path, tick_dt_s: f32) -> Result<ObjectSpec, WorldError> {
+    fn object(
+        &self,
+        i: usize,
+        object: &ObjectSection,
+        base: &Path,
+        tick_dt_s: f32,
+    ) -> Result<ObjectSpec, WorldError> {
         let key = |k: &str| format!("objects[{i}].{k}");
         let name = object.name.get_ref().clone();
         if let Err(e) = sinew_protocol::keys::validate_segment("object", &name) {
             return Err(self.invalid(&object.name, &key("name"), e.to_string()));
         }
         let dt_s = self.positive(&object.dt_s, &key("dt_s"))?;
-        self.check(&object.dt_s, &key("dt_s"), dt_s <= tick_dt_s, &format!("must not exceed the tick period {tick_dt_s} s"))?;
+        self.check(
+            &object.dt_s,
+            &key("dt_s"),
+            dt_s <= tick_dt_s,
+            &format!("must not exceed the tick period {tick_dt_s} s"),
+        )?;
         let quant_margin_mm = self.positive(&object.quant_margin_mm, &key("quant_margin_mm"))?;
         let material = self.material(i, &object.material)?;
         let mut fixed = Vec::with_capacity(object.fixed.len());
@@ -328,13 +398,14 @@ impl Context<'_> {
             fixed.push(self.fixed(&key(&format!("fixed[{f}]")), selection)?);
         }
         let mesh_path = base.join(object.mesh.get_ref());
-        let mesh = load_obj_mesh(&mesh_path, object.units.to_mm()).map_err(|source| WorldError::Mesh {
-            file: self.path.to_owned(),
-            line: self.line(object.mesh.span()),
-            key: key("mesh"),
-            mesh: object.mesh.get_ref().clone(),
-            source,
-        })?;
+        let mesh =
+            load_obj_mesh(&mesh_path, object.units.to_mm()).map_err(|source| WorldError::Mesh {
+                file: self.path.to_owned(),
+                line: self.line(object.mesh.span()),
+                key: key("mesh"),
+                mesh: object.mesh.get_ref().clone(),
+                source,
+            })?;
         let spec = ObjectSpec {
             name,
             mesh,
@@ -358,7 +429,11 @@ impl Context<'_> {
             ));
         }
         if model.free_node_count() == 0 {
-            return Err(self.invalid(&object.name, &key("fixed"), "every node is fixed: nothing can deform"));
+            return Err(self.invalid(
+                &object.name,
+                &key("fixed"),
+                "every node is fixed: nothing can deform",
+            ));
         }
         Ok(spec)
     }
@@ -391,17 +466,29 @@ impl Context<'_> {
             mass,
             stiffness_n_per_mm: stiffness,
             damping_n_s_per_mm: damping,
-            anchor_stiffness_n_per_mm: self.non_negative(&m.anchor_stiffness_n_per_mm, &key("anchor_stiffness_n_per_mm"))?,
+            anchor_stiffness_n_per_mm: self.non_negative(
+                &m.anchor_stiffness_n_per_mm,
+                &key("anchor_stiffness_n_per_mm"),
+            )?,
             drag_per_s: self.non_negative(&m.drag_per_s, &key("drag_per_s"))?,
         })
     }
 
-    fn fixed(&self, key: &str, selection: &Spanned<FixedSection>) -> Result<FixedSelection, WorldError> {
+    fn fixed(
+        &self,
+        key: &str,
+        selection: &Spanned<FixedSection>,
+    ) -> Result<FixedSelection, WorldError> {
         let finite = |v: &[f32]| v.iter().all(|c| c.is_finite());
         match selection.get_ref() {
             FixedSection::Box { min_mm, max_mm } => {
                 let ok = finite(min_mm) && finite(max_mm) && (0..3).all(|a| min_mm[a] <= max_mm[a]);
-                self.check(selection, key, ok, "box needs finite min_mm <= max_mm on every axis")?;
+                self.check(
+                    selection,
+                    key,
+                    ok,
+                    "box needs finite min_mm <= max_mm on every axis",
+                )?;
                 Ok(FixedSelection::Box {
                     min_mm: *min_mm,
                     max_mm: *max_mm,
@@ -413,8 +500,17 @@ impl Context<'_> {
                 tolerance_mm,
             } => {
                 let len = normal.iter().map(|c| c * c).sum::<f32>().sqrt();
-                let ok = finite(point_mm) && finite(normal) && len > 1e-6 && tolerance_mm.is_finite() && *tolerance_mm >= 0.0;
-                self.check(selection, key, ok, "plane needs a finite point_mm, a non-zero normal and tolerance_mm >= 0")?;
+                let ok = finite(point_mm)
+                    && finite(normal)
+                    && len > 1e-6
+                    && tolerance_mm.is_finite()
+                    && *tolerance_mm >= 0.0;
+                self.check(
+                    selection,
+                    key,
+                    ok,
+                    "plane needs a finite point_mm, a non-zero normal and tolerance_mm >= 0",
+                )?;
                 Ok(FixedSelection::Plane {
                     point_mm: *point_mm,
                     normal: normal.map(|c| c / len),
@@ -436,8 +532,15 @@ impl Context<'_> {
         let dims_ok = |dims: &[f32]| dims.iter().all(|d| d.is_finite() && *d > 0.0);
         let shape = match tool.shape.get_ref() {
             ShapeSection::Sphere { radius_mm } => {
-                self.check(&tool.shape, &key("shape"), dims_ok(&[*radius_mm]), "radius_mm must be positive")?;
-                ToolShapeSpec::Sphere { radius_mm: *radius_mm }
+                self.check(
+                    &tool.shape,
+                    &key("shape"),
+                    dims_ok(&[*radius_mm]),
+                    "radius_mm must be positive",
+                )?;
+                ToolShapeSpec::Sphere {
+                    radius_mm: *radius_mm,
+                }
             }
             ShapeSection::Capsule {
                 half_length_mm,

@@ -92,7 +92,10 @@ pub fn validate_surface(mesh: &SurfaceMesh) -> Result<(), MeshError> {
     let n = mesh.positions_mm.len();
     let mut edge_use: HashMap<(u32, u32), usize> = HashMap::with_capacity(mesh.triangles.len() * 2);
     for (t, tri) in mesh.triangles.iter().enumerate() {
-        if tri.iter().any(|&v| v as usize >= n) || tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]
+        if tri.iter().any(|&v| v as usize >= n)
+            || tri[0] == tri[1]
+            || tri[1] == tri[2]
+            || tri[0] == tri[2]
         {
             return Err(MeshError::Degenerate(t));
         }
@@ -130,7 +133,12 @@ mod tests {
 
     fn quad() -> SurfaceMesh {
         SurfaceMesh {
-            positions_mm: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
+            positions_mm: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 0.0],
+            ],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
         }
     }
@@ -153,7 +161,11 @@ mod tests {
         m.triangles.push([0, 2, 4]);
         assert_eq!(
             validate_surface(&m),
-            Err(MeshError::NonManifold { a: 0, b: 2, count: 3 })
+            Err(MeshError::NonManifold {
+                a: 0,
+                b: 2,
+                count: 3
+            })
         );
         let mut m = quad();
         m.positions_mm[3][1] = f32::NAN;

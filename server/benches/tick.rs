@@ -1,0 +1,99 @@
+//! Server tick time for worlds/pad.toml with two tools pressing and stroking, on one core, no network:
+//! p50/p99/max of the whole `Sim::step`, plus a breakdown of its stages (integration substeps, collider
+//! refit) measured separately on the same state.
+//!
+//! Run: `cargo bench -p sinew-server --bench tick` (add `-- --ticks N` to change the count).
+
+use std::time::Instant;
+
+use sinew_protocol::rt::LatencyHistogram;
+use sinew_server::collision::SurfaceCollider;
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::tissue::{Integrator, SymplecticEuler};
+use sinew_server::world::load_world;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let ticks: usize = args
+        .iter()
+        .position(|a| a == "--ticks")
+        .and_then(|i| args.get(i + 1))
+        .map_or(Ok(20_000), |s| s.parse())?;
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let world = load_world(&path)?;
+    let mut sim = Sim::new(&world)?;
+    let dt_s = (1.0 / world.tick_hz) as f32;
+    let model = &sim.objects[0].model;
+    println!(
+        "pad: {} nodes, {} edges, {} triangles, integrator {}, dt {} s, tick {} s",
+        model.node_count(),
+        model.edge_count(),
+        model.triangles().len(),
+        sim.objects[0].integrator_name(),
+        world.objects[0].dt_s,
+        dt_s
+    );
+
+    let mut outputs = [ToolOutput::default(); 2];
+    let mut tick = LatencyHistogram::new();
+    let mut held = 0u64;
+    for k in 0..ticks {
+        // Both probes press 5 mm and stroke +-8 mm along x with a 2 s period (after a 0.5 s descent).
+        let t = k as f32 * dt_s;
+        let depth = (t / 0.5).min(1.0) * 5.0;
+        let stroke = if t > 0.5 {
+            8.0 * (std::f32::consts::TAU * (t - 0.5) / 2.0).sin()
+        } else {
+            0.0
+        };
+        let commands = [
+            ToolCommand {
+                active: true,
+                position_device_mm: [stroke, 0.0, 4.0 - depth],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            },
+            ToolCommand {
+                active: true,
+                position_device_mm: [-stroke, 5.0, 4.0 - depth],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            },
+        ];
+        let start = Instant::now();
+        let report = sim.step(dt_s, &commands, &mut outputs);
+        tick.record(start.elapsed());
+        held += u64::from(report.held_nodes);
+    }
+    let us = |h: &LatencyHistogram, p: f64| h.percentile_ns(p) as f64 / 1000.0;
+    println!(
+        "full tick (2 tools pressing+stroking): p50 {:.0} us  p99 {:.0} us  max {:.0} us  over {ticks} ticks, mean held nodes {:.0}",
+        us(&tick, 50.0),
+        us(&tick, 99.0),
+        tick.max_ns() as f64 / 1000.0,
+        held as f64 / ticks as f64
+    );
+
+    // Stage breakdown on the deformed state.
+    let object = &mut sim.objects[0];
+    let mut integrate = LatencyHistogram::new();
+    let mut refit = LatencyHistogram::new();
+    let mut integrator = SymplecticEuler;
+    let mut collider = SurfaceCollider::new(&object.state.positions_mm, object.model.triangles())
+        .map_err(|e| format!("{e:?}"))?;
+    let h = world.objects[0].dt_s;
+    for _ in 0..5_000 {
+        let start = Instant::now();
+        integrator.step(&object.model, &mut object.state, h);
+        integrate.record(start.elapsed());
+        let start = Instant::now();
+        collider.refit(&object.state.positions_mm);
+        refit.record(start.elapsed());
+    }
+    println!(
+        "stages: one symplectic-Euler substep p50 {:.0} us p99 {:.0} us; TriMesh refit p50 {:.0} us p99 {:.0} us",
+        us(&integrate, 50.0),
+        us(&integrate, 99.0),
+        us(&refit, 50.0),
+        us(&refit, 99.0)
+    );
+    Ok(())
+}

@@ -1,0 +1,104 @@
+//! `sinew-server`: load a world, serve it over zenoh. A thin shell over [`sinew_server::node`].
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use clap::Parser;
+use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
+use sinew_server::node::{ServerConfig, ServerNode};
+use sinew_server::world::load_world;
+
+/// The authoritative Sinew simulation: soft tissue, tools, forces, replication.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Args {
+    /// World description (TOML).
+    #[arg(long, default_value = "worlds/pad.toml")]
+    world: PathBuf,
+    /// zenoh endpoint to listen on (repeatable).
+    #[arg(long, default_values_t = [DEFAULT_ENDPOINT.to_string()])]
+    listen: Vec<String>,
+    /// zenoh endpoint to connect to, e.g. a zenohd router (repeatable).
+    #[arg(long)]
+    connect: Vec<String>,
+    /// zenoh config file (JSON5); --listen/--connect override its endpoints.
+    #[arg(long)]
+    zenoh_config: Option<PathBuf>,
+    /// zenoh mode: peer (default) or client.
+    #[arg(long)]
+    mode: Option<String>,
+    /// Stop after this many seconds (default: run until killed).
+    #[arg(long)]
+    duration_s: Option<f64>,
+    /// Participant id of this server.
+    #[arg(long, default_value = "server")]
+    id: String,
+}
+
+fn main() -> anyhow::Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .init();
+    let args = Args::parse();
+    let world = load_world(&args.world).context("the server refuses to start with this world")?;
+    println!(
+        "world {}: scene `{}`, {} object(s), {} tool(s), tick {} Hz",
+        args.world.display(),
+        world.scene,
+        world.objects.len(),
+        world.tools.len(),
+        world.tick_hz
+    );
+    let config = ServerConfig {
+        network: NetworkOptions {
+            config_file: args.zenoh_config,
+            listen: args.listen,
+            connect: args.connect,
+            mode: args.mode,
+        },
+        server_id: args.id,
+        ..ServerConfig::default()
+    };
+    let mut server = ServerNode::start(world, config).context("starting the server")?;
+    let started = Instant::now();
+    loop {
+        std::thread::sleep(Duration::from_secs(1));
+        let s = server.stats();
+        let devices: Vec<String> = s
+            .devices
+            .iter()
+            .map(|d| {
+                format!(
+                    "{}:{} rtt {} us max {:.2} N",
+                    d.device_id,
+                    if d.active { "on" } else { "off" },
+                    d.last_round_trip_us,
+                    d.max_force_n
+                )
+            })
+            .collect();
+        println!(
+            "t {:6.1} s  ticks {:7}  tick p50 {:5.0} us p99 {:5.0} us  overruns {}  deltas {} ({} B)  rejected {}  [{}]",
+            s.sim_time_s,
+            s.ticks,
+            s.tick_p50_us,
+            s.tick_p99_us,
+            s.overruns,
+            s.deltas_sent,
+            s.delta_bytes_sent,
+            s.rejected.total(),
+            devices.join(", ")
+        );
+        if args
+            .duration_s
+            .is_some_and(|d| started.elapsed().as_secs_f64() >= d)
+        {
+            break;
+        }
+    }
+    server.stop();
+    Ok(())
+}

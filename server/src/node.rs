@@ -1,0 +1,201 @@
+//! The server process's wiring: zenoh session, inbound callbacks, the 1 kHz sim thread, the publish thread.
+//!
+//! Threads:
+//! - `sinew-sim` (dedicated, 1 kHz, spin_sleep paced): newest pose per device from latest-value mailboxes ->
+//!   [`crate::sim::Sim::step`] -> one [`sinew_protocol::ForceCommand`] per bound device. No locks held across
+//!   a tick (only `try_lock` hand-offs), no logging in the tick.
+//! - `sinew-publish` (~60 Hz): mesh deltas of changed vertices, tool states, stats at 1 Hz.
+//! - zenoh's own threads run the callbacks: decode, count rejects, store into mailboxes; the snapshot
+//!   queryable answers from the publish thread's replication state.
+//!
+//! Must not: do physics here (that is [`crate::sim`]).
+
+mod device_slots;
+mod frame_exchange;
+mod inbound;
+mod publish_loop;
+mod session;
+mod sim_loop;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+
+use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::{Role, ServerStats, keys::SceneKeys};
+use thiserror::Error;
+use zenoh::Wait;
+
+pub use device_slots::{DeviceSlot, DeviceSlots};
+pub use frame_exchange::FrameExchange;
+pub use publish_loop::ReplicationState;
+pub use session::open_session;
+pub use sim_loop::SimReport;
+
+use crate::sim::Sim;
+use crate::world::World;
+
+/// Why the server could not start.
+#[derive(Debug, Error)]
+pub enum ServerError {
+    /// The world could not become a simulation.
+    #[error(transparent)]
+    Build(#[from] crate::sim::SimBuildError),
+    /// A zenoh operation failed.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    /// An id cannot be a key segment.
+    #[error(transparent)]
+    Key(#[from] sinew_protocol::keys::KeyError),
+    /// A thread could not be spawned.
+    #[error("spawning thread: {0}")]
+    Thread(String),
+}
+
+impl From<zenoh::Error> for ServerError {
+    fn from(e: zenoh::Error) -> Self {
+        ServerError::Zenoh(e.to_string())
+    }
+}
+
+/// How to run the server.
+#[derive(Debug, Clone)]
+pub struct ServerConfig {
+    /// zenoh endpoints (default: peer, listen on tcp/127.0.0.1:7447, no multicast scouting).
+    pub network: NetworkOptions,
+    /// Participant id for the presence token.
+    pub server_id: String,
+    /// spin_sleep native accuracy for the sim thread, ns (0 = plain sleep; tests share two cores).
+    pub spin_native_accuracy_ns: u32,
+}
+
+impl Default for ServerConfig {
+    fn default() -> Self {
+        Self {
+            network: NetworkOptions::server_default(),
+            server_id: "server".into(),
+            spin_native_accuracy_ns: 100_000,
+        }
+    }
+}
+
+/// State shared between the threads and callbacks of one server.
+#[derive(Debug)]
+pub(crate) struct Shared {
+    pub(crate) world: World,
+    pub(crate) keys: SceneKeys,
+    pub(crate) slots: DeviceSlots,
+    pub(crate) frames: FrameExchange,
+    pub(crate) replication: std::sync::Mutex<ReplicationState>,
+    pub(crate) report: std::sync::Mutex<SimReport>,
+    pub(crate) rejects: inbound::RejectCounters,
+    pub(crate) stop: AtomicBool,
+}
+
+/// Starts a server.
+#[derive(Debug)]
+pub struct ServerNode;
+
+impl ServerNode {
+    /// Build the sim, open zenoh, declare everything, start the threads.
+    pub fn start(world: World, config: ServerConfig) -> Result<ServerHandle, ServerError> {
+        let sim = Sim::new(&world)?;
+        let keys = SceneKeys::new(&world.scene)?;
+        let session = open_session(&config.network)?;
+        let shared = Arc::new(Shared {
+            keys: keys.clone(),
+            slots: DeviceSlots::new(&sim),
+            frames: FrameExchange::new(&sim),
+            replication: std::sync::Mutex::new(ReplicationState::new(&world, &sim)),
+            report: std::sync::Mutex::new(SimReport::new(sim.tools.len())),
+            rejects: inbound::RejectCounters::default(),
+            stop: AtomicBool::new(false),
+            world,
+        });
+        let token = session
+            .liveliness()
+            .declare_token(keys.presence(Role::Server, &config.server_id)?)
+            .wait()?;
+        let inbound = inbound::declare(&session, &shared)?;
+        let sim_thread = sim_loop::spawn(
+            &session,
+            shared.clone(),
+            sim,
+            config.spin_native_accuracy_ns,
+        )?;
+        let publish_thread = publish_loop::spawn(&session, shared.clone())?;
+        Ok(ServerHandle {
+            shared,
+            session,
+            threads: vec![sim_thread, publish_thread],
+            _inbound: inbound,
+            _token: token,
+        })
+    }
+}
+
+/// A running server. Dropping it stops the threads and closes the session.
+pub struct ServerHandle {
+    shared: Arc<Shared>,
+    session: zenoh::Session,
+    threads: Vec<JoinHandle<()>>,
+    _inbound: inbound::Inbound,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+impl std::fmt::Debug for ServerHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ServerHandle")
+            .field("scene", &self.shared.world.scene)
+            .finish()
+    }
+}
+
+impl ServerHandle {
+    /// Current stats (the same content the 1 Hz stats message carries).
+    pub fn stats(&self) -> ServerStats {
+        publish_loop::build_stats(&self.shared)
+    }
+
+    /// The scene name.
+    pub fn scene(&self) -> &str {
+        &self.shared.world.scene
+    }
+
+    /// For object `object`: the frame of its last published delta, and the true (unquantized) positions at
+    /// that frame, mm. What a replica holding that frame should match within the quantum.
+    pub fn published_positions(&self, object: usize) -> Option<(u64, Vec<[f32; 3]>)> {
+        let replication = self.shared.replication.lock().ok()?;
+        let o = replication.objects.get(object)?;
+        Some((o.last_frame(), o.sent_true_mm().to_vec()))
+    }
+
+    /// The worst-case replica error for `object`, mm (half a quantum along the diagonal).
+    pub fn quantum_error_mm(&self, object: usize) -> Option<f32> {
+        let replication = self.shared.replication.lock().ok()?;
+        replication
+            .objects
+            .get(object)
+            .map(|o| o.bounds().max_error_mm())
+    }
+
+    /// The latest sim positions handed to the publisher, mm (for tests and diagnostics).
+    pub fn latest_positions(&self, object: usize) -> Option<Vec<[f32; 3]>> {
+        self.shared.frames.latest_positions(object)
+    }
+
+    /// Stop the threads, then close the session. Idempotent.
+    pub fn stop(&mut self) {
+        self.shared.stop.store(true, Ordering::Release);
+        for thread in self.threads.drain(..) {
+            let _ = thread.join();
+        }
+        let _ = self.session.close().wait();
+    }
+}
+
+impl Drop for ServerHandle {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}

@@ -1,0 +1,100 @@
+//! The sim thread's hand-off of a frame (positions, tool states) to the publish thread.
+
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use sinew_protocol::ToolState;
+
+use crate::sim::{Sim, ToolOutput};
+
+/// One frame of the scene as the sim left it.
+#[derive(Debug, Clone)]
+pub struct FrameData {
+    /// Sim ticks at capture.
+    pub tick: u64,
+    /// Simulated time, s.
+    pub sim_time_s: f64,
+    /// Positions per object, mm.
+    pub positions_mm: Vec<Vec<crate::tissue::Vec3>>,
+    /// Tool states, tool order.
+    pub tools: Vec<ToolState>,
+}
+
+/// A single-slot exchange: the sim thread `try_offer`s (never blocks), the publisher `take`s.
+#[derive(Debug)]
+pub struct FrameExchange {
+    slot: Mutex<FrameData>,
+    offered: AtomicU64,
+}
+
+impl FrameExchange {
+    /// Buffers sized for `sim`.
+    pub fn new(sim: &Sim) -> Self {
+        Self {
+            slot: Mutex::new(FrameData {
+                tick: 0,
+                sim_time_s: 0.0,
+                positions_mm: sim
+                    .objects
+                    .iter()
+                    .map(|o| o.state.positions_mm.clone())
+                    .collect(),
+                tools: vec![ToolState::default(); sim.tools.len()],
+            }),
+            offered: AtomicU64::new(0),
+        }
+    }
+
+    /// Copy the sim's current frame in. Returns false (nothing written) if the publisher holds the slot.
+    /// Real-time contract: never blocks, no allocation.
+    pub fn try_offer(&self, sim: &Sim, outputs: &[ToolOutput]) -> bool {
+        let Ok(mut frame) = self.slot.try_lock() else {
+            return false;
+        };
+        frame.tick = sim.steps();
+        frame.sim_time_s = sim.time_s();
+        for (dst, object) in frame.positions_mm.iter_mut().zip(&sim.objects) {
+            dst.copy_from_slice(&object.state.positions_mm);
+        }
+        for (t, (dst, tool)) in frame.tools.iter_mut().zip(&sim.tools).enumerate() {
+            let q = tool.rotation.quaternion();
+            let out = outputs.get(t).copied().unwrap_or_default();
+            *dst = ToolState {
+                tool: t as u16,
+                position_mm: [tool.position_mm.x, tool.position_mm.y, tool.position_mm.z],
+                orientation_xyzw: [q.i, q.j, q.k, q.w],
+                force_n: [
+                    out.force_world_n.x,
+                    out.force_world_n.y,
+                    out.force_world_n.z,
+                ],
+                active: tool.active,
+                in_contact: out.in_contact,
+            };
+        }
+        drop(frame);
+        self.offered.fetch_add(1, Ordering::Release);
+        true
+    }
+
+    /// Frames offered so far.
+    pub fn offered(&self) -> u64 {
+        self.offered.load(Ordering::Acquire)
+    }
+
+    /// Run `f` on the current frame (blocks the sim's next offer meanwhile, never the sim itself).
+    pub fn with_frame<R>(&self, f: impl FnOnce(&FrameData) -> R) -> Option<R> {
+        self.slot.lock().ok().map(|frame| f(&frame))
+    }
+
+    /// Copy of one object's latest positions, mm.
+    pub fn latest_positions(&self, object: usize) -> Option<Vec<[f32; 3]>> {
+        self.with_frame(|frame| {
+            frame
+                .positions_mm
+                .get(object)
+                .map(|ps| ps.iter().map(|p| [p.x, p.y, p.z]).collect())
+        })
+        .flatten()
+    }
+}

@@ -1,0 +1,272 @@
+//! The ~60 Hz publish thread: mesh deltas, tool states, stats; and the snapshot queryable it feeds.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use sinew_protocol::codec::encode_to_vec;
+use sinew_protocol::rt::Pacer;
+use sinew_protocol::{
+    DeviceStats, MeshDelta, SceneSnapshot, ServerStats, ToolInfo, ToolShape, ToolStates, encode,
+};
+use zenoh::Wait;
+use zenoh::qos::CongestionControl;
+
+use super::{ServerError, Shared};
+use crate::replication::ObjectReplication;
+use crate::sim::Sim;
+use crate::tissue::Vec3;
+use crate::world::{ToolShapeSpec, World};
+
+/// What has been replicated: per-object quantized state, tool states, counters. Guarded by a mutex shared
+/// by the publish thread and the snapshot queryable (never by the sim thread).
+#[derive(Debug)]
+pub struct ReplicationState {
+    /// Per object.
+    pub objects: Vec<ObjectReplication>,
+    /// Static tool descriptions.
+    pub tools: Vec<ToolInfo>,
+    /// Last publish frame.
+    pub frame: u64,
+    /// Last tool states published.
+    pub tool_states: ToolStates,
+    /// Mesh delta messages sent.
+    pub deltas_sent: u64,
+    /// Mesh delta bytes sent (encoded payloads).
+    pub delta_bytes: u64,
+    /// Bytes that whole-mesh messages would have taken at the same frames (positions only).
+    pub full_mesh_bytes: u64,
+    /// Snapshots served.
+    pub snapshots_served: u64,
+}
+
+impl ReplicationState {
+    /// Initial state: rest positions, frame 0.
+    pub fn new(world: &World, sim: &Sim) -> Self {
+        let objects = world
+            .objects
+            .iter()
+            .zip(&sim.objects)
+            .map(|(spec, o)| {
+                ObjectReplication::new(
+                    &o.name,
+                    o.model.rest_positions_mm(),
+                    o.model.triangles(),
+                    spec.quant_margin_mm,
+                )
+            })
+            .collect();
+        let tools = sim
+            .tools
+            .iter()
+            .enumerate()
+            .map(|(t, tool)| ToolInfo {
+                tool: t as u16,
+                name: tool.name.clone(),
+                device_id: tool.device_id.clone(),
+                shape: match tool.shape_spec {
+                    ToolShapeSpec::Sphere { radius_mm } => ToolShape::Sphere { radius_mm },
+                    ToolShapeSpec::Capsule {
+                        half_length_mm,
+                        radius_mm,
+                    } => ToolShape::Capsule {
+                        half_length_mm,
+                        radius_mm,
+                    },
+                },
+            })
+            .collect();
+        Self {
+            objects,
+            tools,
+            frame: 0,
+            tool_states: ToolStates::default(),
+            deltas_sent: 0,
+            delta_bytes: 0,
+            full_mesh_bytes: 0,
+            snapshots_served: 0,
+        }
+    }
+
+    /// The whole replicated scene.
+    pub fn snapshot(&self, scene: &str) -> SceneSnapshot {
+        SceneSnapshot {
+            scene: scene.to_owned(),
+            frame: self.frame,
+            objects: self
+                .objects
+                .iter()
+                .enumerate()
+                .map(|(i, o)| o.snapshot(i as u16))
+                .collect(),
+            tools: self.tools.clone(),
+            tool_states: self.tool_states.clone(),
+        }
+    }
+}
+
+/// Stats as published: sim report, replication counters, device slots, rejects.
+pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
+    let mut stats = ServerStats {
+        rejected: shared.rejects.snapshot(),
+        ..ServerStats::default()
+    };
+    if let Ok(report) = shared.report.lock() {
+        stats.sim_time_s = report.sim_time_s;
+        stats.ticks = report.ticks;
+        stats.tick_p50_us = report.tick_time.percentile_us(50.0);
+        stats.tick_p99_us = report.tick_time.percentile_us(99.0);
+        stats.tick_max_us = report.tick_time.max_ns() as f32 / 1000.0;
+        stats.overruns = report.overruns;
+        stats.sim_faults = report.faults;
+        stats.devices = shared
+            .slots
+            .iter()
+            .zip(&report.devices)
+            .map(|(slot, d)| DeviceStats {
+                device_id: slot.device_id.clone(),
+                active: d.active,
+                poses_received: slot.poses_received.load(Ordering::Relaxed),
+                forces_sent: d.forces_sent,
+                last_round_trip_us: d.last_round_trip_us,
+                max_force_n: d.max_force_n,
+            })
+            .collect();
+    }
+    if let Ok(replication) = shared.replication.lock() {
+        stats.deltas_sent = replication.deltas_sent;
+        stats.delta_bytes_sent = replication.delta_bytes;
+    }
+    stats
+}
+
+pub(super) fn spawn(
+    session: &zenoh::Session,
+    shared: Arc<Shared>,
+) -> Result<JoinHandle<()>, ServerError> {
+    let mut delta_publishers = Vec::new();
+    if let Ok(replication) = shared.replication.lock() {
+        for object in &replication.objects {
+            delta_publishers.push(
+                session
+                    .declare_publisher(shared.keys.mesh_delta(object.name())?)
+                    .congestion_control(CongestionControl::Block)
+                    .wait()?,
+            );
+        }
+    }
+    let tools_publisher = session
+        .declare_publisher(shared.keys.tools())
+        .congestion_control(CongestionControl::Drop)
+        .wait()?;
+    let stats_publisher = session.declare_publisher(shared.keys.stats()).wait()?;
+    let s = shared.clone();
+    let queryable = session
+        .declare_queryable(shared.keys.snapshot())
+        .callback(move |query| {
+            let bytes = match s.replication.lock() {
+                Ok(mut replication) => {
+                    replication.snapshots_served += 1;
+                    encode_to_vec(&replication.snapshot(&s.world.scene))
+                }
+                Err(_) => return,
+            };
+            if let Err(e) = query.reply(s.keys.snapshot(), bytes).wait() {
+                tracing::warn!("snapshot reply failed: {e}");
+            }
+        })
+        .wait()?;
+    std::thread::Builder::new()
+        .name("sinew-publish".into())
+        .spawn(move || {
+            let _queryable = queryable;
+            run(
+                &shared,
+                &delta_publishers,
+                &tools_publisher,
+                &stats_publisher,
+            );
+        })
+        .map_err(|e| ServerError::Thread(e.to_string()))
+}
+
+fn run(
+    shared: &Shared,
+    delta_publishers: &[zenoh::pubsub::Publisher<'static>],
+    tools_publisher: &zenoh::pubsub::Publisher<'static>,
+    stats_publisher: &zenoh::pubsub::Publisher<'static>,
+) {
+    let mut pacer = Pacer::new(Duration::from_secs_f64(1.0 / shared.world.publish_hz), 0);
+    let mut last_offered = 0;
+    let mut positions: Vec<Vec<Vec3>> = Vec::new();
+    let mut tool_states = ToolStates::default();
+    let mut delta = MeshDelta::default();
+    let mut buf = Vec::with_capacity(64 * 1024);
+    let mut last_stats = Instant::now();
+
+    while !shared.stop.load(Ordering::Acquire) {
+        pacer.wait();
+        let offered = shared.frames.offered();
+        if offered != last_offered {
+            last_offered = offered;
+            let copied = shared.frames.with_frame(|frame| {
+                positions.resize_with(frame.positions_mm.len(), Vec::new);
+                for (dst, src) in positions.iter_mut().zip(&frame.positions_mm) {
+                    dst.clear();
+                    dst.extend_from_slice(src);
+                }
+                tool_states.sim_time_s = frame.sim_time_s;
+                tool_states.tools.clear();
+                tool_states.tools.extend_from_slice(&frame.tools);
+            });
+            if copied.is_some() {
+                publish_frame(
+                    shared,
+                    &positions,
+                    &mut tool_states,
+                    &mut delta,
+                    &mut buf,
+                    delta_publishers,
+                );
+                encode(&tool_states, &mut buf);
+                let _ = tools_publisher.put(buf.as_slice()).wait();
+            }
+        }
+        if last_stats.elapsed() >= Duration::from_secs(1) {
+            last_stats = Instant::now();
+            encode(&build_stats(shared), &mut buf);
+            let _ = stats_publisher.put(buf.as_slice()).wait();
+        }
+    }
+}
+
+fn publish_frame(
+    shared: &Shared,
+    positions: &[Vec<Vec3>],
+    tool_states: &mut ToolStates,
+    delta: &mut MeshDelta,
+    buf: &mut Vec<u8>,
+    delta_publishers: &[zenoh::pubsub::Publisher<'static>],
+) {
+    let Ok(mut replication) = shared.replication.lock() else {
+        return;
+    };
+    replication.frame += 1;
+    let frame = replication.frame;
+    tool_states.frame = frame;
+    replication.tool_states.clone_from(tool_states);
+    for (o, (object_positions, publisher)) in positions.iter().zip(delta_publishers).enumerate() {
+        let full_bytes = replication.objects[o].full_positions_bytes() as u64;
+        replication.full_mesh_bytes += full_bytes;
+        if replication.objects[o].delta(o as u16, object_positions, frame, delta) {
+            encode(&*delta, buf);
+            // Sent under the replication lock so a snapshot can never be taken between a delta's state
+            // change and its publication.
+            if publisher.put(buf.as_slice()).wait().is_ok() {
+                replication.deltas_sent += 1;
+                replication.delta_bytes += buf.len() as u64;
+            }
+        }
+    }
+}

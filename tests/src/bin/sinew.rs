@@ -1,0 +1,68 @@
+//! `sinew`: the launcher. `sinew demo` runs a server, two simulated surgeons and a viewer in one go.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Parser, Subcommand};
+use sinew::demo::{DemoOptions, run_demo};
+use sinew_protocol::network::DEFAULT_ENDPOINT;
+
+/// Sinew: networked haptic surgical simulation.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Args {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Server + two simulated hapticservers + a viewer over zenoh on loopback, with live figures.
+    Demo {
+        /// World file.
+        #[arg(long, default_value = "worlds/pad.toml")]
+        world: PathBuf,
+        /// How long to run, seconds.
+        #[arg(long, default_value_t = 10.0)]
+        duration_s: f64,
+        /// Endpoint the server listens on (the others connect to it).
+        #[arg(long, default_value = DEFAULT_ENDPOINT)]
+        listen: String,
+        /// Open the viewer window (needs a display).
+        #[arg(long)]
+        window: bool,
+        /// Write a PNG of the viewer's replica at the end.
+        #[arg(long)]
+        png: Option<PathBuf>,
+    },
+}
+
+fn main() -> anyhow::Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .init();
+    match Args::parse().command {
+        Command::Demo {
+            world,
+            duration_s,
+            listen,
+            window,
+            png,
+        } => {
+            anyhow::ensure!(
+                duration_s.is_finite() && duration_s > 0.0,
+                "--duration-s must be positive"
+            );
+            run_demo(&DemoOptions {
+                world,
+                endpoint: listen,
+                duration: Duration::from_secs_f64(duration_s),
+                window,
+                png,
+            })?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,150 @@
+//! Starting roles on loopback and measuring across them. Every role gets its own zenoh session (peer mode,
+//! multicast scouting off); the server listens, the others connect.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use hapticserver::{HandScript, HapticConfig, HapticHandle, HapticServer, SimDevice};
+use sinew_protocol::network::NetworkOptions;
+use sinew_server::node::{ServerConfig, ServerHandle, ServerNode};
+use sinew_server::world::{World, load_world};
+use sinew_viewer::{ViewerClient, ViewerConfig, ViewerHandle};
+
+/// The repository's `worlds/` directory (from this crate's manifest, so tests work from any directory).
+pub fn worlds_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds")
+}
+
+/// Load `worlds/<name>`.
+pub fn load_shipped_world(name: &str) -> anyhow::Result<World> {
+    let path = worlds_dir().join(name);
+    load_world(&path).with_context(|| format!("loading {}", path.display()))
+}
+
+/// A loopback TCP endpoint on a port the OS just reported free.
+pub fn free_loopback_endpoint() -> anyhow::Result<String> {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0")?;
+    let port = listener.local_addr()?.port();
+    Ok(format!("tcp/127.0.0.1:{port}"))
+}
+
+/// Pacing for the 1 kHz loops: spin-sleep for the demo, plain sleep for tests on shared cores.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pacing {
+    /// spin_sleep with 100 us native accuracy.
+    Spin,
+    /// Plain sleep (no spinning).
+    Sleep,
+}
+
+impl Pacing {
+    fn native_accuracy_ns(self) -> u32 {
+        match self {
+            Pacing::Spin => 100_000,
+            Pacing::Sleep => 0,
+        }
+    }
+}
+
+/// Start a server listening on `endpoint`.
+pub fn start_server(world: World, endpoint: &str, pacing: Pacing) -> anyhow::Result<ServerHandle> {
+    let config = ServerConfig {
+        network: NetworkOptions {
+            listen: vec![endpoint.to_owned()],
+            ..NetworkOptions::default()
+        },
+        server_id: "server".into(),
+        spin_native_accuracy_ns: pacing.native_accuracy_ns(),
+    };
+    ServerNode::start(world, config).context("starting the server")
+}
+
+/// Start a hapticserver for device `id` with a simulated hand following `script`, connecting to `endpoint`.
+pub fn start_sim_device(
+    scene: &str,
+    id: &str,
+    script: HandScript,
+    endpoint: &str,
+    pacing: Pacing,
+) -> anyhow::Result<HapticHandle> {
+    let mut config = HapticConfig::new(scene, id, Box::new(SimDevice::new(script)));
+    config.network = NetworkOptions {
+        connect: vec![endpoint.to_owned()],
+        ..NetworkOptions::default()
+    };
+    config.spin_accuracy_ns = pacing.native_accuracy_ns();
+    HapticServer::start(config).with_context(|| format!("starting hapticserver `{id}`"))
+}
+
+/// Start a viewer connecting to `endpoint`.
+pub fn start_viewer(scene: &str, id: &str, endpoint: &str) -> anyhow::Result<ViewerHandle> {
+    let mut config = ViewerConfig::new(scene, id);
+    config.network = NetworkOptions {
+        connect: vec![endpoint.to_owned()],
+        ..NetworkOptions::default()
+    };
+    ViewerClient::start(config).with_context(|| format!("starting viewer `{id}`"))
+}
+
+/// Poll `condition` every 10 ms until it holds or `timeout` passes. Returns whether it held.
+pub fn wait_until(timeout: Duration, mut condition: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if condition() {
+            return true;
+        }
+        if Instant::now() >= deadline {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// How far a viewer's replica of one object is from the server's true mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReplicaError {
+    /// Frame both sides were compared at.
+    pub frame: u64,
+    /// Largest distance between a replica vertex and the server's true position, mm.
+    pub max_error_mm: f32,
+    /// The quantization bound it must stay within, mm.
+    pub bound_mm: f32,
+}
+
+/// Wait until the viewer's replica of `object` is at the frame of the server's last published delta, then
+/// compare every vertex with the server's true positions at that frame. None if they never line up.
+pub fn replica_error(
+    server: &ServerHandle,
+    viewer: &ViewerHandle,
+    object: usize,
+    timeout: Duration,
+) -> Option<ReplicaError> {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        let (frame, truth) = server.published_positions(object)?;
+        let compared = viewer.with_replica(|replica| {
+            let o = replica.objects().get(object)?;
+            if o.frame() != frame || o.vertex_count() != truth.len() {
+                return None;
+            }
+            let max_error_mm = o
+                .positions_mm_iter()
+                .zip(&truth)
+                .map(|(r, t)| {
+                    ((r[0] - t[0]).powi(2) + (r[1] - t[1]).powi(2) + (r[2] - t[2]).powi(2)).sqrt()
+                })
+                .fold(0.0f32, f32::max);
+            Some(ReplicaError {
+                frame,
+                max_error_mm,
+                bound_mm: o.max_error_mm(),
+            })
+        });
+        if compared.is_some() {
+            return compared;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    None
+}

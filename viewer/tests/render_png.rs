@@ -1,0 +1,123 @@
+//! Offscreen rendering of a hand-made replica (no zenoh): the image shows the sheet, and deforming the sheet
+//! changes the image. Needs a Vulkan adapter (Mesa lavapipe is enough: `apt-get install libvulkan1
+//! mesa-vulkan-drivers`); without one this test fails on purpose.
+
+mod common;
+
+use common::{diff_delta, quantize_all, sheet_positions_mm, sheet_snapshot};
+use image::RgbImage;
+use sinew_viewer::render::render_image_framed;
+use sinew_viewer::scene_view::BACKGROUND_RGB;
+use sinew_viewer::{
+    CameraFraming, DeltaOutcome, SceneReplica, ViewerError, frame_replica, render_image, render_png,
+};
+
+const WIDTH: u32 = 320;
+const HEIGHT: u32 = 240;
+
+fn render(replica: &SceneReplica, framing: &CameraFraming) -> RgbImage {
+    match render_image_framed(replica, framing, WIDTH, HEIGHT) {
+        Ok((image, stats)) => {
+            assert_eq!((stats.width, stats.height), (WIDTH, HEIGHT));
+            image
+        }
+        Err(err @ ViewerError::NoGpuAdapter { .. }) => panic!(
+            "offscreen rendering needs a Vulkan adapter and none was found: {err}. \
+             CI must install libvulkan1 and mesa-vulkan-drivers (Mesa lavapipe)."
+        ),
+        Err(err) => panic!("offscreen rendering failed: {err}"),
+    }
+}
+
+fn differs_from_background(p: &image::Rgb<u8>) -> bool {
+    p.0.iter()
+        .zip(BACKGROUND_RGB)
+        .any(|(&c, b)| c.abs_diff(b) > 6)
+}
+
+/// Pinkish: red clearly above green and blue (tissue under any of the scene's lights).
+fn tissue_like(p: &image::Rgb<u8>) -> bool {
+    let [r, g, b] = p.0.map(i32::from);
+    r > 60 && r > g + 25 && r > b + 15
+}
+
+#[test]
+fn renders_the_sheet_and_shows_a_deformation() {
+    let n = 20;
+    let flat_q = quantize_all(&sheet_positions_mm(n));
+    let mut replica =
+        SceneReplica::from_snapshot(sheet_snapshot(flat_q.clone(), n, 1, [25.0, 10.0, 8.0]));
+
+    // One viewpoint for both frames, so only the deformation changes the image.
+    let framing = frame_replica(&replica);
+    let flat = render(&replica, &framing);
+    assert_eq!(flat.dimensions(), (WIDTH, HEIGHT));
+
+    // The centre region (middle half in each direction) is mostly sheet.
+    let (x0, x1, y0, y1) = (WIDTH / 4, 3 * WIDTH / 4, HEIGHT / 4, 3 * HEIGHT / 4);
+    let centre_pixels = u64::from((x1 - x0) * (y1 - y0));
+    let covered_centre = (y0..y1)
+        .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+        .filter(|&(x, y)| differs_from_background(flat.get_pixel(x, y)))
+        .count() as u64;
+    assert!(
+        covered_centre * 2 > centre_pixels,
+        "only {covered_centre} of {centre_pixels} centre pixels differ from the background"
+    );
+    let tissue = flat.pixels().filter(|p| tissue_like(p)).count();
+    assert!(
+        tissue > (WIDTH * HEIGHT / 10) as usize,
+        "only {tissue} tissue-coloured pixels; centre pixel is {:?}",
+        flat.get_pixel(WIDTH / 2, HEIGHT / 2)
+    );
+
+    // Push the vertices within 15 mm of the centre down by 10 mm.
+    let mut pushed_mm = sheet_positions_mm(n);
+    let mut moved = 0;
+    for p in &mut pushed_mm {
+        if (p[0] * p[0] + p[1] * p[1]).sqrt() < 15.0 {
+            p[2] -= 10.0;
+            moved += 1;
+        }
+    }
+    assert!(moved > 10);
+    let pushed_q = quantize_all(&pushed_mm);
+    let delta = diff_delta(&flat_q, &pushed_q, 1, 2);
+    assert_eq!(replica.apply_delta(&delta), Ok(DeltaOutcome::Applied));
+
+    let pushed = render(&replica, &framing);
+    // Keep the images for a human to look at.
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    flat.save(dir.join("sinew_viewer_flat.png")).unwrap();
+    pushed.save(dir.join("sinew_viewer_pushed.png")).unwrap();
+    let changed = flat
+        .pixels()
+        .zip(pushed.pixels())
+        .filter(|(a, b)| a.0.iter().zip(b.0).any(|(&x, y)| x.abs_diff(y) > 12))
+        .count();
+    assert!(
+        changed > (WIDTH * HEIGHT / 100) as usize,
+        "the deformation changed only {changed} pixels"
+    );
+
+    let stats = render_png(
+        &replica,
+        &dir.join("sinew_viewer_render_png.png"),
+        WIDTH,
+        HEIGHT,
+    )
+    .unwrap();
+    assert_eq!(stats.objects, 1);
+    assert_eq!(stats.tools, 1);
+    assert_eq!(stats.triangles, 2 * (n - 1) * (n - 1));
+    assert!(stats.covered_pixels > 0);
+}
+
+#[test]
+fn bad_image_size_is_an_error_not_a_panic() {
+    let replica = SceneReplica::new();
+    assert!(matches!(
+        render_image(&replica, 0, 10),
+        Err(ViewerError::BadImageSize { .. })
+    ));
+}
