@@ -1,6 +1,7 @@
 //! A hapticserver with a simulated device against a real zenoh peer session on loopback: poses stream with
 //! increasing seq, echoed forces are rendered (after the rate limit) and measured as round trips, the hello
 //! announces the device, and silence ramps the force to exactly zero.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::net::TcpListener;
 use std::sync::Arc;

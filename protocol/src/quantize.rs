@@ -102,7 +102,7 @@ mod tests {
             min_mm: [0.0; 3],
             max_mm: [1.0; 3],
         };
-        assert_eq!(bounds.quantize([2.0, -1.0, 0.5]).1, true);
+        assert!(bounds.quantize([2.0, -1.0, 0.5]).1);
         assert_eq!(bounds.quantize([2.0, -1.0, 0.5]).0[..2], [65535, 0]);
         assert_eq!(bounds.quantize([f32::NAN, 0.0, 0.0]), ([0, 0, 0], true));
     }

@@ -1,5 +1,6 @@
 //! Every wire message: random round trips, and malformed input (truncated, wrong version, wrong kind,
 //! garbage, out-of-domain fields) refused with a typed error and never a panic.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use sinew_protocol::codec::{Message, PROTOCOL_VERSION, encode_to_vec};
 use sinew_protocol::quantize::QuantBounds;
@@ -166,10 +167,10 @@ fn hello(rng: &mut fastrand::Rng) -> ParticipantHello {
 }
 
 /// Round trip `n` random instances, and check every malformed variant of each is refused.
-fn exercise<M: Message + PartialEq + std::fmt::Debug>(gen: fn(&mut fastrand::Rng) -> M) {
+fn exercise<M: Message + PartialEq + std::fmt::Debug>(make: fn(&mut fastrand::Rng) -> M) {
     let mut rng = fastrand::Rng::with_seed(0x5EED ^ M::KIND as u64);
     for _ in 0..300 {
-        let msg = gen(&mut rng);
+        let msg = make(&mut rng);
         let bytes = encode_to_vec(&msg);
         assert_eq!(u16::from_le_bytes([bytes[0], bytes[1]]), PROTOCOL_VERSION);
         let back: M = decode(&bytes).unwrap_or_else(|e| panic!("{msg:?}: {e}"));
@@ -177,12 +178,19 @@ fn exercise<M: Message + PartialEq + std::fmt::Debug>(gen: fn(&mut fastrand::Rng
 
         // Every strict prefix is refused.
         for cut in 0..bytes.len() {
-            assert!(decode::<M>(&bytes[..cut]).is_err(), "{} prefix {cut} accepted", M::KIND.name());
+            assert!(
+                decode::<M>(&bytes[..cut]).is_err(),
+                "{} prefix {cut} accepted",
+                M::KIND.name()
+            );
         }
         // Trailing garbage is refused.
         let mut longer = bytes.clone();
         longer.push(0);
-        assert!(matches!(decode::<M>(&longer), Err(DecodeError::Malformed { .. })));
+        assert!(matches!(
+            decode::<M>(&longer),
+            Err(DecodeError::Malformed { .. })
+        ));
         // Another version is refused, naming the version.
         let mut other = bytes.clone();
         other[0] = other[0].wrapping_add(1);
@@ -193,7 +201,10 @@ fn exercise<M: Message + PartialEq + std::fmt::Debug>(gen: fn(&mut fastrand::Rng
         // Another kind is refused.
         let mut kind = bytes.clone();
         kind[2] ^= 0x40;
-        assert!(matches!(decode::<M>(&kind), Err(DecodeError::WrongKind { .. })));
+        assert!(matches!(
+            decode::<M>(&kind),
+            Err(DecodeError::WrongKind { .. })
+        ));
     }
     // Garbage never panics (whatever it decodes to must then validate).
     for _ in 0..2_000 {
@@ -263,21 +274,30 @@ fn out_of_domain_fields_are_refused_by_name() {
     p.orientation_xyzw = [0.0, 0.0, 0.0, 2.0];
     assert!(matches!(
         decode::<DevicePose>(&encode_to_vec(&p)),
-        Err(DecodeError::Invalid { field: "orientation_xyzw", .. })
+        Err(DecodeError::Invalid {
+            field: "orientation_xyzw",
+            ..
+        })
     ));
 
     let mut f = force(&mut rng);
     f.force_n[0] = f32::INFINITY;
     assert!(matches!(
         decode::<ForceCommand>(&encode_to_vec(&f)),
-        Err(DecodeError::Invalid { field: "force_n", .. })
+        Err(DecodeError::Invalid {
+            field: "force_n",
+            ..
+        })
     ));
 
     let mut d = delta(&mut rng);
     d.positions_q.push([0; 3]);
     assert!(matches!(
         decode::<MeshDelta>(&encode_to_vec(&d)),
-        Err(DecodeError::Invalid { field: "positions_q", .. })
+        Err(DecodeError::Invalid {
+            field: "positions_q",
+            ..
+        })
     ));
 
     let mut s = snapshot(&mut rng);
@@ -294,7 +314,10 @@ fn out_of_domain_fields_are_refused_by_name() {
     });
     assert!(matches!(
         decode::<SceneSnapshot>(&encode_to_vec(&s)),
-        Err(DecodeError::Invalid { field: "objects.triangles", .. })
+        Err(DecodeError::Invalid {
+            field: "objects.triangles",
+            ..
+        })
     ));
 }
 

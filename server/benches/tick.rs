@@ -3,6 +3,7 @@
 //! refit) measured separately on the same state.
 //!
 //! Run: `cargo bench -p sinew-server --bench tick` (add `-- --ticks N` to change the count).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::time::Instant;
 

@@ -3,6 +3,7 @@
 //! triangles, the size of the classic simulators' reference object).
 //!
 //! Run: `cargo run --release -p sinew-server --example make_pad_mesh -- worlds/meshes/pad.obj 80 60 1.0`
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::fmt::Write as _;
 

@@ -269,7 +269,7 @@ impl Sim {
             let q = command.orientation_xyzw;
             let finite = p.iter().chain(q.iter()).all(|c| c.is_finite());
             let norm = q.iter().map(|c| c * c).sum::<f32>().sqrt();
-            if !command.active || !finite || !(norm > 0.5) {
+            if !command.active || !finite || norm.is_nan() || norm <= 0.5 {
                 tool.active = false;
                 continue;
             }

@@ -4,7 +4,7 @@
 //! stats, server presence) and the sync worker thread `sinew-viewer-sync`, which queries the snapshot on join
 //! (retrying with backoff until a server answers), after every gap, and when a server (re)joins.
 //!
-//! Threads: zenoh callbacks decode outside the lock, then update the shared [`SyncState`] under one mutex for a
+//! Threads: zenoh callbacks decode outside the lock, then update the shared `SyncState` under one mutex for a
 //! few microseconds; they never block and never call zenoh. Only the worker thread issues (blocking) snapshot
 //! queries. Readers copy the replica ([`ViewerHandle::replica`]) or borrow it briefly
 //! ([`ViewerHandle::with_replica`]).
@@ -225,9 +225,10 @@ struct SyncWorker {
 
 /// Why a snapshot query produced nothing usable.
 enum FetchFailure {
+    /// The viewer is stopping.
     Stopped,
-    Query(String),
-    NoReply(String),
+    /// The query could not be sent, or ended without a usable reply (the reason says which).
+    Failed(String),
 }
 
 impl SyncWorker {
@@ -266,7 +267,7 @@ impl SyncWorker {
                     in_sync
                 }
                 Err(FetchFailure::Stopped) => break,
-                Err(FetchFailure::Query(reason) | FetchFailure::NoReply(reason)) => {
+                Err(FetchFailure::Failed(reason)) => {
                     self.shared.lock().on_snapshot_failed();
                     if failures_in_a_row == 0 {
                         tracing::info!(key = %self.snapshot_key, %reason, "no snapshot yet; retrying with backoff");
@@ -317,9 +318,9 @@ impl SyncWorker {
             .get(&self.snapshot_key)
             .timeout(self.query_timeout)
             .wait()
-            .map_err(|e| FetchFailure::Query(e.to_string()))?;
+            .map_err(|e| FetchFailure::Failed(format!("query not sent: {e}")))?;
         let deadline = Instant::now() + self.query_timeout + Duration::from_millis(500);
-        let mut last_problem = format!("no reply within {:?}", self.query_timeout);
+        let mut last_problem = None;
         loop {
             if self.shared.stopping() {
                 return Err(FetchFailure::Stopped);
@@ -334,22 +335,29 @@ impl SyncWorker {
                             .on_snapshot_payload(payload.len(), &decoded);
                         match decoded {
                             Ok(snapshot) => return Ok(snapshot),
-                            Err(err) => last_problem = format!("undecodable reply: {err}"),
+                            Err(err) => last_problem = Some(format!("undecodable reply: {err}")),
                         }
                     }
                     Err(err) => {
                         let text = err.payload().try_to_string().map(|s| s.into_owned());
-                        last_problem = format!("error reply: {}", text.unwrap_or_default());
+                        last_problem = Some(format!("error reply: {}", text.unwrap_or_default()));
                     }
                 },
                 Ok(None) => {
                     self.shared.lock().update_rates(Instant::now());
                     if Instant::now() >= deadline {
-                        return Err(FetchFailure::NoReply(last_problem));
+                        return Err(FetchFailure::Failed(last_problem.unwrap_or_else(|| {
+                            format!("no reply within {:?}", self.query_timeout)
+                        })));
                     }
                 }
                 // All replies are in (the query finished or timed out).
-                Err(_) => return Err(FetchFailure::NoReply(last_problem)),
+                Err(_) => {
+                    return Err(FetchFailure::Failed(last_problem.unwrap_or_else(|| {
+                        "no snapshot queryable answered (is the server running and reachable?)"
+                            .to_owned()
+                    })));
+                }
             }
         }
     }
@@ -442,5 +450,24 @@ impl ViewerHandle {
 impl Drop for ViewerHandle {
     fn drop(&mut self) {
         self.stop();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn handle_can_be_shared_across_threads() {
+        fn assert_send_sync<T: Send + Sync>() {}
+        assert_send_sync::<ViewerHandle>();
+    }
+
+    #[test]
+    fn bad_ids_are_refused_before_opening_zenoh() {
+        let err = ViewerClient::start(ViewerConfig::new("pad", "a b")).unwrap_err();
+        assert!(matches!(err, ViewerError::Key(_)), "{err}");
+        let err = ViewerClient::start(ViewerConfig::new("", "v")).unwrap_err();
+        assert!(matches!(err, ViewerError::Key(_)), "{err}");
     }
 }

@@ -24,7 +24,7 @@ pub mod window;
 pub use camera_framing::{CameraFraming, frame_replica};
 pub use client::{ViewerClient, ViewerConfig, ViewerHandle};
 pub use error::ViewerError;
-pub use render::{RenderStats, render_image, render_png};
+pub use render::{RenderStats, render_image, render_image_framed, render_png, render_sequence};
 pub use replica::{DeltaOutcome, ReplicaError, ReplicaObject, SceneReplica};
 pub use viewer_stats::{DecodeErrorCounts, ViewerStats};
 pub use window::{display_available, run_window};

@@ -8,7 +8,10 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Parser};
 use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
-use sinew_viewer::{ViewerClient, ViewerConfig, ViewerHandle, ViewerStats, render_png, run_window};
+use sinew_viewer::{
+    ViewerClient, ViewerConfig, ViewerError, ViewerHandle, ViewerStats, display_available,
+    render_png, run_window,
+};
 
 /// Watch a Sinew scene: replicate it from the server's mesh deltas and draw it.
 #[derive(Debug, Parser)]
@@ -74,6 +77,11 @@ fn seconds(value: f64, flag: &str) -> Result<Duration> {
 fn main() -> Result<()> {
     let args = Args::parse();
     init_tracing();
+
+    if args.window && !display_available() {
+        // Fail before joining the scene.
+        return Err(ViewerError::NoDisplay).context("interactive window");
+    }
 
     let mut network = NetworkOptions {
         config_file: args.zenoh_config.clone(),

@@ -37,7 +37,8 @@ pub struct RenderStats {
     pub tools: usize,
     /// Pixels that differ from the background.
     pub covered_pixels: u64,
-    /// Wall time from surface creation to read-back, milliseconds.
+    /// Wall time to bring the scene up to date, render and read back, milliseconds (GPU surface creation
+    /// excluded).
     pub render_ms: f64,
 }
 
@@ -58,6 +59,21 @@ pub fn render_image_framed(
     width: u32,
     height: u32,
 ) -> Result<(RgbImage, RenderStats), ViewerError> {
+    let mut frames = render_sequence(&[replica], framing, width, height)?;
+    frames
+        .pop()
+        .ok_or_else(|| ViewerError::Render("renderer returned no frame".to_owned()))
+}
+
+/// Render successive states of one scene from a fixed viewpoint with one surface: the first frame builds the
+/// meshes, later frames update their vertices in place (the interactive window's path), so a sequence is
+/// cheaper than separate renders. Returns one image per replica, in order.
+pub fn render_sequence(
+    replicas: &[&SceneReplica],
+    framing: &CameraFraming,
+    width: u32,
+    height: u32,
+) -> Result<Vec<(RgbImage, RenderStats)>, ViewerError> {
     if !(1..=MAX_SIDE_PX).contains(&width) || !(1..=MAX_SIDE_PX).contains(&height) {
         return Err(ViewerError::BadImageSize { width, height });
     }
@@ -66,7 +82,7 @@ pub fn render_image_framed(
         let thread = std::thread::Builder::new()
             .name(name.to_owned())
             .spawn_scoped(scope, || {
-                render_on_this_thread(replica, framing, width, height)
+                render_on_this_thread(replicas, framing, width, height)
             })
             .map_err(|source| ViewerError::Thread { name, source })?;
         thread.join().map_err(|payload| {
@@ -108,36 +124,40 @@ pub fn covered_pixels(image: &RgbImage) -> u64 {
 }
 
 fn render_on_this_thread(
-    replica: &SceneReplica,
+    replicas: &[&SceneReplica],
     framing: &CameraFraming,
     width: u32,
     height: u32,
-) -> (RgbImage, RenderStats) {
+) -> Vec<(RgbImage, RenderStats)> {
     kiss3d::pollster::block_on(async {
-        let started = Instant::now();
         // The surface first: it installs the thread-local GPU context the nodes below need.
         let mut surface = OffscreenSurface::new(width, height).await;
         configure_window(surface.window_mut());
         let mut scene = SceneNode3d::empty();
         add_lights(&mut scene);
         let mut view = SceneView::new();
-        view.sync(&mut scene, replica);
         let mut camera = make_camera(framing);
-        let image = surface.render_image_3d(&mut scene, &mut camera).await;
-        let counts = view.counts();
-        let stats = RenderStats {
-            width: image.width(),
-            height: image.height(),
-            objects: counts.objects,
-            triangles: counts.triangles,
-            tools: counts.tools,
-            covered_pixels: covered_pixels(&image),
-            render_ms: started.elapsed().as_secs_f64() * 1e3,
-        };
+        let mut frames = Vec::with_capacity(replicas.len());
+        for replica in replicas {
+            let started = Instant::now();
+            view.sync(&mut scene, replica);
+            let image = surface.render_image_3d(&mut scene, &mut camera).await;
+            let counts = view.counts();
+            let stats = RenderStats {
+                width: image.width(),
+                height: image.height(),
+                objects: counts.objects,
+                triangles: counts.triangles,
+                tools: counts.tools,
+                covered_pixels: covered_pixels(&image),
+                render_ms: started.elapsed().as_secs_f64() * 1e3,
+            };
+            frames.push((image, stats));
+        }
         // Nodes before the surface: dropping the surface resets kiss3d's thread-local managers.
         drop(view);
         drop(scene);
         drop(surface);
-        (image, stats)
+        frames
     })
 }

@@ -175,6 +175,7 @@ pub struct SceneReplica {
     tools: Vec<ToolInfo>,
     tool_states: ToolStates,
     revision: u64,
+    snapshot_revision: u64,
 }
 
 impl PartialEq for SceneReplica {
@@ -215,6 +216,7 @@ impl SceneReplica {
         self.tools = snapshot.tools;
         self.tool_states = snapshot.tool_states;
         self.revision += 1;
+        self.snapshot_revision = self.revision;
     }
 
     /// Fold one delta into its object.
@@ -310,6 +312,12 @@ impl SceneReplica {
     /// Counts every change applied (snapshots, deltas, tool states); a renderer redraws when it moves.
     pub fn revision(&self) -> u64 {
         self.revision
+    }
+
+    /// The [`Self::revision`] at which the last snapshot was applied: when it moves, every position may have
+    /// changed (object frames alone do not tell, since a restarted server counts frames from zero again).
+    pub fn snapshot_revision(&self) -> u64 {
+        self.snapshot_revision
     }
 
     /// The replicated objects, in index order.
@@ -646,11 +654,11 @@ mod tests {
 
         for step in 0..80 {
             server_frame += 1;
-            // Move a few vertices by up to 0.2 mm per axis; some moves are below a quantum.
+            // Move a few vertices (sometimes none) by up to 0.2 mm per axis.
             for _ in 0..rng.usize(0..10) {
                 let v = rng.usize(0..server_mm.len());
-                for axis in 0..3 {
-                    server_mm[v][axis] += (rng.f32() - 0.5) * 0.4;
+                for coordinate in &mut server_mm[v] {
+                    *coordinate += (rng.f32() - 0.5) * 0.4;
                 }
             }
             let now_q = quantize_all(&server_mm);

@@ -134,6 +134,8 @@ pub struct SceneView {
     tools: Vec<ToolNode>,
     layout: Option<Layout>,
     revision: Option<u64>,
+    snapshot_revision: Option<u64>,
+    object_frames: Vec<u64>,
     scratch: Vec<Vec3>,
 }
 
@@ -163,6 +165,8 @@ impl SceneView {
             tools: Vec::new(),
             layout: None,
             revision: None,
+            snapshot_revision: None,
+            object_frames: Vec::new(),
             scratch: Vec::new(),
         }
     }
@@ -180,6 +184,8 @@ impl SceneView {
             self.update(replica);
         }
         self.revision = Some(replica.revision());
+        self.snapshot_revision = Some(replica.snapshot_revision());
+        self.object_frames = replica.objects().iter().map(ReplicaObject::frame).collect();
         rebuild
     }
 
@@ -216,9 +222,15 @@ impl SceneView {
         self.update_tools(replica);
     }
 
+    /// Write new positions into the meshes whose object moved (all of them after a new snapshot), then place
+    /// the tools. Tool-only frames touch no mesh.
     fn update(&mut self, replica: &SceneReplica) {
-        for (node, object) in self.objects.iter_mut().zip(replica.objects()) {
+        let after_snapshot = self.snapshot_revision != Some(replica.snapshot_revision());
+        for (index, (node, object)) in self.objects.iter_mut().zip(replica.objects()).enumerate() {
             let Some(node) = node else { continue };
+            if !after_snapshot && self.object_frames.get(index) == Some(&object.frame()) {
+                continue;
+            }
             self.scratch.clear();
             self.scratch
                 .extend(object.positions_mm_iter().map(Vec3::from));

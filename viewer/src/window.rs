@@ -15,6 +15,7 @@ use kiss3d::window::Window;
 use crate::camera_framing::frame_replica;
 use crate::client::ViewerHandle;
 use crate::error::{ViewerError, panic_detail};
+use crate::replica::SceneReplica;
 use crate::scene_view::{SceneView, add_lights, configure_window, make_camera};
 
 /// Whether a display server is advertised (X11 `DISPLAY` or `WAYLAND_DISPLAY`).
@@ -50,16 +51,20 @@ async fn window_loop(viewer: &ViewerHandle, title: &str, width: u32, height: u32
     let mut view = SceneView::new();
     let mut camera = make_camera(&viewer.with_replica(frame_replica));
     let mut framed_on_objects = false;
+    let mut drawn_revision = None;
     while window.render_3d(&mut scene, &mut camera).await {
-        let (rebuilt, has_objects) = viewer.with_replica(|replica| {
-            (
-                view.sync(&mut scene, replica),
-                !replica.objects().is_empty(),
-            )
-        });
+        // Copy the replica out only when it moved, and update the GPU meshes outside the viewer's lock so
+        // the zenoh callbacks never wait on normal recomputation.
+        let revision = viewer.with_replica(SceneReplica::revision);
+        if drawn_revision == Some(revision) {
+            continue;
+        }
+        let replica = viewer.replica();
+        drawn_revision = Some(replica.revision());
+        let rebuilt = view.sync(&mut scene, &replica);
         // Frame the camera once, when the first snapshot brings objects; then the user drives it.
-        if rebuilt && has_objects && !framed_on_objects {
-            camera = make_camera(&viewer.with_replica(frame_replica));
+        if rebuilt && !replica.objects().is_empty() && !framed_on_objects {
+            camera = make_camera(&frame_replica(&replica));
             framed_on_objects = true;
         }
     }

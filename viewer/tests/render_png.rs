@@ -2,11 +2,14 @@
 //! changes the image. Needs a Vulkan adapter (Mesa lavapipe is enough: `apt-get install libvulkan1
 //! mesa-vulkan-drivers`); without one this test fails on purpose.
 
+// This whole file is test code: a panic is a test failure (clippy's allow-unwrap-in-tests only covers #[test] fns).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 mod common;
 
 use common::{diff_delta, quantize_all, sheet_positions_mm, sheet_snapshot};
 use image::RgbImage;
-use sinew_viewer::render::render_image_framed;
+use sinew_viewer::render::{render_image_framed, render_sequence};
 use sinew_viewer::scene_view::BACKGROUND_RGB;
 use sinew_viewer::{
     CameraFraming, DeltaOutcome, SceneReplica, ViewerError, frame_replica, render_image, render_png,
@@ -82,10 +85,31 @@ fn renders_the_sheet_and_shows_a_deformation() {
     }
     assert!(moved > 10);
     let pushed_q = quantize_all(&pushed_mm);
+    let flat_replica = replica.clone();
     let delta = diff_delta(&flat_q, &pushed_q, 1, 2);
     assert_eq!(replica.apply_delta(&delta), Ok(DeltaOutcome::Applied));
 
     let pushed = render(&replica, &framing);
+    // The same two states through one surface: the second frame updates the mesh in place (modify_vertices +
+    // recompute_normals, the interactive window's path) and must look like the freshly built one.
+    let sequence = render_sequence(&[&flat_replica, &replica], &framing, WIDTH, HEIGHT).unwrap();
+    assert_eq!(sequence.len(), 2);
+    let mismatched = |a: &RgbImage, b: &RgbImage| {
+        a.pixels()
+            .zip(b.pixels())
+            .filter(|(p, q)| p.0.iter().zip(q.0).any(|(&x, y)| x.abs_diff(y) > 12))
+            .count()
+    };
+    assert!(
+        mismatched(&sequence[0].0, &flat) < (WIDTH * HEIGHT / 500) as usize,
+        "first sequence frame differs from the single render"
+    );
+    let in_place = mismatched(&sequence[1].0, &pushed);
+    assert!(
+        in_place < (WIDTH * HEIGHT / 500) as usize,
+        "in-place update differs from a fresh build in {in_place} pixels"
+    );
+
     // Keep the images for a human to look at.
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     flat.save(dir.join("sinew_viewer_flat.png")).unwrap();

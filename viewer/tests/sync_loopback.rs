@@ -3,6 +3,9 @@
 //! converge to the published state, detect a skipped delta as a gap, re-query the snapshot and reconverge.
 //! Every wait has a timeout; nothing asserts on latency.
 
+// This whole file is test code: a panic is a test failure (clippy's allow-unwrap-in-tests only covers #[test] fns).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 mod common;
 
 use std::net::TcpListener;

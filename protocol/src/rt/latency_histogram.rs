@@ -109,6 +109,10 @@ impl LatencyHistogram {
         for (bucket, &count) in self.counts.iter().enumerate() {
             seen += count;
             if seen >= rank {
+                // The last bucket is open-ended: its only honest upper edge is the max.
+                if bucket == BUCKETS - 1 {
+                    return self.max_ns;
+                }
                 return bucket_upper_ns(bucket).min(self.max_ns);
             }
         }

@@ -73,7 +73,7 @@ impl ToolCollider {
         let exit = point_mm + push_dir * toi;
         let normal = exit - self.core_point(position_mm, rotation, &exit);
         let len = normal.norm();
-        if !(len > 1e-7) || !exit.iter().all(|c| c.is_finite()) {
+        if len.is_nan() || len <= 1e-7 || !exit.iter().all(|c| c.is_finite()) {
             return None;
         }
         Some((exit, normal / len))

@@ -1,8 +1,8 @@
 //! Probing: the tool pushes surface nodes out of itself; the tissue's reaction on those nodes is the tool force.
 //!
 //! Each tissue node found inside the tool is pushed into the tissue (along minus its rest outward normal) until
-//! it reaches the tool surface, and its velocity loses the component pointing back out against the push (the
-//! surface yields). Pushing along the tissue normal, not radially, keeps a sheet from sliding round a tool and
+//! it reaches the tool surface, and it is held there with the tool's (quasi-static) velocity: the surface
+//! yields and stays put. Pushing along the tissue normal, not radially, keeps a sheet from sliding round a tool and
 //! wrapping over it. Held nodes act on the tool through its surface normal `n_i` there: with `f_i` the node's
 //! internal force, the tool feels `(f_i . n_i) n_i` when `f_i . n_i < 0` (frictionless, push-only). The sum
 //! points out of the tissue, grows with depth, and resists lateral strokes through the dent's walls.
@@ -62,11 +62,10 @@ impl ProbeContacts {
                 tool.push_out_along(position_mm, rotation, &state.positions_mm[i], &push_dir)
             {
                 state.positions_mm[i] = surface;
-                let v = &mut state.velocities_mm_s[i];
-                let against_push = v.dot(&push_dir);
-                if against_push < 0.0 {
-                    *v -= push_dir * against_push;
-                }
+                // A held node moves with the tool: it keeps no velocity of its own. Keeping the tangential
+                // part let held nodes creep round the frictionless tool, drop out of contact and snap back
+                // in a slow cycle (a ~40 mN, ~2 Hz force ripple under a still hand).
+                state.velocities_mm_s[i] = Vec3::zeros();
                 self.held.push(node);
                 self.normals.push(normal);
             }

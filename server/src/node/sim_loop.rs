@@ -186,7 +186,7 @@ fn run(
             was_active[t] = active;
         }
 
-        frame_due |= sim.steps() % ticks_per_frame == 0;
+        frame_due |= sim.steps().is_multiple_of(ticks_per_frame);
         if frame_due && shared.frames.try_offer(&sim, &outputs) {
             frame_due = false;
         }
@@ -194,7 +194,7 @@ fn run(
         local.overruns = pacer.overruns();
         local.sim_time_s = sim.time_s();
         local.tick_time.record(start.elapsed());
-        if local.ticks % 100 == 0
+        if local.ticks.is_multiple_of(100)
             && let Ok(mut shared_report) = shared.report.try_lock()
         {
             shared_report.copy_from(&local);

@@ -3,6 +3,16 @@
 use super::{MM_PER_M, Vec3};
 use crate::world::{MassSpec, ObjectSpec};
 
+/// One spring-damper along a mesh edge, laid out together so the force loop touches one line per edge.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Spring {
+    a: u32,
+    b: u32,
+    rest_length_mm: f32,
+    stiffness_n_per_mm: f32,
+    damping_n_s_per_mm: f32,
+}
+
 /// Nodes are point masses at the mesh vertices; edges are spring-dampers along the unique mesh edges; every
 /// free node also has an anchor spring to its rest position (the tissue underneath); fixed nodes never move.
 #[derive(Debug, Clone)]
@@ -12,16 +22,31 @@ pub struct MassSpringModel {
     mass_kg: Vec<f32>,
     /// 1000 / mass for free nodes (mm/s^2 per N), 0 for fixed nodes.
     accel_per_force: Vec<f32>,
-    edges: Vec<[u32; 2]>,
-    rest_length_mm: Vec<f32>,
-    stiffness_n_per_mm: Vec<f32>,
-    damping_n_s_per_mm: Vec<f32>,
+    /// Springs, sorted by (a, b) so node accesses stay local.
+    springs: Vec<Spring>,
     anchor_stiffness_n_per_mm: f32,
     drag_per_s: f32,
     triangles: Vec<[u32; 3]>,
     /// CSR node -> incident edges.
     node_edge_start: Vec<u32>,
     node_edges: Vec<u32>,
+}
+
+impl Spring {
+    /// Spring plus damper force on end `a` (end `b` gets the opposite), N. Zero for a zero-length edge.
+    #[inline(always)]
+    fn force_on_a(&self, x: &[Vec3], v: &[Vec3]) -> Vec3 {
+        let (a, b) = (self.a as usize, self.b as usize);
+        let d = x[b] - x[a];
+        let len = d.norm();
+        if len <= 1e-9 {
+            return Vec3::zeros();
+        }
+        let dir = d / len;
+        let stretch = len - self.rest_length_mm;
+        let rate = (v[b] - v[a]).dot(&dir);
+        dir * (self.stiffness_n_per_mm * stretch + self.damping_n_s_per_mm * rate)
+    }
 }
 
 impl MassSpringModel {
@@ -78,9 +103,15 @@ impl MassSpringModel {
             .zip(&fixed)
             .map(|(m, &f)| if f || *m <= 0.0 { 0.0 } else { MM_PER_M / m })
             .collect();
-        let rest_length_mm = edges
+        let springs = edges
             .iter()
-            .map(|[a, b]| (positions[*b as usize] - positions[*a as usize]).norm())
+            .map(|&[a, b]| Spring {
+                a,
+                b,
+                rest_length_mm: (positions[b as usize] - positions[a as usize]).norm(),
+                stiffness_n_per_mm: spec.material.stiffness_n_per_mm,
+                damping_n_s_per_mm: spec.material.damping_n_s_per_mm,
+            })
             .collect();
 
         let mut degree = vec![0u32; n + 1];
@@ -105,16 +136,12 @@ impl MassSpringModel {
             .iter()
             .map(|s| s.try_normalize(1e-12).unwrap_or_else(Vec3::z))
             .collect();
-        let m = edges.len();
         Self {
             rest_positions_mm: positions,
             rest_normals,
             mass_kg,
             accel_per_force,
-            edges,
-            rest_length_mm,
-            stiffness_n_per_mm: vec![spec.material.stiffness_n_per_mm; m],
-            damping_n_s_per_mm: vec![spec.material.damping_n_s_per_mm; m],
+            springs,
             anchor_stiffness_n_per_mm: spec.material.anchor_stiffness_n_per_mm,
             drag_per_s: spec.material.drag_per_s,
             triangles,
@@ -130,7 +157,7 @@ impl MassSpringModel {
 
     /// Number of edges (springs).
     pub fn edge_count(&self) -> usize {
-        self.edges.len()
+        self.springs.len()
     }
 
     /// Nodes that can move.
@@ -189,9 +216,9 @@ impl MassSpringModel {
         {
             *f = (rest - x) * k_anchor;
         }
-        for (e, [a, b]) in self.edges.iter().enumerate() {
-            let (a, b) = (*a as usize, *b as usize);
-            let f = self.edge_force_on_a(e, a, b, positions_mm, velocities_mm_s);
+        for spring in &self.springs {
+            let (a, b) = (spring.a as usize, spring.b as usize);
+            let f = spring.force_on_a(positions_mm, velocities_mm_s);
             forces_n[a] += f;
             forces_n[b] -= f;
         }
@@ -202,30 +229,11 @@ impl MassSpringModel {
         let mut f = (self.rest_positions_mm[i] - positions_mm[i]) * self.anchor_stiffness_n_per_mm;
         let span = self.node_edge_start[i] as usize..self.node_edge_start[i + 1] as usize;
         for &e in &self.node_edges[span] {
-            let [a, b] = self.edges[e as usize];
-            let on_a = self.edge_force_on_a(
-                e as usize,
-                a as usize,
-                b as usize,
-                positions_mm,
-                velocities_mm_s,
-            );
-            f += if a as usize == i { on_a } else { -on_a };
+            let spring = &self.springs[e as usize];
+            let on_a = spring.force_on_a(positions_mm, velocities_mm_s);
+            f += if spring.a as usize == i { on_a } else { -on_a };
         }
         f
-    }
-
-    #[inline(always)]
-    fn edge_force_on_a(&self, e: usize, a: usize, b: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 {
-        let d = x[b] - x[a];
-        let len = d.norm();
-        if len <= 1e-9 {
-            return Vec3::zeros();
-        }
-        let dir = d / len;
-        let stretch = len - self.rest_length_mm[e];
-        let rate = (v[b] - v[a]).dot(&dir);
-        dir * (self.stiffness_n_per_mm[e] * stretch + self.damping_n_s_per_mm[e] * rate)
     }
 
     /// A conservative bound on the largest stable step for explicit/symplectic Euler, seconds.
@@ -244,8 +252,8 @@ impl MassSpringModel {
             let span = self.node_edge_start[i] as usize..self.node_edge_start[i + 1] as usize;
             let (mut k, mut c) = (self.anchor_stiffness_n_per_mm, 0.0);
             for &e in &self.node_edges[span] {
-                k += 2.0 * self.stiffness_n_per_mm[e as usize];
-                c += 2.0 * self.damping_n_s_per_mm[e as usize];
+                k += 2.0 * self.springs[e as usize].stiffness_n_per_mm;
+                c += 2.0 * self.springs[e as usize].damping_n_s_per_mm;
             }
             let omega2 = w * k;
             let gamma = w * c;
