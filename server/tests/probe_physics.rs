@@ -161,23 +161,38 @@ fn non_finite_tool_pose_releases_the_tool_instead_of_corrupting_the_tissue() {
 }
 
 /// Regression: held nodes kept their tangential velocity, crept round the frictionless probe, dropped out of
-/// contact and snapped back: a ~40 mN, ~2 Hz force ripple under a perfectly still tool.
+/// contact and snapped back: a ~40 mN, ~2 Hz force ripple under a perfectly still tool (seen with the stylus
+/// centre resting 2.166 mm below the surface, i.e. 6.166 mm deep, with the micrometre jitter a held stylus has).
 #[test]
 fn held_probe_force_has_no_ripple_under_a_still_tool() {
-    let mut sim = pad();
-    let mut commands = [press(-2.0), press(-2.0)];
-    settle(&mut sim, &mut commands, 0, 5.0, 0.3, 1.0);
-    let mut out = [ToolOutput::default(); 2];
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for _ in 0..2000 {
-        sim.step(0.001, &commands, &mut out);
-        lo = lo.min(out[0].force_world_n.z);
-        hi = hi.max(out[0].force_world_n.z);
+    let mut jitter = 0x9E37_79B9u32;
+    // Up to 1.5 probe radii. Deeper, the sheet engulfs the probe and a few-% cycle remains (known limitation:
+    // needs a stick-slip friction contact).
+    for depth in [2.0, 4.0, 5.0, 6.166] {
+        let mut sim = pad();
+        let mut commands = [press(-2.0), press(-2.0)];
+        settle(&mut sim, &mut commands, 0, depth, 0.3, 1.0);
+        let mut out = [ToolOutput::default(); 2];
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let rest = commands[0].position_device_mm;
+        for _ in 0..3000 {
+            // +-1 um of hand jitter (xorshift), as a still stylus on a real loop shows.
+            jitter ^= jitter << 13;
+            jitter ^= jitter >> 17;
+            jitter ^= jitter << 5;
+            let dz = (jitter % 2001) as f32 * 1e-6 - 1e-3;
+            commands[0].position_device_mm = [rest[0], rest[1], rest[2] + dz];
+            sim.step(0.001, &commands, &mut out);
+            lo = lo.min(out[0].force_world_n.z);
+            hi = hi.max(out[0].force_world_n.z);
+        }
+        assert!(lo > 0.05, "force {lo} at depth {depth}");
+        // Imperceptible: under 2% of the force (the just-noticeable difference for force is about 7%).
+        // Before the fix this configuration rippled 2.9% (33 mN of 1.14 N).
+        assert!(
+            hi - lo < 0.02 * hi,
+            "force ripples {:.4} N under a still tool {depth} mm deep ({lo:.4}..{hi:.4})",
+            hi - lo
+        );
     }
-    assert!(lo > 0.5, "force {lo}");
-    assert!(
-        hi - lo < 0.005,
-        "force ripples {:.4} N under a still tool ({lo:.4}..{hi:.4})",
-        hi - lo
-    );
 }
