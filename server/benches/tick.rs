@@ -89,8 +89,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         collider.refit(&object.state.positions_mm);
         refit.record(start.elapsed());
     }
+    // The force kernel alone, warm caches.
+    let mut forces = LatencyHistogram::new();
+    let mut scratch = object.state.forces_n.clone();
+    for _ in 0..5_000 {
+        let start = Instant::now();
+        object.model.compute_forces(
+            &object.state.positions_mm,
+            &object.state.velocities_mm_s,
+            &mut scratch,
+        );
+        forces.record(start.elapsed());
+    }
+    let mut warm_step = LatencyHistogram::new();
+    for _ in 0..5_000 {
+        let start = Instant::now();
+        integrator.step(&object.model, &mut object.state, h);
+        warm_step.record(start.elapsed());
+    }
     println!(
-        "stages: one symplectic-Euler substep p50 {:.0} us p99 {:.0} us; TriMesh refit p50 {:.0} us p99 {:.0} us",
+        "warm caches: spring+anchor forces p50 {:.0} us ({:.1} ns/spring); whole symplectic-Euler step p50 {:.0} us p99 {:.0} us",
+        us(&forces, 50.0),
+        forces.percentile_ns(50.0) as f64 / object.model.edge_count() as f64,
+        us(&warm_step, 50.0),
+        us(&warm_step, 99.0)
+    );
+    println!(
+        "stages (interleaved, as in a tick): one symplectic-Euler substep p50 {:.0} us p99 {:.0} us; TriMesh refit p50 {:.0} us p99 {:.0} us",
         us(&integrate, 50.0),
         us(&integrate, 99.0),
         us(&refit, 50.0),

@@ -196,3 +196,29 @@ fn held_probe_force_has_no_ripple_under_a_still_tool() {
         );
     }
 }
+
+/// Regression: a pad settling after a poke decayed its velocities and z coordinates into subnormal floats,
+/// which x86 computes ~100x slower (the spring kernel went from ~6 to ~20 ns per spring).
+#[test]
+fn a_settling_tissue_never_holds_subnormal_floats() {
+    let mut sim = pad();
+    let mut commands = [press(-2.0), press(-2.0)];
+    settle(&mut sim, &mut commands, 0, 3.0, 0.1, 0.1);
+    commands[0].active = false;
+    let mut out = [ToolOutput::default(); 2];
+    for _ in 0..3000 {
+        sim.step(0.001, &commands, &mut out);
+    }
+    let state = &sim.objects[0].state;
+    let subnormal = state
+        .positions_mm
+        .iter()
+        .chain(&state.velocities_mm_s)
+        .flat_map(|v| v.iter())
+        .filter(|c| c.is_subnormal())
+        .count();
+    assert_eq!(
+        subnormal, 0,
+        "{subnormal} subnormal components after settling"
+    );
+}

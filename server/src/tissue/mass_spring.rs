@@ -42,7 +42,7 @@ impl Spring {
         if len <= 1e-9 {
             return Vec3::zeros();
         }
-        let dir = d / len;
+        let dir = d * (1.0 / len);
         let stretch = len - self.rest_length_mm;
         let rate = (v[b] - v[a]).dot(&dir);
         dir * (self.stiffness_n_per_mm * stretch + self.damping_n_s_per_mm * rate)
@@ -216,11 +216,25 @@ impl MassSpringModel {
         {
             *f = (rest - x) * k_anchor;
         }
+        // Springs are sorted by their first node: accumulate that node's share in a register and store it
+        // once per node, instead of a load-add-store chain through memory on every spring.
+        let mut current = usize::MAX;
+        let mut on_current = Vec3::zeros();
         for spring in &self.springs {
             let (a, b) = (spring.a as usize, spring.b as usize);
+            if a != current {
+                if let Some(f) = forces_n.get_mut(current) {
+                    *f += on_current;
+                }
+                current = a;
+                on_current = Vec3::zeros();
+            }
             let f = spring.force_on_a(positions_mm, velocities_mm_s);
-            forces_n[a] += f;
+            on_current += f;
             forces_n[b] -= f;
+        }
+        if let Some(f) = forces_n.get_mut(current) {
+            *f += on_current;
         }
     }
 
