@@ -51,6 +51,7 @@ pub struct HapticLoop {
     last_round_trip_us: u32,
     shutting_down: bool,
     round_trip: LatencyHistogram,
+    wire_round_trip: LatencyHistogram,
     interval_deviation: LatencyHistogram,
     counters: LoopCounters,
 }
@@ -93,6 +94,7 @@ impl HapticLoop {
             last_round_trip_us: 0,
             shutting_down: false,
             round_trip: LatencyHistogram::new(),
+            wire_round_trip: LatencyHistogram::new(),
             interval_deviation: LatencyHistogram::new(),
             counters: LoopCounters::default(),
         }
@@ -179,6 +181,11 @@ impl HapticLoop {
                 self.last_echo_seq = command.echo_pose_seq;
                 let round_trip_ns = now_ns - command.echo_device_time_ns;
                 self.round_trip.record_ns(round_trip_ns);
+                self.wire_round_trip.record_ns(
+                    received
+                        .received_ns
+                        .saturating_sub(command.echo_device_time_ns),
+                );
                 self.last_round_trip_us = u32::try_from(round_trip_ns / 1000).unwrap_or(u32::MAX);
             }
         }
@@ -222,6 +229,7 @@ impl HapticLoop {
         report.publish_errors = c.publish_errors;
         report.forces_received = self.inbox.received();
         report.round_trip.copy_from(&self.round_trip);
+        report.wire_round_trip.copy_from(&self.wire_round_trip);
         report.last_round_trip_us = self.last_round_trip_us;
         report
             .interval_deviation

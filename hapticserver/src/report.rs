@@ -29,6 +29,8 @@ pub struct HapticReport {
     pub forces_received: u64,
     /// Pose -> rendered force round trips (pose read to the tick that first renders the force answering it), ns.
     pub round_trip: LatencyHistogram,
+    /// Pose read -> arrival of the force answering it (no wait for the device's next tick), ns.
+    pub wire_round_trip: LatencyHistogram,
     /// The latest round trip, microseconds (0 = none yet).
     pub last_round_trip_us: u32,
     /// |actual tick interval - period|, ns.
@@ -64,6 +66,7 @@ impl HapticReport {
             publish_errors: 0,
             forces_received: 0,
             round_trip: LatencyHistogram::new(),
+            wire_round_trip: LatencyHistogram::new(),
             last_round_trip_us: 0,
             interval_deviation: LatencyHistogram::new(),
             overruns: 0,

@@ -1,0 +1,197 @@
+//! System figures, all in one run so they share the machine's conditions:
+//! 1. raw zenoh ping-pong of a pose-sized payload at 1 kHz between two peer sessions on loopback (baseline);
+//! 2. the full pose -> force round trip for two simulated devices against a server on worlds/pad.toml
+//!    (left presses and strokes, right presses and holds), measured at each hapticserver both at force
+//!    arrival ("wire") and at the device tick that renders it ("rendered");
+//! 3. the hapticservers' 1 kHz loop interval deviation;
+//! 4. the server tick time inside the live system;
+//! 5. mesh-delta bytes/s while the tissue is stroked, against sending the whole mesh at the same rate.
+//!
+//! Run: `cargo bench -p sinew --bench round_trip` (add `-- --seconds N`, default 10).
+
+#![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
+
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use hapticserver::HandScript;
+use sinew::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
+};
+use sinew_protocol::DevicePose;
+use sinew_protocol::codec::encode_to_vec;
+use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::rt::{LatencyHistogram, Pacer};
+use zenoh::Wait;
+use zenoh::qos::CongestionControl;
+
+fn us(h: &LatencyHistogram, p: f64) -> f64 {
+    h.percentile_ns(p) as f64 / 1000.0
+}
+
+fn ping_pong(seconds: f64, payload_len: usize) -> LatencyHistogram {
+    let endpoint = free_loopback_endpoint().unwrap();
+    let a = sinew_server::node::open_session(&NetworkOptions {
+        listen: vec![endpoint.clone()],
+        ..NetworkOptions::default()
+    })
+    .unwrap();
+    let b = sinew_server::node::open_session(&NetworkOptions {
+        connect: vec![endpoint],
+        ..NetworkOptions::default()
+    })
+    .unwrap();
+    let pong = b
+        .declare_publisher("bench/pong")
+        .congestion_control(CongestionControl::Drop)
+        .express(true)
+        .wait()
+        .unwrap();
+    let _echo = b
+        .declare_subscriber("bench/ping")
+        .callback(move |sample| {
+            let _ = pong.put(sample.payload().to_bytes().as_ref()).wait();
+        })
+        .wait()
+        .unwrap();
+    let start = Instant::now();
+    let histogram = Arc::new(Mutex::new(LatencyHistogram::new()));
+    let h = histogram.clone();
+    let _receiver = a
+        .declare_subscriber("bench/pong")
+        .callback(move |sample| {
+            let bytes = sample.payload().to_bytes();
+            let sent_ns = u64::from_le_bytes(bytes[..8].try_into().unwrap());
+            let now_ns = start.elapsed().as_nanos() as u64;
+            h.lock().unwrap().record_ns(now_ns - sent_ns);
+        })
+        .wait()
+        .unwrap();
+    let ping = a
+        .declare_publisher("bench/ping")
+        .congestion_control(CongestionControl::Drop)
+        .express(true)
+        .wait()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500)); // routes established
+    histogram.lock().unwrap().reset();
+    let mut pacer = Pacer::new(Duration::from_millis(1), 100_000);
+    let mut payload = vec![0u8; payload_len.max(8)];
+    while start.elapsed().as_secs_f64() < seconds + 0.5 {
+        pacer.wait();
+        payload[..8].copy_from_slice(&(start.elapsed().as_nanos() as u64).to_le_bytes());
+        ping.put(payload.as_slice()).wait().unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    histogram.lock().unwrap().clone()
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let seconds: f64 = args
+        .iter()
+        .position(|a| a == "--seconds")
+        .and_then(|i| args.get(i + 1))
+        .map_or(10.0, |s| s.parse().unwrap());
+    let pose_len = encode_to_vec(&DevicePose {
+        seq: 123_456,
+        device_time_ns: 12_345_678_901,
+        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        round_trip_us: 1500,
+        ..DevicePose::default()
+    })
+    .len();
+
+    let baseline = ping_pong(seconds, pose_len);
+
+    let endpoint = free_loopback_endpoint().unwrap();
+    let world = load_shipped_world("pad.toml").unwrap();
+    let mut server = start_server(world, &endpoint, Pacing::Spin).unwrap();
+    let left = HandScript::PressAndStroke {
+        at_mm: [0.0, 0.0, 0.0],
+        depth_mm: 5.0,
+        approach_mm: 10.0,
+        descend_s: 1.0,
+        stroke_mm: 8.0,
+        stroke_period_s: 2.0,
+    };
+    let right = HandScript::Press {
+        at_mm: [0.0, 0.0, 0.0],
+        depth_mm: 4.0,
+        approach_mm: 10.0,
+        descend_s: 1.0,
+    };
+    let mut devices = [
+        start_sim_device("pad", "left", left, &endpoint, Pacing::Spin).unwrap(),
+        start_sim_device("pad", "right", right, &endpoint, Pacing::Spin).unwrap(),
+    ];
+    std::thread::sleep(Duration::from_secs_f64(1.5));
+    let before = server.stats();
+    let vertices = server.published_positions(0).map(|(_, p)| p.len()).unwrap();
+    let t0 = Instant::now();
+    std::thread::sleep(Duration::from_secs_f64(seconds));
+    let elapsed = t0.elapsed().as_secs_f64();
+    let after = server.stats();
+    let reports: Vec<_> = devices.iter().map(|d| d.report()).collect();
+    for d in &mut devices {
+        d.stop().unwrap();
+    }
+    server.stop();
+
+    println!("| measurement | p50 | p99 | ratio p50 / p99 to baseline | samples |");
+    println!("|---|---|---|---|---|");
+    println!(
+        "| raw zenoh ping-pong, {pose_len}-byte payload at 1 kHz, peer to peer (baseline) | {:.0} us | {:.0} us | 1.0 / 1.0 | {} |",
+        us(&baseline, 50.0),
+        us(&baseline, 99.0),
+        baseline.count()
+    );
+    for r in &reports {
+        for (what, h) in [
+            ("wire (force arrival)", &r.wire_round_trip),
+            ("rendered (device tick)", &r.round_trip),
+        ] {
+            println!(
+                "| pose -> force, device `{}`, {what} | {:.0} us | {:.0} us | {:.1} / {:.1} | {} |",
+                r.device_id,
+                us(h, 50.0),
+                us(h, 99.0),
+                us(h, 50.0) / us(&baseline, 50.0),
+                us(h, 99.0) / us(&baseline, 99.0),
+                h.count()
+            );
+        }
+    }
+    for r in &reports {
+        println!(
+            "| hapticserver `{}` loop interval deviation from 1 ms | {:.1} us | {:.1} us | - | {} (overruns {}) |",
+            r.device_id,
+            us(&r.interval_deviation, 50.0),
+            us(&r.interval_deviation, 99.0),
+            r.interval_deviation.count(),
+            r.overruns
+        );
+    }
+    println!(
+        "| server tick in the live system (whole run, 2 tools) | {:.0} us | {:.0} us | - | {} (overruns {}) |",
+        after.tick_p50_us, after.tick_p99_us, after.ticks, after.overruns
+    );
+    let delta_bytes = (after.delta_bytes_sent - before.delta_bytes_sent) as f64;
+    let full_mesh_bytes_per_s = (vertices * 6) as f64 * 60.0;
+    println!();
+    println!(
+        "mesh deltas while stroking: {:.1} kB/s ({} deltas in {:.1} s); whole mesh ({} vertices x 6 bytes) at 60 Hz: {:.1} kB/s; deltas are {:.1}% of it",
+        delta_bytes / elapsed / 1000.0,
+        after.deltas_sent - before.deltas_sent,
+        elapsed,
+        vertices,
+        full_mesh_bytes_per_s / 1000.0,
+        100.0 * delta_bytes / elapsed / full_mesh_bytes_per_s
+    );
+    for r in &reports {
+        println!(
+            "device {}: max rendered force {:.2} N, safety {:?}",
+            r.device_id, r.max_rendered_force_n, r.safety
+        );
+    }
+}
