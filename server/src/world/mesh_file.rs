@@ -49,8 +49,11 @@ pub fn load_obj_mesh(path: &Path, scale_to_mm: f32) -> Result<SurfaceMesh, MeshE
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _materials) =
-        tobj::load_obj(path, &options).map_err(|e| MeshError::Load(e.to_string()))?;
+    if !path.is_file() {
+        return Err(MeshError::Load(format!("no such file: {}", path.display())));
+    }
+    let (models, _materials) = tobj::load_obj(path, &options)
+        .map_err(|e| MeshError::Load(format!("{}: {e}", path.display())))?;
     let mut mesh = SurfaceMesh {
         positions_mm: Vec::new(),
         triangles: Vec::new(),
