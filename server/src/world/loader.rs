@@ -46,7 +46,7 @@ pub enum WorldError {
         message: String,
     },
     /// A mesh file that is missing, unreadable or not a valid surface.
-    #[error("{file}:{line}: `{key}` = {mesh:?}: {source}")]
+    #[error("{file}:{line}: `{key}` = {mesh:?}: {reason}")]
     Mesh {
         /// World file.
         file: PathBuf,
@@ -57,7 +57,7 @@ pub enum WorldError {
         /// Mesh path as written.
         mesh: String,
         /// What is wrong with it.
-        source: MeshError,
+        reason: MeshError,
     },
 }
 
@@ -399,12 +399,12 @@ impl Context<'_> {
         }
         let mesh_path = base.join(object.mesh.get_ref());
         let mesh =
-            load_obj_mesh(&mesh_path, object.units.to_mm()).map_err(|source| WorldError::Mesh {
+            load_obj_mesh(&mesh_path, object.units.to_mm()).map_err(|reason| WorldError::Mesh {
                 file: self.path.to_owned(),
                 line: self.line(object.mesh.span()),
                 key: key("mesh"),
                 mesh: object.mesh.get_ref().clone(),
-                source,
+                reason,
             })?;
         let spec = ObjectSpec {
             name,
