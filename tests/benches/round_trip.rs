@@ -14,9 +14,9 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use hapticserver::HandScript;
 use sinew::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
+    surgeon_scripts,
 };
 use sinew_protocol::DevicePose;
 use sinew_protocol::codec::encode_to_vec;
@@ -107,20 +107,7 @@ fn main() {
     let endpoint = free_loopback_endpoint().unwrap();
     let world = load_shipped_world("pad.toml").unwrap();
     let mut server = start_server(world, &endpoint, Pacing::Spin).unwrap();
-    let left = HandScript::PressAndStroke {
-        at_mm: [0.0, 0.0, 0.0],
-        depth_mm: 5.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-        stroke_mm: 8.0,
-        stroke_period_s: 2.0,
-    };
-    let right = HandScript::Press {
-        at_mm: [0.0, 0.0, 0.0],
-        depth_mm: 4.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-    };
+    let (left, right) = surgeon_scripts();
     let mut devices = [
         start_sim_device("pad", "left", left, &endpoint, Pacing::Spin).unwrap(),
         start_sim_device("pad", "right", right, &endpoint, Pacing::Spin).unwrap(),

@@ -8,12 +8,14 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use hapticserver::{HandScript, HapticHandle, HapticReport};
+use hapticserver::{HapticHandle, HapticReport};
 use sinew_server::node::ServerHandle;
 use sinew_server::world::load_world;
 use sinew_viewer::ViewerHandle;
 
-use crate::harness::{Pacing, replica_error, start_server, start_sim_device, start_viewer};
+use crate::harness::{
+    Pacing, replica_error, start_server, start_sim_device, start_viewer, surgeon_scripts,
+};
 
 /// Demo options.
 #[derive(Debug, Clone)]
@@ -58,20 +60,7 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     let world = load_world(&options.world).context("the demo's world")?;
     let scene = world.scene.clone();
     let server = start_server(world, &options.endpoint, Pacing::Spin)?;
-    let left = HandScript::PressAndStroke {
-        at_mm: [0.0, 0.0, 0.0],
-        depth_mm: 5.0,
-        approach_mm: 15.0,
-        descend_s: 1.5,
-        stroke_mm: 8.0,
-        stroke_period_s: 2.0,
-    };
-    let right = HandScript::Press {
-        at_mm: [0.0, 0.0, 0.0],
-        depth_mm: 4.0,
-        approach_mm: 15.0,
-        descend_s: 2.0,
-    };
+    let (left, right) = surgeon_scripts();
     let devices = vec![
         start_sim_device(&scene, "left", left, &options.endpoint, Pacing::Spin)?,
         start_sim_device(&scene, "right", right, &options.endpoint, Pacing::Spin)?,

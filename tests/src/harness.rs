@@ -87,6 +87,26 @@ pub fn start_viewer(scene: &str, id: &str, endpoint: &str) -> anyhow::Result<Vie
     ViewerClient::start(config).with_context(|| format!("starting viewer `{id}`"))
 }
 
+/// The demo's two surgeons: left presses 5 mm and strokes +-8 mm along x every 2 s; right presses 4 mm and
+/// holds. Device frame (the pad surface is z = 0 at each device's origin).
+pub fn surgeon_scripts() -> (HandScript, HandScript) {
+    let left = HandScript::PressAndStroke {
+        at_mm: [0.0, 0.0, 0.0],
+        depth_mm: 5.0,
+        approach_mm: 15.0,
+        descend_s: 1.0,
+        stroke_mm: 8.0,
+        stroke_period_s: 2.0,
+    };
+    let right = HandScript::Press {
+        at_mm: [0.0, 0.0, 0.0],
+        depth_mm: 4.0,
+        approach_mm: 15.0,
+        descend_s: 1.0,
+    };
+    (left, right)
+}
+
 /// Poll `condition` every 10 ms until it holds or `timeout` passes. Returns whether it held.
 pub fn wait_until(timeout: Duration, mut condition: impl FnMut() -> bool) -> bool {
     let deadline = Instant::now() + timeout;
