@@ -110,15 +110,18 @@ fn snapshot(rng: &mut fastrand::Rng) -> SceneSnapshot {
                 tool: i as u16,
                 name: text(rng),
                 device_id: text(rng),
-                shape: if rng.bool() {
-                    ToolShape::Sphere {
+                shape: match rng.u8(0..3) {
+                    0 => ToolShape::Sphere {
                         radius_mm: rng.f32() * 5.0,
-                    }
-                } else {
-                    ToolShape::Capsule {
+                    },
+                    1 => ToolShape::Capsule {
                         half_length_mm: rng.f32() * 10.0,
                         radius_mm: rng.f32(),
-                    }
+                    },
+                    _ => ToolShape::Mesh {
+                        positions_mm: (0..4).map(|_| v3(rng)).collect(),
+                        triangles: vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]],
+                    },
                 },
             })
             .collect(),

@@ -15,10 +15,10 @@ use crate::world::{ToolShapeSpec, World};
 /// Why a world could not become a simulation.
 #[derive(Debug, Error)]
 pub enum SimBuildError {
-    /// parry refused an object's surface.
-    #[error("object `{object}`: collision mesh: {message}")]
+    /// parry refused an object's or a tool's surface.
+    #[error("`{object}`: collision mesh: {message}")]
     Collider {
-        /// Object name.
+        /// Object or tool name.
         object: String,
         /// parry's reason.
         message: String,
@@ -150,14 +150,18 @@ impl Sim {
                 max_dt_s: spec.dt_s,
             });
         }
-        let tools = world
-            .tools
-            .iter()
-            .map(|spec| SimTool {
+        let mut tools = Vec::with_capacity(world.tools.len());
+        for spec in &world.tools {
+            let collider =
+                ToolCollider::from_spec(&spec.shape).map_err(|e| SimBuildError::Collider {
+                    object: spec.name.clone(),
+                    message: format!("{e:?}"),
+                })?;
+            tools.push(SimTool {
                 name: spec.name.clone(),
                 device_id: spec.device_id.clone(),
-                shape_spec: spec.shape,
-                collider: ToolCollider::from_spec(&spec.shape),
+                shape_spec: spec.shape.clone(),
+                collider,
                 device_origin_in_world_mm: Vec3::from(spec.device_origin_in_world_mm),
                 max_force_n: spec.max_force_n,
                 position_mm: Vec3::from(spec.device_origin_in_world_mm),
@@ -167,8 +171,8 @@ impl Sim {
                     .iter()
                     .map(|_| ProbeContacts::with_capacity(4096))
                     .collect(),
-            })
-            .collect();
+            });
+        }
         Ok(Self {
             objects,
             tools,

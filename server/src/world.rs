@@ -12,4 +12,4 @@ pub use loader::{
     FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ToolShapeSpec, ToolSpec, World, WorldError,
     load_world, parse_world,
 };
-pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_surface};
+pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};

@@ -222,3 +222,83 @@ fn a_settling_tissue_never_holds_subnormal_floats() {
         "{subnormal} subnormal components after settling"
     );
 }
+
+/// A closed 6 mm cube, centred on the tool origin, faces counter-clockwise from outside.
+const CUBE_OBJ: &str = "v -3 -3 -3\nv 3 -3 -3\nv 3 3 -3\nv -3 3 -3\nv -3 -3 3\nv 3 -3 3\nv 3 3 3\nv -3 3 3\n\
+f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 8 7\nf 4 7 3\nf 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n";
+
+/// The shipped pad with the left probe replaced by a mesh tool (`obj` written next to a copy of the world).
+fn pad_with_mesh_tool(
+    obj: &str,
+) -> Result<sinew_server::world::World, sinew_server::world::WorldError> {
+    let worlds = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
+    let dir = std::env::temp_dir().join(format!(
+        "sinew-mesh-tool-{}-{}",
+        std::process::id(),
+        obj.len()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let tool_path = dir.join("tool.obj");
+    std::fs::write(&tool_path, obj).unwrap();
+    let text = std::fs::read_to_string(worlds.join("pad.toml"))
+        .unwrap()
+        .replacen(
+            r#"shape = { kind = "sphere", radius_mm = 4.0 }"#,
+            &format!(
+                r#"shape = {{ kind = "mesh", mesh = "{}", units = "mm" }}"#,
+                tool_path.display()
+            ),
+            1,
+        );
+    sinew_server::world::parse_world(&worlds.join("pad.toml"), &text)
+}
+
+#[test]
+fn a_mesh_tool_presses_the_pad_and_feels_it_push_back_along_the_normal() {
+    let world = pad_with_mesh_tool(CUBE_OBJ).unwrap();
+    let mut sim = Sim::new(&world).unwrap();
+    let mut out = [ToolOutput::default(); 2];
+    let mut last = 0.0;
+    for depth in [1.0f32, 2.5] {
+        let mut command = press(0.0);
+        for k in 0..600 {
+            // Cube half-size 3: centre at 3 - depth puts its bottom face `depth` below the rest surface.
+            let d = depth * ((k + 1) as f32 / 300.0).min(1.0);
+            command.position_device_mm = [0.0, 0.0, 3.0 - d];
+            sim.step(0.001, &[command, ToolCommand::default()], &mut out);
+        }
+        let f = out[0].force_world_n;
+        assert!(
+            out[0].in_contact && f.z > 0.95 * f.norm(),
+            "force {f:?} at depth {depth}"
+        );
+        assert!(
+            f.z > last * 1.5,
+            "force did not grow with depth: {last} then {}",
+            f.z
+        );
+        last = f.z;
+        // The flat face flattens the dent: the node under the centre sits on the face.
+        let centre = sim.objects[0]
+            .model
+            .rest_positions_mm()
+            .iter()
+            .position(|p| (p.x + 18.0).abs() < 0.01 && p.y.abs() < 0.01)
+            .unwrap();
+        assert!((sim.objects[0].state.positions_mm[centre].z + depth).abs() < 0.05);
+    }
+}
+
+#[test]
+fn an_open_tool_mesh_is_refused() {
+    let open: String = CUBE_OBJ
+        .lines()
+        .filter(|l| *l != "f 5 7 8")
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let error = pad_with_mesh_tool(&open).unwrap_err().to_string();
+    assert!(
+        error.contains("not closed") && error.contains("tools[0].shape.mesh"),
+        "{error}"
+    );
+}

@@ -4,8 +4,6 @@
 //! that the bounding sphere fits the field of view). Must not: touch kiss3d or the GPU; it is plain math so
 //! it is tested without a display.
 
-use sinew_protocol::ToolShape;
-
 use crate::replica::SceneReplica;
 
 /// Vertical field of view, radians (kiss3d's default, 45 degrees).
@@ -51,13 +49,7 @@ pub fn scene_bounds_mm(replica: &SceneReplica) -> ([f32; 3], [f32; 3]) {
             .tools()
             .iter()
             .find(|t| t.tool == state.tool)
-            .map_or(0.0, |t| match t.shape {
-                ToolShape::Sphere { radius_mm } => radius_mm,
-                ToolShape::Capsule {
-                    half_length_mm,
-                    radius_mm,
-                } => half_length_mm + radius_mm,
-            });
+            .map_or(0.0, |t| t.shape.bounding_radius_mm());
         grow(state.position_mm, radius);
     }
     if (0..3).any(|a| min[a] > max[a]) {

@@ -125,6 +125,8 @@ impl Layout {
 struct ToolNode {
     tool: u16,
     node: SceneNode3d,
+    /// Rotation from the node's own frame to the tool frame (kiss3d capsules run along y, Sinew's along z).
+    tool_from_node: Quat,
 }
 
 /// The kiss3d nodes of one replica.
@@ -215,6 +217,10 @@ impl SceneView {
             .map(|info| ToolNode {
                 tool: info.tool,
                 node: add_tool_shape(&mut group, info),
+                tool_from_node: match info.shape {
+                    ToolShape::Capsule { .. } => Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
+                    ToolShape::Sphere { .. } | ToolShape::Mesh { .. } => Quat::IDENTITY,
+                },
             })
             .collect();
         self.group = Some(group);
@@ -249,7 +255,7 @@ impl SceneView {
         let states = &replica.tool_states().tools;
         for tool in &mut self.tools {
             match states.iter().find(|s| s.tool == tool.tool) {
-                Some(state) => place_tool(&mut tool.node, state),
+                Some(state) => place_tool(&mut tool.node, tool.tool_from_node, state),
                 None => {
                     tool.node.set_visible(false);
                 }
@@ -273,14 +279,23 @@ fn add_object_mesh(group: &mut SceneNode3d, object: &ReplicaObject) -> Option<Sc
     Some(node)
 }
 
-/// A sphere or capsule node for a tool (kiss3d capsules run along local y; Sinew capsules along local z).
+/// A sphere, capsule or mesh node for a tool.
 fn add_tool_shape(group: &mut SceneNode3d, info: &ToolInfo) -> SceneNode3d {
-    let mut node = match info.shape {
+    let mut node = match &info.shape {
         ToolShape::Sphere { radius_mm } => group.add_sphere(radius_mm.max(0.1)),
         ToolShape::Capsule {
             half_length_mm,
             radius_mm,
         } => group.add_capsule(radius_mm.max(0.1), 2.0 * half_length_mm),
+        ToolShape::Mesh {
+            positions_mm,
+            triangles,
+        } => group.add_trimesh(
+            positions_mm.iter().map(|p| Vec3::from_array(*p)).collect(),
+            triangles.clone(),
+            Vec3::ONE,
+            false,
+        ),
     };
     node.set_color(TOOL_STEEL)
         .set_metallic(0.5)
@@ -288,10 +303,9 @@ fn add_tool_shape(group: &mut SceneNode3d, info: &ToolInfo) -> SceneNode3d {
         .set_visible(false)
 }
 
-fn place_tool(node: &mut SceneNode3d, state: &ToolState) {
+fn place_tool(node: &mut SceneNode3d, tool_from_node: Quat, state: &ToolState) {
     let [x, y, z, w] = state.orientation_xyzw;
     let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
-    let tool_from_kiss3d_capsule = Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
     let color = if !state.active {
         TOOL_INACTIVE
     } else if state.in_contact {
@@ -300,7 +314,7 @@ fn place_tool(node: &mut SceneNode3d, state: &ToolState) {
         TOOL_STEEL
     };
     node.set_position(Vec3::from(state.position_mm))
-        .set_rotation(world_from_tool * tool_from_kiss3d_capsule)
+        .set_rotation(world_from_tool * tool_from_node)
         .set_color(color)
         .set_visible(true);
 }

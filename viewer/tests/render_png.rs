@@ -145,3 +145,69 @@ fn bad_image_size_is_an_error_not_a_panic() {
         Err(ViewerError::BadImageSize { .. })
     ));
 }
+
+/// Grey (steel or inactive tool), not the background.
+fn tool_like(p: &image::Rgb<u8>) -> bool {
+    let [r, g, b] = p.0.map(i32::from);
+    differs_from_background(p) && (r - g).abs() < 20 && (g - b).abs() < 20 && r > 40
+}
+
+#[test]
+fn draws_a_mesh_tool_where_the_server_says_it_is() {
+    let n = 20;
+    let flat_q = quantize_all(&sheet_positions_mm(n));
+    let cube = |h: f32| -> Vec<[f32; 3]> {
+        (0..8)
+            .map(|i| {
+                [
+                    if i & 1 == 0 { -h } else { h },
+                    if i & 2 == 0 { -h } else { h },
+                    if i & 4 == 0 { -h } else { h },
+                ]
+            })
+            .collect()
+    };
+    // Vertex i has bits (x, y, z); faces counter-clockwise from outside.
+    let triangles = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    let mut snapshot = sheet_snapshot(flat_q, n, 1, [-20.0, 0.0, 8.0]);
+    snapshot.tools[0].shape = sinew_protocol::ToolShape::Mesh {
+        positions_mm: cube(6.0),
+        triangles,
+    };
+    let mut replica = SceneReplica::from_snapshot(snapshot);
+    let framing = frame_replica(&replica);
+    let left = render(&replica, &framing);
+    let grey = left.pixels().filter(|p| tool_like(p)).count();
+    assert!(
+        grey > 100,
+        "only {grey} tool pixels: the mesh tool is not drawn"
+    );
+
+    let mut moved = replica.tool_states().clone();
+    moved.frame += 1;
+    moved.tools[0].position_mm = [20.0, 0.0, 8.0];
+    assert!(replica.apply_tools(moved));
+    let right = render(&replica, &framing);
+    let changed = left
+        .pixels()
+        .zip(right.pixels())
+        .filter(|(a, b)| a.0.iter().zip(b.0).any(|(x, y)| x.abs_diff(y) > 10))
+        .count();
+    assert!(
+        changed > (WIDTH * HEIGHT / 100) as usize,
+        "moving the mesh tool 40 mm changed only {changed} pixels"
+    );
+}

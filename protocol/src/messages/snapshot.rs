@@ -7,7 +7,7 @@ use crate::codec::{FieldError, Message, MessageKind, check};
 use crate::quantize::QuantBounds;
 
 /// A tool's collision shape, millimetres, in the tool frame (capsule axis along local z).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ToolShape {
     /// A ball of the given radius centred on the tool origin.
     Sphere {
@@ -21,6 +21,30 @@ pub enum ToolShape {
         /// Radius, mm.
         radius_mm: f32,
     },
+    /// A closed triangle mesh (rigid), counter-clockwise seen from outside.
+    Mesh {
+        /// Vertex positions in the tool frame, mm.
+        positions_mm: Vec<[f32; 3]>,
+        /// Triangles (vertex indices).
+        triangles: Vec<[u32; 3]>,
+    },
+}
+
+impl ToolShape {
+    /// Radius of a ball around the tool origin that contains the shape, mm.
+    pub fn bounding_radius_mm(&self) -> f32 {
+        match self {
+            ToolShape::Sphere { radius_mm } => *radius_mm,
+            ToolShape::Capsule {
+                half_length_mm,
+                radius_mm,
+            } => half_length_mm + radius_mm,
+            ToolShape::Mesh { positions_mm, .. } => positions_mm
+                .iter()
+                .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+                .fold(0.0, f32::max),
+        }
+    }
 }
 
 /// Static description of a tool.
@@ -98,6 +122,26 @@ impl Message for SceneSnapshot {
                     half_length_mm,
                     radius_mm,
                 } => &[*half_length_mm, *radius_mm],
+                ToolShape::Mesh {
+                    positions_mm,
+                    triangles,
+                } => {
+                    if positions_mm
+                        .iter()
+                        .any(|p| p.iter().any(|c| !c.is_finite()))
+                    {
+                        return Err(("tools.shape", "mesh vertex not finite"));
+                    }
+                    let n = positions_mm.len() as u64;
+                    if triangles.is_empty()
+                        || triangles
+                            .iter()
+                            .any(|t| t.iter().any(|&v| u64::from(v) >= n))
+                    {
+                        return Err(("tools.shape", "mesh triangles empty or index out of range"));
+                    }
+                    &[]
+                }
             };
             check::finite("tools.shape", dims)?;
             if dims.iter().any(|d| *d < 0.0) {

@@ -2,8 +2,9 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 use parry3d::bounding_volume::{Aabb, BoundingVolume};
+use parry3d::math::Vector;
 use parry3d::query::{Ray, RayCast};
-use parry3d::shape::{Ball, Capsule, Shape};
+use parry3d::shape::{Ball, Capsule, Shape, TriMesh, TriMeshBuilderError, TriMeshFlags};
 
 use super::glam_boundary::{from_parry, pose, to_parry};
 use crate::world::ToolShapeSpec;
@@ -15,24 +16,39 @@ pub enum ToolCollider {
     Ball(Ball),
     /// Capsule along local z.
     Capsule(Capsule),
+    /// Closed rigid mesh (ORIENTED: pseudo-normals make inside tests exact; it never deforms).
+    Mesh(Box<TriMesh>),
 }
 
 impl ToolCollider {
-    /// From the world spec.
-    pub fn from_spec(spec: &ToolShapeSpec) -> Self {
-        match *spec {
-            ToolShapeSpec::Sphere { radius_mm } => ToolCollider::Ball(Ball::new(radius_mm)),
+    /// From the world spec (a mesh spec is validated closed by the loader).
+    pub fn from_spec(spec: &ToolShapeSpec) -> Result<Self, TriMeshBuilderError> {
+        Ok(match spec {
+            ToolShapeSpec::Sphere { radius_mm } => ToolCollider::Ball(Ball::new(*radius_mm)),
             ToolShapeSpec::Capsule {
                 half_length_mm,
                 radius_mm,
-            } => ToolCollider::Capsule(Capsule::new_z(half_length_mm, radius_mm)),
-        }
+            } => ToolCollider::Capsule(Capsule::new_z(*half_length_mm, *radius_mm)),
+            ToolShapeSpec::Mesh(surface) => {
+                let vertices = surface
+                    .positions_mm
+                    .iter()
+                    .map(|p| Vector::new(p[0], p[1], p[2]))
+                    .collect();
+                ToolCollider::Mesh(Box::new(TriMesh::with_flags(
+                    vertices,
+                    surface.triangles.clone(),
+                    TriMeshFlags::ORIENTED,
+                )?))
+            }
+        })
     }
 
     fn shape(&self) -> &dyn Shape {
         match self {
             ToolCollider::Ball(b) => b,
             ToolCollider::Capsule(c) => c,
+            ToolCollider::Mesh(m) => m.as_ref(),
         }
     }
 
@@ -66,12 +82,28 @@ impl ToolCollider {
         }
         let ray = Ray::new(p, to_parry(push_dir));
         let max_toi = 2.0 * self.shape().compute_local_aabb().extents().length() + 1.0;
-        let toi = match self {
-            ToolCollider::Ball(b) => b.cast_ray(&tool_pose, &ray, max_toi, false),
-            ToolCollider::Capsule(c) => c.cast_ray(&tool_pose, &ray, max_toi, false),
-        }?;
+        let (toi, normal) = match self {
+            ToolCollider::Ball(b) => {
+                let toi = b.cast_ray(&tool_pose, &ray, max_toi, false)?;
+                let exit = point_mm + push_dir * toi;
+                (toi, exit - self.core_point(position_mm, rotation, &exit))
+            }
+            ToolCollider::Capsule(c) => {
+                let toi = c.cast_ray(&tool_pose, &ray, max_toi, false)?;
+                let exit = point_mm + push_dir * toi;
+                (toi, exit - self.core_point(position_mm, rotation, &exit))
+            }
+            ToolCollider::Mesh(m) => {
+                // From inside, the first face hit is the exit face; its outward normal points along the push.
+                let hit = m.cast_ray_and_get_normal(&tool_pose, &ray, max_toi, false)?;
+                let n = from_parry(hit.normal);
+                (
+                    hit.time_of_impact,
+                    if n.dot(push_dir) < 0.0 { -n } else { n },
+                )
+            }
+        };
         let exit = point_mm + push_dir * toi;
-        let normal = exit - self.core_point(position_mm, rotation, &exit);
         let len = normal.norm();
         if len.is_nan() || len <= 1e-7 || !exit.iter().all(|c| c.is_finite()) {
             return None;
@@ -88,7 +120,7 @@ impl ToolCollider {
         p: &Vector3<f32>,
     ) -> Vector3<f32> {
         match self {
-            ToolCollider::Ball(_) => *position_mm,
+            ToolCollider::Ball(_) | ToolCollider::Mesh(_) => *position_mm,
             ToolCollider::Capsule(c) => {
                 let a = position_mm + rotation * from_parry(c.segment.a);
                 let b = position_mm + rotation * from_parry(c.segment.b);
@@ -106,7 +138,7 @@ mod tests {
 
     #[test]
     fn points_inside_a_ball_are_pushed_down_to_its_lower_surface() {
-        let tool = ToolCollider::from_spec(&ToolShapeSpec::Sphere { radius_mm: 5.0 });
+        let tool = ToolCollider::from_spec(&ToolShapeSpec::Sphere { radius_mm: 5.0 }).unwrap();
         let centre = Vector3::new(0.0, 0.0, 3.0);
         let q = UnitQuaternion::identity();
         let down = -Vector3::z();
@@ -138,7 +170,8 @@ mod tests {
         let tool = ToolCollider::from_spec(&ToolShapeSpec::Capsule {
             half_length_mm: 10.0,
             radius_mm: 2.0,
-        });
+        })
+        .unwrap();
         // Capsule lying along x (rotated 90 degrees about y), centred 1 mm above the origin.
         let q = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f32::consts::FRAC_PI_2);
         let centre = Vector3::new(0.0, 0.0, 1.0);

@@ -65,14 +65,20 @@ impl ReplicationState {
                 tool: t as u16,
                 name: tool.name.clone(),
                 device_id: tool.device_id.clone(),
-                shape: match tool.shape_spec {
-                    ToolShapeSpec::Sphere { radius_mm } => ToolShape::Sphere { radius_mm },
+                shape: match &tool.shape_spec {
+                    ToolShapeSpec::Sphere { radius_mm } => ToolShape::Sphere {
+                        radius_mm: *radius_mm,
+                    },
                     ToolShapeSpec::Capsule {
                         half_length_mm,
                         radius_mm,
                     } => ToolShape::Capsule {
-                        half_length_mm,
-                        radius_mm,
+                        half_length_mm: *half_length_mm,
+                        radius_mm: *radius_mm,
+                    },
+                    ToolShapeSpec::Mesh(surface) => ToolShape::Mesh {
+                        positions_mm: surface.positions_mm.clone(),
+                        triangles: surface.triangles.clone(),
                     },
                 },
             })

@@ -166,17 +166,7 @@ fn default_max_force_n() -> Spanned<f32> {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields, tag = "kind", rename_all = "lowercase")]
 pub(crate) enum ShapeSection {
-    Sphere {
-        radius_mm: f32,
-    },
-    Capsule {
-        half_length_mm: f32,
-        radius_mm: f32,
-    },
-    /// Parsed so the loader can point at it and refuse it clearly (not supported yet).
-    #[allow(dead_code)]
-    Mesh {
-        mesh: String,
-        units: LengthUnit,
-    },
+    Sphere { radius_mm: f32 },
+    Capsule { half_length_mm: f32, radius_mm: f32 },
+    Mesh { mesh: String, units: LengthUnit },
 }

@@ -10,7 +10,7 @@ use super::file_format::{
     FixedSection, IntegratorName, MaterialSection, ObjectSection, ShapeSection, ToolSection,
     WorldFile,
 };
-use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh};
+use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
 
 /// Why a world was refused. The server does not start with a world that fails here.
 #[derive(Debug, Error)]
@@ -173,7 +173,7 @@ impl FixedSelection {
 }
 
 /// A tool's collision shape, mm.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum ToolShapeSpec {
     /// Ball.
     Sphere {
@@ -187,6 +187,8 @@ pub enum ToolShapeSpec {
         /// Radius, mm.
         radius_mm: f32,
     },
+    /// A closed, rigid triangle mesh in the tool frame.
+    Mesh(SurfaceMesh),
 }
 
 /// A tool and the device that drives it.
@@ -279,7 +281,7 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
     }
     let mut tools: Vec<ToolSpec> = Vec::with_capacity(file.tools.len());
     for (i, tool) in file.tools.iter().enumerate() {
-        let spec = cx.tool(i, tool)?;
+        let spec = cx.tool(i, tool, base)?;
         if tools.iter().any(|t| t.name == spec.name) {
             return Err(cx.invalid(
                 &tool.name,
@@ -520,7 +522,7 @@ impl Context<'_> {
         }
     }
 
-    fn tool(&self, i: usize, tool: &ToolSection) -> Result<ToolSpec, WorldError> {
+    fn tool(&self, i: usize, tool: &ToolSection, base: &Path) -> Result<ToolSpec, WorldError> {
         let key = |k: &str| format!("tools[{i}].{k}");
         let device_id = tool.device.get_ref().clone();
         if let Err(e) = sinew_protocol::keys::validate_segment("device", &device_id) {
@@ -557,12 +559,17 @@ impl Context<'_> {
                     radius_mm: *radius_mm,
                 }
             }
-            ShapeSection::Mesh { .. } => {
-                return Err(self.invalid(
-                    &tool.shape,
-                    &key("shape"),
-                    "mesh tool shapes are not supported yet: use sphere or capsule",
-                ));
+            ShapeSection::Mesh { mesh, units } => {
+                let mesh_error = |reason| WorldError::Mesh {
+                    file: self.path.to_owned(),
+                    line: self.line(tool.shape.span()),
+                    key: key("shape.mesh"),
+                    mesh: mesh.clone(),
+                    reason,
+                };
+                let surface = load_obj_mesh(&base.join(mesh), units.to_mm()).map_err(mesh_error)?;
+                validate_closed(&surface).map_err(mesh_error)?;
+                ToolShapeSpec::Mesh(surface)
             }
         };
         self.check(

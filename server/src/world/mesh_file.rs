@@ -29,6 +29,14 @@ pub enum MeshError {
     /// A triangle with a repeated vertex or zero area.
     #[error("triangle {0} is degenerate (repeated vertex or zero area)")]
     Degenerate(usize),
+    /// An edge used by only one triangle, where a closed surface is required.
+    #[error("not closed: edge ({a}, {b}) borders one triangle (a tool mesh must be watertight)")]
+    Open {
+        /// First vertex of the edge.
+        a: u32,
+        /// Second vertex of the edge.
+        b: u32,
+    },
     /// An edge shared by more than two triangles.
     #[error("non-manifold: edge ({a}, {b}) is shared by {count} triangles")]
     NonManifold {
@@ -77,6 +85,26 @@ pub fn load_obj_mesh(path: &Path, scale_to_mm: f32) -> Result<SurfaceMesh, MeshE
     }
     validate_surface(&mesh)?;
     Ok(mesh)
+}
+
+/// Check that a validated surface is closed: every edge borders exactly two triangles.
+pub fn validate_closed(mesh: &SurfaceMesh) -> Result<(), MeshError> {
+    let mut edge_use: HashMap<(u32, u32), usize> = HashMap::with_capacity(mesh.triangles.len() * 2);
+    for tri in &mesh.triangles {
+        for k in 0..3 {
+            let (p, q) = (tri[k], tri[(k + 1) % 3]);
+            *edge_use.entry((p.min(q), p.max(q))).or_insert(0) += 1;
+        }
+    }
+    match edge_use
+        .iter()
+        .filter(|(_, c)| **c == 1)
+        .map(|(e, _)| *e)
+        .min()
+    {
+        Some((a, b)) => Err(MeshError::Open { a, b }),
+        None => Ok(()),
+    }
 }
 
 /// Check a surface: non-empty, finite, indices in range, no degenerate triangle, every edge shared by at
