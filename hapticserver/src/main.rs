@@ -114,6 +114,12 @@ fn main() -> Result<()> {
         )
     })?;
 
+    // Ctrl-C / SIGTERM: leave the loop and stop through the ramp to zero, never by dropping the motor's force.
+    let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = interrupted.clone();
+    ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::Release))
+        .context("installing the Ctrl-C handler")?;
+
     let started = Instant::now();
     let deadline = args
         .duration_s
@@ -121,7 +127,9 @@ fn main() -> Result<()> {
     let mut next_status = started + Duration::from_secs(1);
     loop {
         let now = Instant::now();
-        if deadline.is_some_and(|deadline| now >= deadline) {
+        if deadline.is_some_and(|deadline| now >= deadline)
+            || interrupted.load(std::sync::atomic::Ordering::Acquire)
+        {
             break;
         }
         if !handle.is_running() {
@@ -132,7 +140,10 @@ fn main() -> Result<()> {
             next_status += Duration::from_secs(1);
         }
         let wake = deadline.map_or(next_status, |deadline| deadline.min(next_status));
-        std::thread::sleep(wake.saturating_duration_since(Instant::now()));
+        std::thread::sleep(
+            wake.saturating_duration_since(Instant::now())
+                .min(Duration::from_millis(50)),
+        );
     }
     handle.stop().context("stopping the hapticserver")?;
     println!("final: {}", handle.report());

@@ -63,9 +63,22 @@ fn main() -> anyhow::Result<()> {
         ..ServerConfig::default()
     };
     let mut server = ServerNode::start(world, config).context("starting the server")?;
+    // Ctrl-C / SIGTERM: stop the threads and withdraw the presence token cleanly.
+    let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = interrupted.clone();
+    ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::Release))
+        .context("installing the Ctrl-C handler")?;
     let started = Instant::now();
+    let mut next_line = started + Duration::from_secs(1);
     loop {
-        std::thread::sleep(Duration::from_secs(1));
+        std::thread::sleep(Duration::from_millis(50));
+        if interrupted.load(std::sync::atomic::Ordering::Acquire) {
+            break;
+        }
+        if Instant::now() < next_line {
+            continue;
+        }
+        next_line += Duration::from_secs(1);
         let s = server.stats();
         let devices: Vec<String> = s
             .devices
