@@ -34,6 +34,8 @@ pub struct HapticConfig {
     /// Safety limits; `None` = the device's own limits with default timing. Always tightened to the device's
     /// limits at start, never loosened.
     pub safety: Option<SafetyConfig>,
+    /// Passivity observer only (default), or observer and controller.
+    pub passivity: crate::passivity::PassivityMode,
 }
 
 impl std::fmt::Debug for HapticConfig {
@@ -47,6 +49,7 @@ impl std::fmt::Debug for HapticConfig {
             .field("loop_rate_hz", &self.loop_rate_hz)
             .field("spin_accuracy_ns", &self.spin_accuracy_ns)
             .field("safety", &self.safety)
+            .field("passivity", &self.passivity)
             .finish()
     }
 }
@@ -63,6 +66,7 @@ impl HapticConfig {
             loop_rate_hz: DEFAULT_LOOP_RATE_HZ,
             spin_accuracy_ns: DEFAULT_SPIN_ACCURACY_NS,
             safety: None,
+            passivity: crate::passivity::PassivityMode::Observe,
         }
     }
 }

@@ -18,6 +18,7 @@ use sinew_protocol::{DevicePose, ForceMode, encode};
 use crate::clock::ns_to_s;
 use crate::device::Device;
 use crate::force_inbox::{ForceInbox, ReceivedForce};
+use crate::passivity::{Passivity, PassivityMode};
 use crate::report::HapticReport;
 use crate::safety::ForceSafety;
 
@@ -40,6 +41,8 @@ struct LoopCounters {
 pub struct HapticLoop {
     device: Box<dyn Device>,
     safety: ForceSafety,
+    passivity: Passivity,
+    last_velocity_mm_s: [f32; 3],
     inbox: Arc<ForceInbox>,
     period: Duration,
     dt_s: f32,
@@ -82,6 +85,8 @@ impl HapticLoop {
         Self {
             device,
             safety,
+            passivity: Passivity::new(PassivityMode::Observe),
+            last_velocity_mm_s: [0.0; 3],
             inbox,
             period,
             dt_s: period.as_secs_f32(),
@@ -98,6 +103,11 @@ impl HapticLoop {
             interval_deviation: LatencyHistogram::new(),
             counters: LoopCounters::default(),
         }
+    }
+
+    /// Choose whether the passivity controller may correct forces (default: observe only).
+    pub fn set_passivity_mode(&mut self, mode: PassivityMode) {
+        self.passivity = Passivity::new(mode);
     }
 
     /// Ticks run.
@@ -164,6 +174,7 @@ impl HapticLoop {
                     self.counters.publish_errors += 1;
                 }
                 self.counters.last_position_mm = reading.position_mm;
+                self.last_velocity_mm_s = reading.linear_velocity_mm_s;
             }
             // A failed or non-finite reading is not published; the force path below still runs.
             Ok(_) | Err(_) => self.counters.device_read_errors += 1,
@@ -201,7 +212,11 @@ impl HapticLoop {
                 (ns_to_s(received.received_ns), force_n)
             })
         };
-        let force_n = self.safety.filter(ns_to_s(now_ns), self.dt_s, latest);
+        let safe_n = self.safety.filter(ns_to_s(now_ns), self.dt_s, latest);
+        // Passivity may only remove force (|out| <= |safe_n|), so the safety guarantees still hold.
+        let force_n = self
+            .passivity
+            .apply(safe_n, self.last_velocity_mm_s, self.dt_s);
 
         // 4. Render.
         if self.device.write_force(force_n).is_err() {
@@ -240,6 +255,7 @@ impl HapticLoop {
         report.last_commanded_force_n = c.last_commanded_force_n;
         report.last_position_mm = c.last_position_mm;
         report.safety = self.safety.counters();
+        report.passivity = self.passivity.counters();
         report.decode_rejects = self.inbox.rejects();
         report.device_read_errors = c.device_read_errors;
         report.device_write_errors = c.device_write_errors;

@@ -61,6 +61,7 @@ impl HapticServer {
             loop_rate_hz,
             spin_accuracy_ns,
             safety,
+            passivity,
         } = config;
         if !(1..=20_000).contains(&loop_rate_hz) {
             return Err(HapticError::LoopRate {
@@ -143,8 +144,10 @@ impl HapticServer {
             inbox: inbox.clone(),
         };
 
+        let mut haptic = HapticLoop::new(device, safety, inbox, period);
+        haptic.set_passivity_mode(passivity);
         let device_loop = DeviceLoop {
-            haptic: HapticLoop::new(device, safety, inbox, period),
+            haptic,
             publisher: pose_publisher,
             clock,
             period,

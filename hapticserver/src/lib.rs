@@ -7,7 +7,7 @@
 //!
 //! Data flow: device --read--> [`haptic_loop::HapticLoop::tick`] --DevicePose, 1 kHz--> server;
 //! server --ForceCommand--> zenoh callback --> [`force_inbox::ForceInbox`] (latest-value mailbox) -->
-//! tick --> [`safety::ForceSafety`] --> device.
+//! tick --> [`safety::ForceSafety`] --> [`passivity::Passivity`] --> device.
 //!
 //! Must not: depend on the server crate or run physics of the scene; the only force that reaches a motor is
 //! one that went through [`safety::ForceSafety`].
@@ -22,6 +22,7 @@ pub mod hand_script;
 pub mod haptic_config;
 pub mod haptic_loop;
 pub mod haptic_server;
+pub mod passivity;
 pub mod report;
 pub mod safety;
 pub mod sim_device;
@@ -34,6 +35,7 @@ pub use hand_model::{HandModel, HandParams, HandTarget};
 pub use hand_script::{HandScript, ScriptError, ScriptKind, ScriptOptions, parse_vec3_mm};
 pub use haptic_config::HapticConfig;
 pub use haptic_server::{HapticHandle, HapticServer};
+pub use passivity::{Passivity, PassivityCounters, PassivityMode};
 pub use report::HapticReport;
 pub use safety::{ForceSafety, SafetyConfig, SafetyCounters};
 pub use sim_device::SimDevice;

@@ -19,6 +19,15 @@ enum DeviceKind {
     Sim,
 }
 
+/// `--passivity` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum PassivityArg {
+    /// Observer only.
+    Observe,
+    /// Observer and controller.
+    Control,
+}
+
 /// Serve one haptic device (pose out at 1 kHz, force in) to a Sinew scene over zenoh.
 #[derive(Debug, Parser)]
 #[command(name = "hapticserver", version)]
@@ -59,6 +68,10 @@ struct Args {
     /// Pacer spin accuracy, ns (0 = plain sleep).
     #[arg(long, default_value_t = hapticserver::haptic_config::DEFAULT_SPIN_ACCURACY_NS)]
     spin_ns: u32,
+    /// Passivity: `observe` (account and report the port's energy) or `control` (also remove force while the
+    /// loop is active; blocks energy another surgeon sends through the tissue).
+    #[arg(long, value_enum, default_value_t = PassivityArg::Observe)]
+    passivity: PassivityArg,
     /// Stop after this many seconds (default: run until killed).
     #[arg(long)]
     duration_s: Option<f64>,
@@ -101,6 +114,10 @@ fn main() -> Result<()> {
     config.tool = args.tool.clone();
     config.loop_rate_hz = args.rate_hz;
     config.spin_accuracy_ns = args.spin_ns;
+    config.passivity = match args.passivity {
+        PassivityArg::Observe => hapticserver::PassivityMode::Observe,
+        PassivityArg::Control => hapticserver::PassivityMode::Control,
+    };
     config.network = NetworkOptions {
         config_file: args.zenoh_config.clone(),
         listen: args.listen.clone(),

@@ -10,6 +10,7 @@ use std::fmt;
 use sinew_protocol::rt::LatencyHistogram;
 
 use crate::force_inbox::DecodeRejects;
+use crate::passivity::PassivityCounters;
 use crate::safety::SafetyCounters;
 
 /// A snapshot of a hapticserver's health and state.
@@ -47,6 +48,8 @@ pub struct HapticReport {
     pub last_position_mm: [f32; 3],
     /// How often each safety rule fired.
     pub safety: SafetyCounters,
+    /// What the passivity controller did.
+    pub passivity: PassivityCounters,
     /// Refused force payloads.
     pub decode_rejects: DecodeRejects,
     /// Failed device reads.
@@ -75,6 +78,7 @@ impl HapticReport {
             last_commanded_force_n: [0.0; 3],
             last_position_mm: [0.0; 3],
             safety: SafetyCounters::default(),
+            passivity: PassivityCounters::default(),
             decode_rejects: DecodeRejects::default(),
             device_read_errors: 0,
             device_write_errors: 0,

@@ -210,9 +210,12 @@ fn summarize(running: &Running) -> DemoSummary {
         s.sim_faults,
         s.rejected.total()
     );
-    for (id, p50, p99, max_force) in &devices {
+    for ((id, p50, p99, max_force), device) in devices.iter().zip(&running.devices) {
+        let report = device.report();
         println!(
-            "device {id}: pose->force round trip p50 {p50:.0} us, p99 {p99:.0} us; max rendered force {max_force:.2} N"
+            "device {id}: pose->force round trip p50 {p50:.0} us, p99 {p99:.0} us; max rendered force {max_force:.2} N; \
+             port energy {:+.2} mJ (passivity observer: active on {} of {} ticks)",
+            report.passivity.energy_mj, report.passivity.active_ticks, report.ticks
         );
     }
     let v = running.viewer.stats();

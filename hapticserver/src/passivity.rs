@@ -1,0 +1,226 @@
+//! Time-domain passivity observer and force-bounded passivity controller (after Hannaford and Ryu, 2002).
+//!
+//! Owns: the energy account of the device port and the one correction it may make. The observer integrates
+//! the energy the rendered force puts into the hand, `E -= F . v dt` (N mm = mJ): a passive environment (tissue
+//! springs, dampers) only gives back what the hand stored in it, so `E` stays >= 0; a delayed or otherwise
+//! active loop drives it negative. While `E < 0` and the force is doing work on the hand (`F . v > 0`), the
+//! controller removes just enough of the force's component along the velocity to pay the deficit back.
+//!
+//! The controller only ever removes a component of the force it is given: it never adds force, never exceeds
+//! the safety filter's output, and zero in gives zero out (the ramp-to-zero guarantee is untouched).
+//!
+//! Default [`PassivityMode::Observe`]: account and report only. A per-port controller cannot tell a delayed,
+//! active loop from energy that legitimately flows between two surgeons through the tissue (one yields to the
+//! other's pull): it would delete exactly that shared feel. Until the server keeps an energy budget across
+//! ports, control is opt-in ([`PassivityMode::Control`], `--passivity control`).
+//! Must not: clamp, rate-limit or handle staleness (that is [`crate::safety`]). Real-time contract: no
+//! allocation, never panics, never returns a non-finite value.
+
+/// Stored energy is capped here (mJ), so long stretches of dissipation cannot be banked to excuse later
+/// activity; far above what the pad's springs store at the device's maximum force (~55 mJ at 3.3 N).
+pub const ENERGY_RESERVE_CAP_MJ: f64 = 100.0;
+
+/// Whether the controller may correct forces.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum PassivityMode {
+    /// Account and report the port's energy; never change a force.
+    #[default]
+    Observe,
+    /// Also remove force while the port is active.
+    Control,
+}
+
+/// What the controller has done.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PassivityCounters {
+    /// Ticks on which the port was active (in Control mode, force was removed on each of them).
+    pub active_ticks: u64,
+    /// Energy it withheld from the hand, mJ.
+    pub withheld_mj: f64,
+    /// Current observed energy, mJ (negative: the loop has injected energy not yet paid back).
+    pub energy_mj: f64,
+}
+
+/// The observer/controller of one device port.
+#[derive(Debug, Clone, Default)]
+pub struct Passivity {
+    mode: PassivityMode,
+    energy_mj: f64,
+    counters: PassivityCounters,
+}
+
+fn dot3(a: &[f32; 3], b: &[f32; 3]) -> f64 {
+    (0..3).map(|i| f64::from(a[i]) * f64::from(b[i])).sum()
+}
+
+impl Passivity {
+    /// A fresh account (E = 0).
+    pub fn new(mode: PassivityMode) -> Self {
+        Self {
+            mode,
+            ..Self::default()
+        }
+    }
+
+    /// Observed ticks on which the port was active (energy below zero while the force did work on the hand)
+    /// count as `active_ticks` in both modes; only [`PassivityMode::Control`] corrects them.
+    pub fn mode(&self) -> PassivityMode {
+        self.mode
+    }
+
+    /// Observe and, if needed, correct the force about to be rendered while the stylus moves at
+    /// `velocity_mm_s`, over a tick of `dt_s`. Returns the force to render (|out| <= |force_n|).
+    pub fn apply(&mut self, force_n: [f32; 3], velocity_mm_s: [f32; 3], dt_s: f32) -> [f32; 3] {
+        let finite = |v: &[f32; 3]| v.iter().all(|c| c.is_finite());
+        if !(finite(&force_n) && finite(&velocity_mm_s) && dt_s.is_finite() && dt_s > 0.0) {
+            // Nothing trustworthy to observe: pass the (already safety-filtered) force, or zero if non-finite.
+            return if finite(&force_n) { force_n } else { [0.0; 3] };
+        }
+        let dt = f64::from(dt_s);
+        let speed2 = dot3(&velocity_mm_s, &velocity_mm_s);
+        let power_mw = dot3(&force_n, &velocity_mm_s); // > 0: the force does work on the hand
+        let mut out = force_n;
+        let deficit_mj = -(self.energy_mj - power_mw * dt);
+        if deficit_mj > 0.0 && power_mw > 0.0 && speed2 > 1e-12 {
+            self.counters.active_ticks += 1;
+        }
+        if self.mode == PassivityMode::Control
+            && deficit_mj > 0.0
+            && power_mw > 0.0
+            && speed2 > 1e-12
+        {
+            // Remove a fraction beta of the force's component along v: the power drops by beta * power.
+            let beta = (deficit_mj / (power_mw * dt)).min(1.0);
+            let along = power_mw / speed2; // force component along v, per unit velocity
+            for (o, v) in out.iter_mut().zip(velocity_mm_s) {
+                *o -= (beta * along * f64::from(v)) as f32;
+            }
+            self.counters.withheld_mj += beta * power_mw * dt;
+        }
+        self.energy_mj =
+            (self.energy_mj - dot3(&out, &velocity_mm_s) * dt).min(ENERGY_RESERVE_CAP_MJ);
+        self.counters.energy_mj = self.energy_mj;
+        if finite(&out) { out } else { [0.0; 3] }
+    }
+
+    /// Counters for reports.
+    pub fn counters(&self) -> PassivityCounters {
+        self.counters
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DT: f32 = 0.001;
+
+    fn norm(v: [f32; 3]) -> f32 {
+        v.iter().map(|c| c * c).sum::<f32>().sqrt()
+    }
+
+    /// A hand oscillating along z through a wall at z = 0 rendered by `force(z, v, t)`; returns the energy the
+    /// rendered forces put into the hand over the run (mJ) and the controller.
+    fn run(
+        mut force: impl FnMut(f32, f32, usize) -> f32,
+        with_controller: bool,
+    ) -> (f64, Passivity) {
+        let mut pc = Passivity::new(PassivityMode::Control);
+        let mut injected = 0.0;
+        for k in 0..20_000 {
+            let t = k as f32 * DT;
+            // Starts on the wall surface moving out (nothing stored, matching the empty account), then dips
+            // 3 mm into the wall every 0.5 s.
+            let z = 3.0 * (std::f32::consts::TAU * 2.0 * t).sin();
+            let v = 3.0 * std::f32::consts::TAU * 2.0 * (std::f32::consts::TAU * 2.0 * t).cos();
+            let f = [0.0, 0.0, force(z, v, k)];
+            let out = if with_controller {
+                pc.apply(f, [0.0, 0.0, v], DT)
+            } else {
+                f
+            };
+            assert!(norm(out) <= norm(f) + 1e-6, "the controller added force");
+            injected += f64::from(out[2]) * f64::from(v) * f64::from(DT);
+        }
+        (injected, pc)
+    }
+
+    #[test]
+    fn a_passive_spring_is_barely_touched() {
+        // Each dip stores 0.9 mJ and gives it back; only the sampled wall's slight activity may be trimmed.
+        let (injected, pc) = run(|z, _, _| (-0.2 * z).max(0.0), true);
+        assert!(
+            pc.counters().withheld_mj < 0.01 * 0.9 * 40.0,
+            "withheld {:?}",
+            pc.counters()
+        );
+        assert!(
+            injected.abs() < 0.5,
+            "a spring gives back what it stores: {injected} mJ"
+        );
+    }
+
+    #[test]
+    fn observe_mode_reports_but_never_changes_a_force() {
+        let mut pc = Passivity::new(PassivityMode::Observe);
+        for _ in 0..1000 {
+            // A force pushing the hand along its motion: active.
+            assert_eq!(
+                pc.apply([0.0, 0.0, 1.0], [0.0, 0.0, 10.0], DT),
+                [0.0, 0.0, 1.0]
+            );
+        }
+        assert!(pc.counters().active_ticks > 900);
+        assert!(pc.counters().energy_mj < -9.0);
+        assert_eq!(pc.counters().withheld_mj, 0.0);
+    }
+
+    #[test]
+    fn a_delayed_spring_injects_energy_and_the_controller_takes_it_back() {
+        // The same wall seen 30 ms late: the classic active, destabilising loop.
+        let delay = 30;
+        let mut history = vec![0.0f32; 20_000];
+        let delayed = |z: f32, _: f32, k: usize, history: &mut Vec<f32>| {
+            history[k] = z;
+            (-0.2 * history[k.saturating_sub(delay)]).max(0.0)
+        };
+        let mut h1 = history.clone();
+        let (open_loop, _) = run(|z, v, k| delayed(z, v, k, &mut h1), false);
+        assert!(
+            open_loop > 5.0,
+            "the delayed wall should inject energy: {open_loop} mJ"
+        );
+        let (controlled, pc) = run(|z, v, k| delayed(z, v, k, &mut history), true);
+        assert!(pc.counters().active_ticks > 0);
+        assert!(
+            controlled < 0.5,
+            "net energy into the hand with the controller: {controlled} mJ"
+        );
+    }
+
+    #[test]
+    fn negative_damping_is_cancelled_and_zero_stays_zero() {
+        let (injected, pc) = run(|_, v, _| 0.01 * v, true);
+        assert!(injected < 0.01, "{injected}");
+        assert!(pc.counters().withheld_mj > 0.0);
+        let mut pc = Passivity::new(PassivityMode::Control);
+        for _ in 0..100 {
+            assert_eq!(pc.apply([0.0; 3], [0.0, 0.0, 50.0], DT), [0.0; 3]);
+        }
+    }
+
+    #[test]
+    fn non_finite_inputs_never_produce_non_finite_output() {
+        let mut pc = Passivity::new(PassivityMode::Control);
+        assert_eq!(pc.apply([f32::NAN, 0.0, 1.0], [0.0; 3], DT), [0.0; 3]);
+        assert_eq!(
+            pc.apply([0.0, 0.0, 1.0], [f32::NAN, 0.0, 0.0], DT),
+            [0.0, 0.0, 1.0]
+        );
+        assert_eq!(
+            pc.apply([0.0, 0.0, 1.0], [0.0; 3], f32::NAN),
+            [0.0, 0.0, 1.0]
+        );
+        assert!(pc.counters().energy_mj.is_finite());
+    }
+}
