@@ -116,7 +116,10 @@ fn run_with_window(running: &Running, duration: Duration) -> anyhow::Result<()> 
                 print_line(server, devices, viewer, start.elapsed());
             }
         });
-        let result = sinew_viewer::run_window(viewer, "Sinew demo", 1280, 800);
+        let start = Instant::now();
+        let result = sinew_viewer::run_window_until(viewer, "Sinew demo", 1280, 800, &|| {
+            start.elapsed() >= duration
+        });
         stop.store(true, std::sync::atomic::Ordering::Release);
         let _ = printer.join();
         result.context("viewer window")

@@ -27,4 +27,4 @@ pub use error::ViewerError;
 pub use render::{RenderStats, render_image, render_image_framed, render_png, render_sequence};
 pub use replica::{DeltaOutcome, ReplicaError, ReplicaObject, SceneReplica};
 pub use viewer_stats::{DecodeErrorCounts, ViewerStats};
-pub use window::{display_available, run_window};
+pub use window::{display_available, run_window, run_window_until};

@@ -33,16 +33,33 @@ pub fn run_window(
     width: u32,
     height: u32,
 ) -> Result<(), ViewerError> {
+    run_window_until(viewer, title, width, height, &|| false)
+}
+
+/// As [`run_window`], but also closes the window as soon as `stop()` returns true (checked every frame).
+pub fn run_window_until(
+    viewer: &ViewerHandle,
+    title: &str,
+    width: u32,
+    height: u32,
+    stop: &dyn Fn() -> bool,
+) -> Result<(), ViewerError> {
     if !display_available() {
         return Err(ViewerError::NoDisplay);
     }
     std::panic::catch_unwind(AssertUnwindSafe(|| {
-        kiss3d::pollster::block_on(window_loop(viewer, title, width, height));
+        kiss3d::pollster::block_on(window_loop(viewer, title, width, height, stop));
     }))
     .map_err(|payload| ViewerError::Window(panic_detail(payload.as_ref())))
 }
 
-async fn window_loop(viewer: &ViewerHandle, title: &str, width: u32, height: u32) {
+async fn window_loop(
+    viewer: &ViewerHandle,
+    title: &str,
+    width: u32,
+    height: u32,
+    stop: &dyn Fn() -> bool,
+) {
     // The window first: it installs the thread-local GPU context the nodes below need.
     let mut window = Window::new_with_size(title, width, height).await;
     configure_window(&mut window);
@@ -53,6 +70,9 @@ async fn window_loop(viewer: &ViewerHandle, title: &str, width: u32, height: u32
     let mut framed_on_objects = false;
     let mut drawn_revision = None;
     while window.render_3d(&mut scene, &mut camera).await {
+        if stop() {
+            break;
+        }
         // Copy the replica out only when it moved, and update the GPU meshes outside the viewer's lock so
         // the zenoh callbacks never wait on normal recomputation.
         let revision = viewer.with_replica(SceneReplica::revision);
