@@ -62,6 +62,9 @@ struct Args {
     /// zenoh config file (JSON5), loaded before the flags above.
     #[arg(long)]
     zenoh_config: Option<std::path::PathBuf>,
+    /// zenoh mode: peer (default) or client (through a zenohd router).
+    #[arg(long)]
+    zenoh_mode: Option<String>,
     /// Loop rate, Hz.
     #[arg(long, default_value_t = 1000)]
     rate_hz: u32,
@@ -122,7 +125,7 @@ fn main() -> Result<()> {
         config_file: args.zenoh_config.clone(),
         listen: args.listen.clone(),
         connect: args.connect.clone(),
-        mode: None,
+        mode: args.zenoh_mode.clone(),
     };
     let mut handle = HapticServer::start(config).with_context(|| {
         format!(

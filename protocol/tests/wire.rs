@@ -140,6 +140,8 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
         sim_faults: rng.u64(..),
         deltas_sent: rng.u64(..),
         delta_bytes_sent: rng.u64(..),
+        snapshots_served: rng.u64(..),
+        quantization_clamps: rng.u64(..),
         rejected: RejectCounts {
             malformed: rng.u64(..),
             wrong_version: rng.u64(..),

@@ -25,9 +25,9 @@ struct Args {
     /// zenoh config file (JSON5); --listen/--connect override its endpoints.
     #[arg(long)]
     zenoh_config: Option<PathBuf>,
-    /// zenoh mode: peer (default) or client.
+    /// zenoh mode: peer (default) or client (through a zenohd router).
     #[arg(long)]
-    mode: Option<String>,
+    zenoh_mode: Option<String>,
     /// Stop after this many seconds (default: run until killed).
     #[arg(long)]
     duration_s: Option<f64>,
@@ -57,7 +57,7 @@ fn main() -> anyhow::Result<()> {
             config_file: args.zenoh_config,
             listen: args.listen,
             connect: args.connect,
-            mode: args.mode,
+            mode: args.zenoh_mode,
         },
         server_id: args.id,
         ..ServerConfig::default()

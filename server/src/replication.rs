@@ -124,11 +124,6 @@ impl ObjectReplication {
             frame: self.last_frame,
         }
     }
-
-    /// Bytes of a whole-mesh message at this size (positions only), for comparing against deltas.
-    pub fn full_positions_bytes(&self) -> usize {
-        self.sent_q.len() * 6
-    }
 }
 
 #[cfg(test)]

@@ -223,10 +223,11 @@ fn summarize(running: &Running) -> DemoSummary {
     }
     let v = running.viewer.stats();
     println!(
-        "mesh deltas: {} sent, {:.1} kB/s (whole mesh at 60 Hz would be {:.1} kB/s); viewer: {} snapshots, {} deltas applied, {} gaps",
+        "mesh deltas: {} sent, {:.1} kB/s (whole mesh at 60 Hz would be {:.1} kB/s), {} quantization clamps; viewer: {} snapshots, {} deltas applied, {} gaps",
         s.deltas_sent,
         delta_bytes_per_s / 1000.0,
         full_mesh_bytes_per_s / 1000.0,
+        s.quantization_clamps,
         v.snapshots_fetched,
         v.deltas_applied,
         v.gaps

@@ -195,6 +195,12 @@ fn both_pressing_deform_the_tissue_between_them_with_bounded_forces_and_the_view
     );
     assert!(error.frame > 0);
     assert_eq!(viewer.stats().gaps, 0);
+    let stats = rig.server.stats();
+    assert!(stats.snapshots_served >= 1);
+    assert_eq!(
+        stats.quantization_clamps, 0,
+        "the dent left the wire bounds"
+    );
     viewer.stop();
 }
 

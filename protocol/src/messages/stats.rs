@@ -65,6 +65,11 @@ pub struct ServerStats {
     pub deltas_sent: u64,
     /// Mesh delta bytes published.
     pub delta_bytes_sent: u64,
+    /// Snapshot queries answered.
+    pub snapshots_served: u64,
+    /// Vertex positions that fell outside their object's quantization bounds and were clamped on the wire
+    /// (should stay 0; otherwise raise the object's `quant_margin_mm`).
+    pub quantization_clamps: u64,
     /// Refused inbound messages.
     pub rejected: RejectCounts,
     /// One entry per tool-bound device.

@@ -35,8 +35,6 @@ pub struct ReplicationState {
     pub deltas_sent: u64,
     /// Mesh delta bytes sent (encoded payloads).
     pub delta_bytes: u64,
-    /// Bytes that whole-mesh messages would have taken at the same frames (positions only).
-    pub full_mesh_bytes: u64,
     /// Snapshots served.
     pub snapshots_served: u64,
 }
@@ -90,7 +88,6 @@ impl ReplicationState {
             tool_states: ToolStates::default(),
             deltas_sent: 0,
             delta_bytes: 0,
-            full_mesh_bytes: 0,
             snapshots_served: 0,
         }
     }
@@ -143,6 +140,12 @@ pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
     if let Ok(replication) = shared.replication.lock() {
         stats.deltas_sent = replication.deltas_sent;
         stats.delta_bytes_sent = replication.delta_bytes;
+        stats.snapshots_served = replication.snapshots_served;
+        stats.quantization_clamps = replication
+            .objects
+            .iter()
+            .map(ObjectReplication::clamped)
+            .sum();
     }
     stats
 }
@@ -263,8 +266,6 @@ fn publish_frame(
     tool_states.frame = frame;
     replication.tool_states.clone_from(tool_states);
     for (o, (object_positions, publisher)) in positions.iter().zip(delta_publishers).enumerate() {
-        let full_bytes = replication.objects[o].full_positions_bytes() as u64;
-        replication.full_mesh_bytes += full_bytes;
         if replication.objects[o].delta(o as u16, object_positions, frame, delta) {
             encode(&*delta, buf);
             // Sent under the replication lock so a snapshot can never be taken between a delta's state
