@@ -2,7 +2,7 @@
 //!
 //! Each object carries fixed bounds for the session; a coordinate is stored as a `u16` count of quanta from
 //! `min_mm`. One quantum per axis is `(max_mm - min_mm) / 65535`; rounding to nearest makes the worst-case
-//! error half a quantum per axis, [`QuantBounds::max_error_mm`] along the diagonal. Positions outside the
+//! error half a quantum per axis plus f32 rounding, [`QuantBounds::max_error_mm`] along the diagonal. Positions outside the
 //! bounds clamp to them (the server counts those and sizes the bounds with margin so it does not happen).
 
 use serde::{Deserialize, Serialize};
@@ -27,10 +27,19 @@ impl QuantBounds {
         std::array::from_fn(|a| (self.max_mm[a] - self.min_mm[a]) / QUANT_MAX)
     }
 
-    /// Worst-case distance between a position inside the bounds and its dequantized value, mm.
+    /// Worst-case distance between a position inside the bounds and its dequantized value, mm: half a quantum
+    /// per axis, plus the f32 rounding of the quantize/dequantize arithmetic (bounded here by four epsilons of
+    /// the axis's largest coordinate; about 1 um at +-80 mm), along the diagonal.
     pub fn max_error_mm(&self) -> f32 {
         let q = self.quantum_mm();
-        0.5 * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt()
+        let per_axis = |a: usize| {
+            let rounding = 4.0 * f32::EPSILON * self.min_mm[a].abs().max(self.max_mm[a].abs());
+            0.5 * q[a] + rounding
+        };
+        (0..3)
+            .map(|a| per_axis(a) * per_axis(a))
+            .sum::<f32>()
+            .sqrt()
     }
 
     /// Quantize a position. Returns the quanta and whether any axis was clamped. Non-finite axes map to 0 and
@@ -94,6 +103,32 @@ mod tests {
                 assert!((back[a] - p[a]).abs() <= 0.5 * quantum[a] * 1.01 + 1e-5);
             }
         }
+    }
+
+    /// Regression: the bound was half a quantum per axis only, but quantize and dequantize run in f32; at
+    /// +-80 mm a round trip adds a few ulps, and a late-joining viewer saw 0.0017367 mm against 0.0017331 mm.
+    #[test]
+    fn error_bound_covers_f32_rounding_at_worst_case_positions() {
+        let bounds = QuantBounds {
+            min_mm: [-80.0, -70.0, -40.0],
+            max_mm: [80.0, 70.0, 40.0],
+        };
+        let quantum = bounds.quantum_mm();
+        let bound = bounds.max_error_mm();
+        let mut worst = 0.0f32;
+        for k in 0..65_535u32 {
+            // Exactly between two quanta on every axis: the largest rounding error.
+            let p: [f32; 3] = std::array::from_fn(|a| {
+                (f64::from(bounds.min_mm[a]) + (f64::from(k) + 0.5) * f64::from(quantum[a])) as f32
+            });
+            let back = bounds.dequantize(bounds.quantize(p).0);
+            let error = (0..3).map(|a| (back[a] - p[a]).powi(2)).sum::<f32>().sqrt();
+            worst = worst.max(error);
+        }
+        assert!(
+            worst <= bound,
+            "worst error {worst} mm above the stated bound {bound} mm"
+        );
     }
 
     #[test]

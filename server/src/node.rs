@@ -170,7 +170,7 @@ impl ServerHandle {
         Some((o.last_frame(), o.sent_true_mm().to_vec()))
     }
 
-    /// The worst-case replica error for `object`, mm (half a quantum along the diagonal).
+    /// The worst-case replica error for `object`, mm (half a quantum per axis plus f32 rounding, along the diagonal).
     pub fn quantum_error_mm(&self, object: usize) -> Option<f32> {
         let replication = self.shared.replication.lock().ok()?;
         replication

@@ -234,7 +234,7 @@ fn summarize(running: &Running) -> DemoSummary {
     );
     match replica {
         Some(e) => println!(
-            "viewer replica error: {:.4} mm at frame {} (bound {:.4} mm: half a quantum)",
+            "viewer replica error: {:.4} mm at frame {} (bound {:.4} mm: half a quantum plus f32 rounding)",
             e.max_error_mm, e.frame, e.bound_mm
         ),
         None => println!(

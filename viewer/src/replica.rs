@@ -155,8 +155,8 @@ impl ReplicaObject {
         self.positions_mm_iter().collect()
     }
 
-    /// Bound on the distance between a replica position and the server's position, mm (half a quantum along
-    /// the diagonal of one quantization cell).
+    /// Bound on the distance between a replica position and the server's position, mm (half a quantum per
+    /// axis plus f32 rounding, along the diagonal of one quantization cell).
     pub fn max_error_mm(&self) -> f32 {
         self.bounds.max_error_mm()
     }

@@ -11,7 +11,7 @@ use crate::codec::{FieldError, Message, MessageKind};
 /// re-queries the snapshot).
 /// Units: positions are `u16` quanta against the object's [`crate::quantize::QuantBounds`] sent in the
 /// snapshot; one quantum is `(max_mm - min_mm) / 65535` per axis. The replica holds exactly the server's
-/// quantized state, so its error is at most half a quantum per axis.
+/// quantized state, so its error is at most half a quantum per axis (plus f32 rounding: see `QuantBounds::max_error_mm`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct MeshDelta {
     /// Object index in the snapshot.
