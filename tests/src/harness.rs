@@ -60,6 +60,14 @@ pub fn start_server(world: World, endpoint: &str, pacing: Pacing) -> anyhow::Res
     ServerNode::start(world, config).context("starting the server")
 }
 
+/// Start a server on the shipped `worlds/pad.toml`, listening on a fresh loopback port; returns that endpoint
+/// (for the other roles to connect to) and the server.
+pub fn start_pad_server(pacing: Pacing) -> anyhow::Result<(String, ServerHandle)> {
+    let endpoint = free_loopback_endpoint()?;
+    let server = start_server(load_shipped_world("pad.toml")?, &endpoint, pacing)?;
+    Ok((endpoint, server))
+}
+
 /// Start a hapticserver for device `id` with a simulated hand following `script`, connecting to `endpoint`.
 pub fn start_sim_device(
     scene: &str,

@@ -5,9 +5,7 @@
 use std::time::Duration;
 
 use hapticserver::HandScript;
-use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device, wait_until,
-};
+use sinew::harness::{Pacing, start_pad_server, start_sim_device, wait_until};
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::keys::SceneKeys;
 use sinew_protocol::network::NetworkOptions;
@@ -16,13 +14,7 @@ use zenoh::Wait;
 
 #[test]
 fn bad_poses_are_dropped_and_counted_and_the_server_keeps_running() {
-    let endpoint = free_loopback_endpoint().unwrap();
-    let server = start_server(
-        load_shipped_world("pad.toml").unwrap(),
-        &endpoint,
-        Pacing::Sleep,
-    )
-    .unwrap();
+    let (endpoint, server) = start_pad_server(Pacing::Sleep).unwrap();
     let options = NetworkOptions {
         connect: vec![endpoint.clone()],
         ..NetworkOptions::default()

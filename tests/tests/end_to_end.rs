@@ -8,8 +8,8 @@ use std::time::Duration;
 
 use hapticserver::{HandScript, HapticHandle};
 use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, replica_error, start_server,
-    start_sim_device, start_viewer, wait_until,
+    Pacing, load_shipped_world, replica_error, start_pad_server, start_sim_device, start_viewer,
+    wait_until,
 };
 use sinew_protocol::rt::LatestValue;
 use sinew_server::node::ServerHandle;
@@ -36,13 +36,7 @@ struct Rig {
 }
 
 fn rig() -> Rig {
-    let endpoint = free_loopback_endpoint().unwrap();
-    let server = start_server(
-        load_shipped_world("pad.toml").unwrap(),
-        &endpoint,
-        Pacing::Sleep,
-    )
-    .unwrap();
+    let (endpoint, server) = start_pad_server(Pacing::Sleep).unwrap();
     let left_target = Arc::new(LatestValue::new());
     let right_target = Arc::new(LatestValue::new());
     left_target.store(HOVER);
@@ -288,13 +282,7 @@ fn the_device_force_ramps_to_zero_when_the_server_goes_silent() {
 #[test]
 fn a_device_asking_for_a_tool_the_world_does_not_give_it_is_refused() {
     let _serial = serial();
-    let endpoint = free_loopback_endpoint().unwrap();
-    let server = start_server(
-        load_shipped_world("pad.toml").unwrap(),
-        &endpoint,
-        Pacing::Sleep,
-    )
-    .unwrap();
+    let (endpoint, server) = start_pad_server(Pacing::Sleep).unwrap();
     let mut config = hapticserver::HapticConfig::new(
         "pad",
         "left",
