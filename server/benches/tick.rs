@@ -97,6 +97,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         object.model.compute_forces(
             &object.state.positions_mm,
             &object.state.velocities_mm_s,
+            None,
             &mut scratch,
         );
         forces.record(start.elapsed());

@@ -9,7 +9,9 @@ use thiserror::Error;
 
 use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
 use crate::interaction::ProbeContacts;
-use crate::tissue::{Integrator, MassSpringModel, TissueState, Vec3, integrator_for};
+use crate::tissue::{
+    DivergenceGuard, Integrator, MassSpringModel, TieSet, TissueState, Vec3, integrator_for,
+};
 use crate::world::{ToolShapeSpec, World};
 
 /// Why a world could not become a simulation.
@@ -35,6 +37,7 @@ pub struct SimObject {
     /// Positions and velocities.
     pub state: TissueState,
     integrator: Box<dyn Integrator>,
+    guard: DivergenceGuard,
     collider: SurfaceCollider,
     marks: NodeMarks,
     max_dt_s: f32,
@@ -105,12 +108,20 @@ pub struct ToolOutput {
     pub clamped: bool,
 }
 
+/// Times the anti-divergence guard may halve a tick's step before it gives up and resets the object (a
+/// step of 1/16 of the planned one).
+pub const MAX_HALVINGS: u32 = 4;
+
 /// What happened in one step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepReport {
-    /// Integrator substeps run (summed over objects).
+    /// Integrator substeps run (summed over objects, retries included).
     pub substeps: u32,
-    /// Objects that produced a non-finite state and were reset to rest this step.
+    /// Times the tick was rerun with its step halved because an object diverged.
+    pub retries: u32,
+    /// Solver iterations (CG, XPBD sweeps, relaxation sweeps) summed over objects and substeps.
+    pub solver_iterations: u32,
+    /// Objects still diverging at the smallest step, reset to rest this step.
     pub faults: u32,
     /// Nodes held by all tools.
     pub held_nodes: u32,
@@ -123,6 +134,8 @@ pub struct Sim {
     pub objects: Vec<SimObject>,
     /// Tools, in world-file order.
     pub tools: Vec<SimTool>,
+    /// Tie-nodes between objects.
+    pub ties: Vec<TieSet>,
     collision_margin_mm: f32,
     time_s: f64,
     steps: u64,
@@ -133,7 +146,7 @@ impl Sim {
     pub fn new(world: &World) -> Result<Self, SimBuildError> {
         let mut objects = Vec::with_capacity(world.objects.len());
         for spec in &world.objects {
-            let model = MassSpringModel::build(spec);
+            let model = MassSpringModel::build(spec, Vec3::from(world.gravity_mm_per_s2));
             let state = TissueState::at_rest(&model);
             let collider = SurfaceCollider::new(model.rest_positions_mm(), model.triangles())
                 .map_err(|e| SimBuildError::Collider {
@@ -143,7 +156,8 @@ impl Sim {
             objects.push(SimObject {
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
-                integrator: integrator_for(spec.integrator),
+                integrator: integrator_for(spec.integrator, spec.solver_iterations),
+                guard: DivergenceGuard::new(&model),
                 collider,
                 state,
                 model,
@@ -176,6 +190,7 @@ impl Sim {
         Ok(Self {
             objects,
             tools,
+            ties: world.ties.clone(),
             collision_margin_mm: world.collision_margin_mm,
             time_s: 0.0,
             steps: 0,
@@ -220,29 +235,48 @@ impl Sim {
             }
         }
 
-        for (o, object) in self.objects.iter_mut().enumerate() {
-            let substeps = (dt_s / object.max_dt_s).ceil().max(1.0) as u32;
-            let h = dt_s / substeps as f32;
-            for _ in 0..substeps {
-                object.integrator.step(&object.model, &mut object.state, h);
-                for tool in self.tools.iter_mut().filter(|t| t.active) {
-                    tool.contacts[o].project(
-                        &tool.collider,
-                        &tool.position_mm,
-                        &tool.rotation,
-                        &object.model,
-                        &mut object.state,
-                    );
-                }
+        // All objects step in lockstep (ties couple them every substep), at the smallest object dt.
+        let planned = self
+            .objects
+            .iter()
+            .map(|o| (dt_s / o.max_dt_s).ceil().max(1.0) as u32)
+            .max()
+            .unwrap_or(1);
+        for object in &mut self.objects {
+            object.guard.save(&object.state);
+        }
+        let mut halvings = 0;
+        loop {
+            let substeps = planned << halvings;
+            self.run_substeps(dt_s / substeps as f32, substeps, &mut report);
+            let diverged = self
+                .objects
+                .iter()
+                .filter(|o| o.guard.diverged(&o.model, &o.state))
+                .count();
+            if diverged == 0 {
+                break;
             }
-            report.substeps += substeps;
-            if !object.state.is_finite() {
-                object.state.reset_to_rest(&object.model);
-                for tool in &mut self.tools {
-                    tool.contacts[o].clear();
+            if halvings == MAX_HALVINGS {
+                // Still diverging at 1/16 of the step: contain it. Reset what diverged, keep the rest.
+                for (o, object) in self.objects.iter_mut().enumerate() {
+                    if object.guard.diverged(&object.model, &object.state) {
+                        object.state.reset_to_rest(&object.model);
+                        for tool in &mut self.tools {
+                            tool.contacts[o].clear();
+                        }
+                        report.faults += 1;
+                    }
                 }
-                report.faults += 1;
+                break;
             }
+            for object in &mut self.objects {
+                object.guard.restore(&mut object.state);
+            }
+            halvings += 1;
+            report.retries += 1;
+        }
+        for object in &mut self.objects {
             object.collider.refit(&object.state.positions_mm);
         }
 
@@ -261,6 +295,41 @@ impl Sim {
         self.time_s += f64::from(dt_s);
         self.steps += 1;
         report
+    }
+
+    /// `substeps` steps of `h` for every object: ties, integrate, push out of the tools.
+    fn run_substeps(&mut self, h: f32, substeps: u32, report: &mut StepReport) {
+        for _ in 0..substeps {
+            if !self.ties.is_empty() {
+                for object in &mut self.objects {
+                    object.state.external_forces_n.fill(Vec3::zeros());
+                }
+                for tie in &self.ties {
+                    let (a, b) = (tie.object_a, tie.object_b);
+                    let (first, second) = self.objects.split_at_mut(a.max(b));
+                    let (low, high) = (&mut first[a.min(b)], &mut second[0]);
+                    if a < b {
+                        tie.accumulate(&mut low.state, &mut high.state);
+                    } else {
+                        tie.accumulate(&mut high.state, &mut low.state);
+                    }
+                }
+            }
+            for (o, object) in self.objects.iter_mut().enumerate() {
+                report.solver_iterations +=
+                    object.integrator.step(&object.model, &mut object.state, h);
+                for tool in self.tools.iter_mut().filter(|t| t.active) {
+                    tool.contacts[o].project(
+                        &tool.collider,
+                        &tool.position_mm,
+                        &tool.rotation,
+                        &object.model,
+                        &mut object.state,
+                    );
+                }
+            }
+            report.substeps += self.objects.len() as u32;
+        }
     }
 
     fn apply_commands(&mut self, commands: &[ToolCommand]) {

@@ -1,18 +1,32 @@
-//! Soft tissue: the mass-spring model, its state, and the time integrators that advance it.
+//! Soft tissue: the mass-spring model, its state, the time integrators that advance it, and what keeps them
+//! honest (stability bounds, the anti-divergence guard).
 //!
-//! Owns: node masses, edges (spring-dampers from the unique mesh edges), anchors to rest, fixed nodes, and
-//! the integrator seam ([`Integrator`]). Must not: know about tools, collision or the network.
+//! Owns: node masses, springs (structure-of-arrays, one kernel for every integrator), spring laws, anchors to
+//! rest, fixed nodes, volume terms, tie-nodes between objects, and the integrator seam ([`Integrator`]).
+//! Must not: know about tools, collision or the network.
 //!
 //! Units: positions mm, velocities mm/s, forces N, masses kg, stiffness N/mm, damping N s/mm. Newton's law in
 //! these units is `a_mm_per_s2 = 1000 * f_n / m_kg` ([`MM_PER_M`]).
 
-mod integrator;
+pub mod guard;
+pub mod integrators;
 mod mass_spring;
+pub mod spring_law;
+pub mod springs;
+pub mod stability;
 mod state;
+pub mod ties;
+pub mod volume;
 
-pub use integrator::{Integrator, SymplecticEuler, integrator_for};
-pub use mass_spring::MassSpringModel;
+pub use guard::DivergenceGuard;
+pub use integrators::{
+    ExplicitEuler, ImplicitEuler, Integrator, QuasiStatic, Rk2, Rk4, SymplecticEuler, Xpbd,
+    integrator_for,
+};
+pub use mass_spring::{MassSpringModel, ModelParts};
+pub use spring_law::SpringLaw;
 pub use state::TissueState;
+pub use ties::TieSet;
 
 /// Millimetres per metre: converts N/kg (m/s^2) to mm/s^2.
 pub const MM_PER_M: f32 = 1000.0;

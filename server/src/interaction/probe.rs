@@ -75,8 +75,17 @@ impl ProbeContacts {
     /// Force the tissue exerts on the tool through the held nodes, N. No allocation.
     pub fn reaction_force_n(&self, model: &MassSpringModel, state: &TissueState) -> Vec3 {
         let mut force = Vec3::zeros();
+        if self.held.is_empty() {
+            return force;
+        }
+        let pressure = model.pressure_n_per_mm2(&state.positions_mm);
         for (&node, dir) in self.held.iter().zip(&self.normals) {
-            let f = model.node_force(node as usize, &state.positions_mm, &state.velocities_mm_s);
+            let f = model.node_force(
+                node as usize,
+                &state.positions_mm,
+                &state.velocities_mm_s,
+                pressure,
+            );
             let normal = f.dot(dir);
             if normal < 0.0 {
                 force += dir * normal;

@@ -1,20 +1,50 @@
 //! The mass-spring model of one object: topology and material, immutable after build.
+//!
+//! Owns: node masses and rest positions, the springs ([`SpringSet`]), the spring law, anchors to rest, drag,
+//! gravity, fixed nodes, the surface triangles, optional volume terms (global and per tetrahedron), and the
+//! node adjacency every integrator and the region tracker walk. Must not: know about tools or time stepping.
 
-use super::{MM_PER_M, Vec3};
+use super::springs::SpringSet;
+use super::volume::{GlobalVolume, TetVolumes};
+use super::{MM_PER_M, SpringLaw, Vec3};
 use crate::world::{MassSpec, ObjectSpec};
 
-/// One spring-damper along a mesh edge, laid out together so the force loop touches one line per edge.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Spring {
-    a: u32,
-    b: u32,
-    rest_length_mm: f32,
-    stiffness_n_per_mm: f32,
-    damping_n_s_per_mm: f32,
+/// Everything a model is built from. Public so tests and the region tracker can build models that are not
+/// loaded from a world file (a hanging chain, a sub-model of the moving region).
+#[derive(Debug, Clone, Default)]
+pub struct ModelParts {
+    /// Rest positions, mm.
+    pub rest_positions_mm: Vec<Vec3>,
+    /// Node masses, kg.
+    pub mass_kg: Vec<f32>,
+    /// Fixed nodes never move.
+    pub fixed: Vec<bool>,
+    /// Springs as (a, b) with a < b; rest lengths come from the rest positions.
+    pub edges: Vec<[u32; 2]>,
+    /// Per-edge stiffness, N/mm (same length as `edges`).
+    pub edge_stiffness_n_per_mm: Vec<f32>,
+    /// Per-edge damping, N s/mm (same length as `edges`).
+    pub edge_damping_n_s_per_mm: Vec<f32>,
+    /// Tension law of every spring.
+    pub law: Option<SpringLaw>,
+    /// Spring from each free node to its rest position, N/mm.
+    pub anchor_stiffness_n_per_mm: f32,
+    /// Viscous drag, 1/s.
+    pub drag_per_s: f32,
+    /// Uniform acceleration of every free node, mm/s^2.
+    pub gravity_mm_per_s2: Vec3,
+    /// Surface triangles (outward winding); may be empty (a chain).
+    pub triangles: Vec<[u32; 3]>,
+    /// Tetrahedra (any orientation; reoriented at build).
+    pub tets: Vec<[u32; 4]>,
+    /// Bulk modulus of the per-tetrahedron volume term, N/mm^2 (0 = off).
+    pub tet_bulk_modulus_n_per_mm2: f32,
+    /// Bulk modulus of the global volume term, N/mm^2 (0 = off; needs a closed surface).
+    pub global_bulk_modulus_n_per_mm2: f32,
 }
 
-/// Nodes are point masses at the mesh vertices; edges are spring-dampers along the unique mesh edges; every
-/// free node also has an anchor spring to its rest position (the tissue underneath); fixed nodes never move.
+/// Nodes are point masses; springs are spring-dampers along edges; every free node also has an anchor spring
+/// to its rest position (the tissue underneath); fixed nodes never move.
 #[derive(Debug, Clone)]
 pub struct MassSpringModel {
     rest_positions_mm: Vec<Vec3>,
@@ -22,36 +52,50 @@ pub struct MassSpringModel {
     mass_kg: Vec<f32>,
     /// 1000 / mass for free nodes (mm/s^2 per N), 0 for fixed nodes.
     accel_per_force: Vec<f32>,
-    /// Springs, sorted by (a, b) so node accesses stay local.
-    springs: Vec<Spring>,
+    springs: SpringSet,
+    law: SpringLaw,
     anchor_stiffness_n_per_mm: f32,
     drag_per_s: f32,
+    gravity_mm_per_s2: Vec3,
     triangles: Vec<[u32; 3]>,
-    /// CSR node -> incident edges.
-    node_edge_start: Vec<u32>,
-    node_edges: Vec<u32>,
+    tets: TetVolumes,
+    global_volume: Option<GlobalVolume>,
+    /// CSR node -> incident springs.
+    node_spring_start: Vec<u32>,
+    node_springs: Vec<u32>,
+    /// CSR node -> incident triangles, and node -> incident tetrahedra.
+    node_triangle_start: Vec<u32>,
+    node_triangles: Vec<u32>,
+    node_tet_start: Vec<u32>,
+    node_tets: Vec<u32>,
 }
 
-impl Spring {
-    /// Spring plus damper force on end `a` (end `b` gets the opposite), N. Zero for a zero-length edge.
-    #[inline(always)]
-    fn force_on_a(&self, x: &[Vec3], v: &[Vec3]) -> Vec3 {
-        let (a, b) = (self.a as usize, self.b as usize);
-        let d = x[b] - x[a];
-        let len = d.norm();
-        if len <= 1e-9 {
-            return Vec3::zeros();
+/// Compressed rows: for each node, the list of items that touch it.
+fn incidence<const K: usize>(n: usize, items: &[[u32; K]]) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; n + 1];
+    for item in items {
+        for &v in item {
+            start[v as usize + 1] += 1;
         }
-        let dir = d * (1.0 / len);
-        let stretch = len - self.rest_length_mm;
-        let rate = (v[b] - v[a]).dot(&dir);
-        dir * (self.stiffness_n_per_mm * stretch + self.damping_n_s_per_mm * rate)
     }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut list = vec![0u32; start[n] as usize];
+    for (e, item) in items.iter().enumerate() {
+        for &v in item {
+            list[fill[v as usize] as usize] = e as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    (start, list)
 }
 
 impl MassSpringModel {
-    /// Build from a validated object spec (masses by vertex area share, edges from triangles).
-    pub fn build(spec: &ObjectSpec) -> Self {
+    /// Build from a validated object spec: masses by vertex area share, springs along the unique mesh edges
+    /// (and tetrahedron edges), gravity from the world.
+    pub fn build(spec: &ObjectSpec, gravity_mm_per_s2: Vec3) -> Self {
         let positions: Vec<Vec3> = spec
             .mesh
             .positions_mm
@@ -60,93 +104,149 @@ impl MassSpringModel {
             .collect();
         let n = positions.len();
         let triangles = spec.mesh.triangles.clone();
+        let tets = spec.tets.clone();
 
-        let mut area_share_mm2 = vec![0.0f32; n];
-        let mut normal_sum = vec![Vec3::zeros(); n];
-        let mut edges: Vec<[u32; 2]> = Vec::with_capacity(triangles.len() * 3);
+        let mut edges: Vec<[u32; 2]> = Vec::with_capacity(triangles.len() * 3 + tets.len() * 6);
         for tri in &triangles {
-            let [a, b, c] = tri.map(|v| positions[v as usize]);
-            let area_normal = 0.5 * (b - a).cross(&(c - a));
-            let area = area_normal.norm();
             for k in 0..3 {
-                normal_sum[tri[k] as usize] += area_normal;
-                area_share_mm2[tri[k] as usize] += area / 3.0;
                 let (p, q) = (tri[k], tri[(k + 1) % 3]);
+                edges.push([p.min(q), p.max(q)]);
+            }
+        }
+        for tet in &tets {
+            for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                let (p, q) = (tet[i], tet[j]);
                 edges.push([p.min(q), p.max(q)]);
             }
         }
         edges.sort_unstable();
         edges.dedup();
 
-        let total_area: f32 = area_share_mm2.iter().sum();
+        // Mass shares: by tetrahedron volume when the object has tetrahedra, else by triangle area.
+        let mut share = vec![0.0f32; n];
+        if tets.is_empty() {
+            for tri in &triangles {
+                let [a, b, c] = tri.map(|v| positions[v as usize]);
+                let area = 0.5 * (b - a).cross(&(c - a)).norm();
+                for v in tri {
+                    share[*v as usize] += area / 3.0;
+                }
+            }
+        } else {
+            for tet in &tets {
+                let v = super::volume::tet_volume_mm3(&positions, *tet).abs();
+                for i in tet {
+                    share[*i as usize] += v / 4.0;
+                }
+            }
+        }
+        let total_share: f32 = share.iter().sum();
         let mass_kg: Vec<f32> = match spec.material.mass {
-            MassSpec::TotalKg(total) => area_share_mm2
-                .iter()
-                .map(|a| total * a / total_area)
-                .collect(),
+            MassSpec::TotalKg(total) => share.iter().map(|a| total * a / total_share).collect(),
             MassSpec::Density {
                 kg_per_m3,
                 thickness_mm,
-            } => area_share_mm2
-                .iter()
-                .map(|a| a * thickness_mm * kg_per_m3 * 1e-9)
-                .collect(),
+            } => {
+                // Sheets: area x thickness; volumes: the volume itself.
+                let depth = if tets.is_empty() { thickness_mm } else { 1.0 };
+                share.iter().map(|a| a * depth * kg_per_m3 * 1e-9).collect()
+            }
         };
-        let fixed: Vec<bool> = spec
+        let fixed = spec
             .mesh
             .positions_mm
             .iter()
             .map(|p| spec.fixed.iter().any(|s| s.contains(*p)))
             .collect();
-        let accel_per_force = mass_kg
-            .iter()
-            .zip(&fixed)
-            .map(|(m, &f)| if f || *m <= 0.0 { 0.0 } else { MM_PER_M / m })
-            .collect();
-        let springs = edges
-            .iter()
-            .map(|&[a, b]| Spring {
+        let m = &spec.material;
+        Self::from_parts(ModelParts {
+            rest_positions_mm: positions,
+            mass_kg,
+            fixed,
+            edge_stiffness_n_per_mm: vec![m.stiffness_n_per_mm; edges.len()],
+            edge_damping_n_s_per_mm: vec![m.damping_n_s_per_mm; edges.len()],
+            edges,
+            law: Some(m.law),
+            anchor_stiffness_n_per_mm: m.anchor_stiffness_n_per_mm,
+            drag_per_s: m.drag_per_s,
+            gravity_mm_per_s2,
+            triangles,
+            tets,
+            tet_bulk_modulus_n_per_mm2: m.tet_bulk_modulus_n_per_mm2,
+            global_bulk_modulus_n_per_mm2: m.global_bulk_modulus_n_per_mm2,
+        })
+    }
+
+    /// Build from parts (indices must be in range; edges with `a < b`).
+    pub fn from_parts(parts: ModelParts) -> Self {
+        let n = parts.rest_positions_mm.len();
+        let positions = parts.rest_positions_mm;
+        let mut order: Vec<usize> = (0..parts.edges.len()).collect();
+        order.sort_unstable_by_key(|&e| parts.edges[e]);
+        let mut springs = SpringSet::default();
+        for &e in &order {
+            let [a, b] = parts.edges[e];
+            springs.push(
                 a,
                 b,
-                rest_length_mm: (positions[b as usize] - positions[a as usize]).norm(),
-                stiffness_n_per_mm: spec.material.stiffness_n_per_mm,
-                damping_n_s_per_mm: spec.material.damping_n_s_per_mm,
-            })
+                (positions[b as usize] - positions[a as usize]).norm(),
+                parts.edge_stiffness_n_per_mm[e],
+                parts.edge_damping_n_s_per_mm[e],
+            );
+        }
+        let spring_pairs: Vec<[u32; 2]> = springs
+            .a
+            .iter()
+            .zip(&springs.b)
+            .map(|(&a, &b)| [a, b])
             .collect();
+        let (node_spring_start, node_springs) = incidence(n, &spring_pairs);
+        let (node_triangle_start, node_triangles) = incidence(n, &parts.triangles);
 
-        let mut degree = vec![0u32; n + 1];
-        for [a, b] in &edges {
-            degree[*a as usize + 1] += 1;
-            degree[*b as usize + 1] += 1;
-        }
-        for i in 0..n {
-            degree[i + 1] += degree[i];
-        }
-        let node_edge_start = degree;
-        let mut fill = node_edge_start.clone();
-        let mut node_edges = vec![0u32; edges.len() * 2];
-        for (e, [a, b]) in edges.iter().enumerate() {
-            for v in [a, b] {
-                node_edges[fill[*v as usize] as usize] = e as u32;
-                fill[*v as usize] += 1;
+        let mut normal_sum = vec![Vec3::zeros(); n];
+        for tri in &parts.triangles {
+            let [a, b, c] = tri.map(|v| positions[v as usize]);
+            let area_normal = 0.5 * (b - a).cross(&(c - a));
+            for v in tri {
+                normal_sum[*v as usize] += area_normal;
             }
         }
-
         let rest_normals = normal_sum
             .iter()
             .map(|s| s.try_normalize(1e-12).unwrap_or_else(Vec3::z))
             .collect();
+        let accel_per_force = parts
+            .mass_kg
+            .iter()
+            .zip(&parts.fixed)
+            .map(|(m, &f)| if f || *m <= 0.0 { 0.0 } else { MM_PER_M / m })
+            .collect();
+        let (tets, _degenerate) =
+            TetVolumes::new(&parts.tets, &positions, parts.tet_bulk_modulus_n_per_mm2);
+        let (node_tet_start, node_tets) = incidence(n, &tets.tets);
+        let global_volume = (parts.global_bulk_modulus_n_per_mm2 > 0.0).then(|| GlobalVolume {
+            rest_volume_mm3: super::volume::enclosed_volume_mm3(&positions, &parts.triangles),
+            bulk_modulus_n_per_mm2: parts.global_bulk_modulus_n_per_mm2,
+        });
         Self {
             rest_positions_mm: positions,
             rest_normals,
-            mass_kg,
+            mass_kg: parts.mass_kg,
             accel_per_force,
             springs,
-            anchor_stiffness_n_per_mm: spec.material.anchor_stiffness_n_per_mm,
-            drag_per_s: spec.material.drag_per_s,
-            triangles,
-            node_edge_start,
-            node_edges,
+            law: parts.law.unwrap_or(SpringLaw::Linear),
+            anchor_stiffness_n_per_mm: parts.anchor_stiffness_n_per_mm,
+            drag_per_s: parts.drag_per_s,
+            gravity_mm_per_s2: parts.gravity_mm_per_s2,
+            triangles: parts.triangles,
+            tets,
+            global_volume,
+            node_spring_start,
+            node_springs,
+            node_triangle_start,
+            node_triangles,
+            node_tet_start,
+            node_tets,
         }
     }
 
@@ -175,7 +275,8 @@ impl MassSpringModel {
         &self.rest_positions_mm
     }
 
-    /// Outward unit normal at each node at rest (area-weighted, from the triangle winding).
+    /// Outward unit normal at each node at rest (area-weighted, from the triangle winding; +z for nodes on
+    /// no triangle).
     pub fn rest_normals(&self) -> &[Vec3] {
         &self.rest_normals
     }
@@ -183,6 +284,16 @@ impl MassSpringModel {
     /// Surface triangles.
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
+    }
+
+    /// Tetrahedra and their volume term.
+    pub fn tets(&self) -> &TetVolumes {
+        &self.tets
+    }
+
+    /// The global volume term, if on.
+    pub fn global_volume(&self) -> Option<&GlobalVolume> {
+        self.global_volume.as_ref()
     }
 
     /// Node masses, kg.
@@ -200,84 +311,156 @@ impl MassSpringModel {
         self.drag_per_s
     }
 
-    /// Internal force on every node (springs, edge dampers, anchors), N, written into `forces_n`.
-    /// Real-time contract: no allocation, never panics (a zero-length edge contributes nothing).
+    /// Uniform acceleration, mm/s^2.
+    pub fn gravity_mm_per_s2(&self) -> Vec3 {
+        self.gravity_mm_per_s2
+    }
+
+    /// Anchor stiffness, N/mm.
+    pub fn anchor_stiffness_n_per_mm(&self) -> f32 {
+        self.anchor_stiffness_n_per_mm
+    }
+
+    /// The springs.
+    pub fn springs(&self) -> &SpringSet {
+        &self.springs
+    }
+
+    /// The spring law.
+    pub fn law(&self) -> SpringLaw {
+        self.law
+    }
+
+    /// Springs incident to node `i`.
+    pub fn node_springs(&self, i: usize) -> &[u32] {
+        &self.node_springs
+            [self.node_spring_start[i] as usize..self.node_spring_start[i + 1] as usize]
+    }
+
+    /// The node at the other end of spring `s` from node `i`.
+    pub fn other_end(&self, s: u32, i: usize) -> usize {
+        let (a, b) = (
+            self.springs.a[s as usize] as usize,
+            self.springs.b[s as usize] as usize,
+        );
+        if a == i { b } else { a }
+    }
+
+    /// Triangles incident to node `i`.
+    pub fn node_triangles(&self, i: usize) -> &[u32] {
+        &self.node_triangles
+            [self.node_triangle_start[i] as usize..self.node_triangle_start[i + 1] as usize]
+    }
+
+    /// Sum over incident springs of their small-strain stiffness, plus the anchor: the diagonal of the
+    /// stiffness matrix at rest, N/mm (quasi-static relaxation divides by it).
+    pub fn diagonal_stiffness_n_per_mm(&self, i: usize) -> f32 {
+        self.node_springs(i)
+            .iter()
+            .map(|&s| self.springs.stiffness_n_per_mm[s as usize])
+            .sum::<f32>()
+            + self.anchor_stiffness_n_per_mm
+    }
+
+    /// Force on every node except drag (springs with their dampers, anchors, gravity, volume terms, plus
+    /// `external_n` if given), N, written into `forces_n`. Returns the global-volume pressure (0 if off).
+    /// Real-time contract: no allocation, never panics on non-finite input.
     pub fn compute_forces(
         &self,
         positions_mm: &[Vec3],
         velocities_mm_s: &[Vec3],
+        external_n: Option<&[Vec3]>,
         forces_n: &mut [Vec3],
-    ) {
+    ) -> f32 {
         let k_anchor = self.anchor_stiffness_n_per_mm;
-        for ((f, x), rest) in forces_n
+        let g = self.gravity_mm_per_s2 / MM_PER_M;
+        for (((f, x), rest), m) in forces_n
             .iter_mut()
             .zip(positions_mm)
             .zip(&self.rest_positions_mm)
+            .zip(&self.mass_kg)
         {
-            *f = (rest - x) * k_anchor;
+            *f = (rest - x) * k_anchor + g * *m;
         }
-        // Springs are sorted by their first node: accumulate that node's share in a register and store it
-        // once per node, instead of a load-add-store chain through memory on every spring.
-        let mut current = usize::MAX;
-        let mut on_current = Vec3::zeros();
-        for spring in &self.springs {
-            let (a, b) = (spring.a as usize, spring.b as usize);
-            if a != current {
-                if let Some(f) = forces_n.get_mut(current) {
-                    *f += on_current;
-                }
-                current = a;
-                on_current = Vec3::zeros();
+        if let Some(external) = external_n {
+            for (f, e) in forces_n.iter_mut().zip(external) {
+                *f += e;
             }
-            let f = spring.force_on_a(positions_mm, velocities_mm_s);
-            on_current += f;
-            forces_n[b] -= f;
         }
-        if let Some(f) = forces_n.get_mut(current) {
-            *f += on_current;
+        self.springs
+            .accumulate_forces(self.law, positions_mm, velocities_mm_s, forces_n);
+        self.tets.accumulate_forces(positions_mm, forces_n);
+        match &self.global_volume {
+            Some(global) => global.accumulate_forces(positions_mm, &self.triangles, forces_n),
+            None => 0.0,
         }
     }
 
-    /// Internal force on node `i` alone (its incident edges and anchor), N. No allocation.
-    pub fn node_force(&self, i: usize, positions_mm: &[Vec3], velocities_mm_s: &[Vec3]) -> Vec3 {
-        let mut f = (self.rest_positions_mm[i] - positions_mm[i]) * self.anchor_stiffness_n_per_mm;
-        let span = self.node_edge_start[i] as usize..self.node_edge_start[i + 1] as usize;
-        for &e in &self.node_edges[span] {
-            let spring = &self.springs[e as usize];
-            let on_a = spring.force_on_a(positions_mm, velocities_mm_s);
-            f += if spring.a as usize == i { on_a } else { -on_a };
+    /// The global-volume pressure at these positions, N/mm^2 (0 if off). O(triangles).
+    pub fn pressure_n_per_mm2(&self, positions_mm: &[Vec3]) -> f32 {
+        self.global_volume
+            .as_ref()
+            .map_or(0.0, |g| g.pressure_n_per_mm2(positions_mm, &self.triangles))
+    }
+
+    /// Internal force on node `i` alone (its incident springs, anchor, gravity, volume terms given the global
+    /// pressure from [`Self::pressure_n_per_mm2`]), N. No allocation.
+    pub fn node_force(
+        &self,
+        i: usize,
+        positions_mm: &[Vec3],
+        velocities_mm_s: &[Vec3],
+        pressure_n_per_mm2: f32,
+    ) -> Vec3 {
+        let mut f = (self.rest_positions_mm[i] - positions_mm[i]) * self.anchor_stiffness_n_per_mm
+            + self.gravity_mm_per_s2 * (self.mass_kg[i] / MM_PER_M);
+        for &s in self.node_springs(i) {
+            let on_a = self
+                .springs
+                .force_on_a(self.law, s as usize, positions_mm, velocities_mm_s);
+            f += if self.springs.a[s as usize] as usize == i {
+                on_a
+            } else {
+                -on_a
+            };
+        }
+        let tets =
+            &self.node_tets[self.node_tet_start[i] as usize..self.node_tet_start[i + 1] as usize];
+        for &t in tets {
+            let forces = self.tets.forces(t as usize, positions_mm);
+            for (k, &v) in self.tets.tets[t as usize].iter().enumerate() {
+                if v as usize == i {
+                    f += forces[k];
+                }
+            }
+        }
+        if self.global_volume.is_some() {
+            f += GlobalVolume::vertex_force(
+                pressure_n_per_mm2,
+                i,
+                self.node_triangles(i),
+                positions_mm,
+                &self.triangles,
+            );
         }
         f
     }
 
-    /// A conservative bound on the largest stable step for explicit/symplectic Euler, seconds.
-    ///
-    /// Per free node, Gershgorin bounds the largest eigenvalue of the stiffness matrix by
-    /// `K = 2 * sum(k_edge) + k_anchor` and of the damping matrix by `C = 2 * sum(c_edge)`; with
-    /// `w^2 = 1000 K / m` and `g = 1000 C / m`, symplectic Euler is stable while `h^2 w^2 + 2 h g < 4`,
-    /// i.e. `h < (-g + sqrt(g^2 + 4 w^2)) / w^2`. Drag is integrated implicitly and does not limit the step.
-    pub fn stable_dt_bound_s(&self) -> f32 {
-        let mut bound = f32::INFINITY;
-        for i in 0..self.node_count() {
+    /// Per free node, Gershgorin bounds on the stiffness and damping rates: `(w^2, g)` with
+    /// `w^2 = 1000 K / m` and `g = 1000 C / m + drag`, where `K = 2 sum(k_edge) stiffening + k_anchor (+ volume)`
+    /// and `C = 2 sum(c_edge)`. `stiffening` is the law's largest tangent over the strains assumed.
+    pub fn node_rates(&self, stiffening: f32) -> impl Iterator<Item = (f32, f32)> + '_ {
+        (0..self.node_count()).filter_map(move |i| {
             let w = self.accel_per_force[i];
             if w == 0.0 {
-                continue;
+                return None;
             }
-            let span = self.node_edge_start[i] as usize..self.node_edge_start[i + 1] as usize;
             let (mut k, mut c) = (self.anchor_stiffness_n_per_mm, 0.0);
-            for &e in &self.node_edges[span] {
-                k += 2.0 * self.springs[e as usize].stiffness_n_per_mm;
-                c += 2.0 * self.springs[e as usize].damping_n_s_per_mm;
+            for &s in self.node_springs(i) {
+                k += 2.0 * self.springs.stiffness_n_per_mm[s as usize] * stiffening;
+                c += 2.0 * self.springs.damping_n_s_per_mm[s as usize];
             }
-            let omega2 = w * k;
-            let gamma = w * c;
-            if omega2 > 0.0 {
-                let h = (-gamma + (gamma * gamma + 4.0 * omega2).sqrt()) / omega2;
-                bound = bound.min(h);
-            } else if gamma > 0.0 {
-                bound = bound.min(2.0 / gamma);
-            }
-        }
-        bound
+            Some((w * k, w * c + self.drag_per_s))
+        })
     }
 }

@@ -2,7 +2,8 @@
 
 use super::{MassSpringModel, Vec3};
 
-/// Positions and velocities of every node, plus the force scratch buffer integrators reuse.
+/// Positions and velocities of every node, the external forces acting on them, and the force scratch buffer
+/// integrators reuse.
 #[derive(Debug, Clone)]
 pub struct TissueState {
     /// Node positions, world frame, mm.
@@ -11,6 +12,8 @@ pub struct TissueState {
     pub velocities_mm_s: Vec<Vec3>,
     /// Scratch: total force on each node, N (written by integrators; valid after a step).
     pub forces_n: Vec<Vec3>,
+    /// Forces from outside the object (ties to other objects), N; held constant over a step.
+    pub external_forces_n: Vec<Vec3>,
 }
 
 impl TissueState {
@@ -21,6 +24,7 @@ impl TissueState {
             positions_mm: model.rest_positions_mm().to_vec(),
             velocities_mm_s: vec![Vec3::zeros(); n],
             forces_n: vec![Vec3::zeros(); n],
+            external_forces_n: vec![Vec3::zeros(); n],
         }
     }
 
@@ -29,6 +33,7 @@ impl TissueState {
         self.positions_mm.copy_from_slice(model.rest_positions_mm());
         self.velocities_mm_s.fill(Vec3::zeros());
         self.forces_n.fill(Vec3::zeros());
+        self.external_forces_n.fill(Vec3::zeros());
     }
 
     /// Every position and velocity is finite. No allocation.
@@ -40,5 +45,14 @@ impl TissueState {
             .map(|v| v.x + v.y + v.z)
             .sum();
         sum.is_finite()
+    }
+
+    /// Kinetic energy, J (mm/s velocities, kg masses). No allocation.
+    pub fn kinetic_energy_j(&self, model: &MassSpringModel) -> f64 {
+        self.velocities_mm_s
+            .iter()
+            .zip(model.mass_kg())
+            .map(|(v, m)| 0.5 * f64::from(*m) * f64::from(v.norm_squared()) * 1e-6)
+            .sum()
     }
 }

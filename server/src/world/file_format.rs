@@ -31,8 +31,46 @@ impl LengthUnit {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum IntegratorName {
-    /// Semi-implicit (symplectic) Euler: velocity first, then position with the new velocity.
+    /// Forward Euler (needs damping to be stable; for comparison).
+    ExplicitEuler,
+    /// Semi-implicit (symplectic) Euler: velocity first, then position with the new velocity. The default.
     SymplecticEuler,
+    /// Second-order Runge-Kutta (midpoint).
+    Rk2,
+    /// Classic fourth-order Runge-Kutta.
+    Rk4,
+    /// Relaxation to equilibrium, ignoring inertia.
+    QuasiStatic,
+    /// Backward Euler, linearised, solved by conjugate gradient.
+    ImplicitEuler,
+    /// Extended position-based dynamics (distance and volume constraints).
+    Xpbd,
+}
+
+impl IntegratorName {
+    /// Every method, in the order reports list them.
+    pub const ALL: [IntegratorName; 7] = [
+        IntegratorName::ExplicitEuler,
+        IntegratorName::SymplecticEuler,
+        IntegratorName::Rk2,
+        IntegratorName::Rk4,
+        IntegratorName::QuasiStatic,
+        IntegratorName::ImplicitEuler,
+        IntegratorName::Xpbd,
+    ];
+
+    /// The name the world file uses.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            IntegratorName::ExplicitEuler => "explicit-euler",
+            IntegratorName::SymplecticEuler => "symplectic-euler",
+            IntegratorName::Rk2 => "rk2",
+            IntegratorName::Rk4 => "rk4",
+            IntegratorName::QuasiStatic => "quasi-static",
+            IntegratorName::ImplicitEuler => "implicit-euler",
+            IntegratorName::Xpbd => "xpbd",
+        }
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -47,6 +85,19 @@ pub(crate) struct WorldFile {
     pub objects: Vec<ObjectSection>,
     #[serde(default)]
     pub tools: Vec<ToolSection>,
+    #[serde(default)]
+    pub ties: Vec<Spanned<TieSection>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct TieSection {
+    /// `[a, b]`: each node of `a` is tied to the nearest node of `b` within `within_mm`.
+    pub objects: [String; 2],
+    pub within_mm: f32,
+    pub stiffness_n_per_mm: f32,
+    #[serde(default)]
+    pub damping_n_s_per_mm: f32,
 }
 
 #[derive(Debug, Deserialize)]
@@ -58,6 +109,8 @@ pub(crate) struct SimSection {
     pub publish_hz: Spanned<f64>,
     #[serde(default = "default_pose_timeout_s")]
     pub pose_timeout_s: Spanned<f64>,
+    #[serde(default = "default_gravity")]
+    pub gravity_mm_per_s2: Spanned<[f32; 3]>,
 }
 
 impl Default for SimSection {
@@ -66,12 +119,16 @@ impl Default for SimSection {
             tick_hz: default_tick_hz(),
             publish_hz: default_publish_hz(),
             pose_timeout_s: default_pose_timeout_s(),
+            gravity_mm_per_s2: Spanned::new(0..0, [0.0; 3]),
         }
     }
 }
 
 fn default_tick_hz() -> Spanned<f64> {
     Spanned::new(0..0, 1000.0)
+}
+fn default_gravity() -> Spanned<[f32; 3]> {
+    Spanned::new(0..0, [0.0; 3])
 }
 fn default_publish_hz() -> Spanned<f64> {
     Spanned::new(0..0, 60.0)
@@ -105,8 +162,10 @@ pub(crate) struct ObjectSection {
     pub name: Spanned<String>,
     pub mesh: Spanned<String>,
     pub units: LengthUnit,
-    pub integrator: IntegratorName,
+    pub integrator: Spanned<IntegratorName>,
     pub dt_s: Spanned<f32>,
+    #[serde(default)]
+    pub solver_iterations: Option<Spanned<u32>>,
     #[serde(default = "default_quant_margin_mm")]
     pub quant_margin_mm: Spanned<f32>,
     pub material: MaterialSection,
@@ -130,6 +189,27 @@ pub(crate) struct MaterialSection {
     pub anchor_stiffness_n_per_mm: Option<Spanned<f32>>,
     #[serde(default)]
     pub drag_per_s: Option<Spanned<f32>>,
+    #[serde(default)]
+    pub law: Option<Spanned<LawSection>>,
+    /// Global volume preservation (closed surfaces), kPa.
+    #[serde(default)]
+    pub bulk_modulus_kpa: Option<Spanned<f32>>,
+    /// Per-tetrahedron volume preservation, kPa.
+    #[serde(default)]
+    pub tet_bulk_modulus_kpa: Option<Spanned<f32>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "kebab-case")]
+pub(crate) enum LawSection {
+    Linear,
+    PiecewiseLinear {
+        knee_strain: f32,
+        stiffness_ratio: f32,
+    },
+    Exponential {
+        stiffening: f32,
+    },
 }
 
 #[derive(Debug, Deserialize)]

@@ -7,10 +7,11 @@ use thiserror::Error;
 use toml::Spanned;
 
 use super::file_format::{
-    FixedSection, IntegratorName, MaterialSection, ObjectSection, ShapeSection, ToolSection,
-    WorldFile,
+    FixedSection, IntegratorName, LawSection, MaterialSection, ObjectSection, ShapeSection,
+    TieSection, ToolSection, WorldFile,
 };
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
+use crate::tissue::{SpringLaw, TieSet, Vec3};
 
 /// Why a world was refused. The server does not start with a world that fails here.
 #[derive(Debug, Error)]
@@ -76,6 +77,10 @@ pub struct World {
     pub pose_timeout_s: f64,
     /// Broad-phase loosening around each tool, mm.
     pub collision_margin_mm: f32,
+    /// Uniform acceleration of every free node, mm/s^2 (default none: the tissue's anchors hold it).
+    pub gravity_mm_per_s2: [f32; 3],
+    /// Tie-nodes between objects.
+    pub ties: Vec<TieSet>,
     /// Deformable objects.
     pub objects: Vec<ObjectSpec>,
     /// Tools.
@@ -89,8 +94,12 @@ pub struct ObjectSpec {
     pub name: String,
     /// Surface, mm.
     pub mesh: SurfaceMesh,
+    /// Tetrahedra over the mesh's nodes (empty for a surface-only object).
+    pub tets: Vec<[u32; 4]>,
     /// Time integrator.
     pub integrator: IntegratorName,
+    /// Solver iterations per step (XPBD sweeps, CG iterations, relaxation sweeps); `None` = the method's default.
+    pub solver_iterations: Option<u32>,
     /// Integration step, seconds (the tick is split into substeps of at most this).
     pub dt_s: f32,
     /// Quantization bounds are the rest bounding box grown by this, mm.
@@ -128,6 +137,12 @@ pub struct MaterialSpec {
     pub anchor_stiffness_n_per_mm: f32,
     /// Viscous drag on every node, 1/s.
     pub drag_per_s: f32,
+    /// Spring law.
+    pub law: SpringLaw,
+    /// Global volume preservation, N/mm^2 (0 = off; closed surfaces only).
+    pub global_bulk_modulus_n_per_mm2: f32,
+    /// Per-tetrahedron volume preservation, N/mm^2 (0 = off).
+    pub tet_bulk_modulus_n_per_mm2: f32,
 }
 
 /// A set of fixed nodes.
@@ -250,6 +265,15 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         pose_timeout_s > 0.0 && pose_timeout_s.is_finite(),
         "must be positive",
     )?;
+    let gravity_mm_per_s2 = *file.sim.gravity_mm_per_s2.get_ref();
+    cx.check(
+        &file.sim.gravity_mm_per_s2,
+        "sim.gravity_mm_per_s2",
+        gravity_mm_per_s2
+            .iter()
+            .all(|c| c.is_finite() && c.abs() <= 1e6),
+        "must be finite, each component within +-1e6 mm/s^2",
+    )?;
     let margin = *file.collision.margin_mm.get_ref();
     cx.check(
         &file.collision.margin_mm,
@@ -269,7 +293,7 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
     let tick_dt_s = (1.0 / tick_hz) as f32;
     let mut objects = Vec::with_capacity(file.objects.len());
     for (i, object) in file.objects.iter().enumerate() {
-        let spec = cx.object(i, object, base, tick_dt_s)?;
+        let spec = cx.object(i, object, base, tick_dt_s, gravity_mm_per_s2)?;
         if objects.iter().any(|o: &ObjectSpec| o.name == spec.name) {
             return Err(cx.invalid(
                 &object.name,
@@ -298,6 +322,10 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         }
         tools.push(spec);
     }
+    let mut ties = Vec::with_capacity(file.ties.len());
+    for (i, tie) in file.ties.iter().enumerate() {
+        ties.push(cx.tie(i, tie, &objects)?);
+    }
     Ok(World {
         source: path.to_owned(),
         scene,
@@ -305,6 +333,8 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         publish_hz,
         pose_timeout_s,
         collision_margin_mm: margin,
+        gravity_mm_per_s2,
+        ties,
         objects,
         tools,
     })
@@ -380,6 +410,7 @@ impl Context<'_> {
         object: &ObjectSection,
         base: &Path,
         tick_dt_s: f32,
+        gravity_mm_per_s2: [f32; 3],
     ) -> Result<ObjectSpec, WorldError> {
         let key = |k: &str| format!("objects[{i}].{k}");
         let name = object.name.get_ref().clone();
@@ -408,25 +439,76 @@ impl Context<'_> {
                 mesh: object.mesh.get_ref().clone(),
                 reason,
             })?;
+        let integrator = *object.integrator.get_ref();
+        let solver_iterations = match &object.solver_iterations {
+            None => None,
+            Some(at) => {
+                let n = *at.get_ref();
+                self.check(
+                    at,
+                    &key("solver_iterations"),
+                    (1..=1000).contains(&n),
+                    "must be in 1..=1000",
+                )?;
+                if matches!(
+                    integrator,
+                    IntegratorName::ExplicitEuler
+                        | IntegratorName::SymplecticEuler
+                        | IntegratorName::Rk2
+                        | IntegratorName::Rk4
+                ) {
+                    return Err(self.invalid(
+                        at,
+                        &key("solver_iterations"),
+                        format!("{} takes no iterations (only quasi-static, implicit-euler and xpbd do)", integrator.as_str()),
+                    ));
+                }
+                Some(n)
+            }
+        };
+        if material.global_bulk_modulus_n_per_mm2 > 0.0
+            && let Err(reason) = validate_closed(&mesh)
+        {
+            return Err(WorldError::Mesh {
+                file: self.path.to_owned(),
+                line: self.line(object.mesh.span()),
+                key: key("material.bulk_modulus_kpa"),
+                mesh: object.mesh.get_ref().clone(),
+                reason,
+            });
+        }
         let spec = ObjectSpec {
             name,
             mesh,
-            integrator: object.integrator,
+            tets: Vec::new(),
+            integrator,
+            solver_iterations,
             dt_s,
             quant_margin_mm,
             material,
             fixed,
         };
-        // The integrator must be stable at this dt for this stiffness and mass.
-        let model = crate::tissue::MassSpringModel::build(&spec);
-        let stable_dt_s = model.stable_dt_bound_s();
-        if dt_s > stable_dt_s {
+        // An explicit integrator must be stable at this dt for this stiffness, damping and mass.
+        let model = crate::tissue::MassSpringModel::build(&spec, Vec3::from(gravity_mm_per_s2));
+        if let Some(stable_dt_s) = crate::tissue::stability::max_stable_dt_s(integrator, &model)
+            && dt_s > stable_dt_s
+        {
+            let undamped = material.drag_per_s == 0.0
+                && material.damping_n_s_per_mm == 0.0
+                && matches!(integrator, IntegratorName::ExplicitEuler | IntegratorName::Rk2);
+            let hint = if undamped {
+                "it is unstable at every step without damping: add damping or drag, or choose symplectic-euler".to_owned()
+            } else {
+                format!(
+                    "its stability bound is {stable_dt_s:.6} s: lower dt_s, raise mass, or choose an implicit method"
+                )
+            };
             return Err(self.invalid(
                 &object.dt_s,
                 &key("dt_s"),
                 format!(
-                    "{dt_s} s is above the stability bound {stable_dt_s:.6} s for {:?} with this stiffness, damping and mass (lower dt_s, or raise mass)",
-                    object.integrator
+                    "{dt_s} s is too large for {} with this stiffness, damping and mass: {hint}",
+                    integrator.as_str()
                 ),
             ));
         }
@@ -464,7 +546,51 @@ impl Context<'_> {
             damping.is_finite() && damping >= 0.0,
             &format!("must be >= 0 (got {damping})"),
         )?;
+        let law = match &m.law {
+            None => SpringLaw::Linear,
+            Some(at) => match at.get_ref() {
+                LawSection::Linear => SpringLaw::Linear,
+                LawSection::PiecewiseLinear {
+                    knee_strain,
+                    stiffness_ratio,
+                } => {
+                    self.check(
+                        at,
+                        &key("law"),
+                        knee_strain.is_finite()
+                            && *knee_strain > 0.0
+                            && stiffness_ratio.is_finite()
+                            && *stiffness_ratio > 0.0
+                            && *stiffness_ratio <= 1000.0,
+                        "piecewise-linear needs knee_strain > 0 and stiffness_ratio in (0, 1000]",
+                    )?;
+                    SpringLaw::PiecewiseLinear {
+                        knee_strain: *knee_strain,
+                        stiffness_ratio: *stiffness_ratio,
+                    }
+                }
+                LawSection::Exponential { stiffening } => {
+                    self.check(
+                        at,
+                        &key("law"),
+                        stiffening.is_finite() && *stiffening > 0.0 && *stiffening <= 100.0,
+                        "exponential needs stiffening in (0, 100]",
+                    )?;
+                    SpringLaw::Exponential {
+                        stiffening: *stiffening,
+                    }
+                }
+            },
+        };
+        const N_PER_MM2_PER_KPA: f32 = 1e-3;
         Ok(MaterialSpec {
+            law,
+            global_bulk_modulus_n_per_mm2: self
+                .non_negative(&m.bulk_modulus_kpa, &key("bulk_modulus_kpa"))?
+                * N_PER_MM2_PER_KPA,
+            tet_bulk_modulus_n_per_mm2: self
+                .non_negative(&m.tet_bulk_modulus_kpa, &key("tet_bulk_modulus_kpa"))?
+                * N_PER_MM2_PER_KPA,
             mass,
             stiffness_n_per_mm: stiffness,
             damping_n_s_per_mm: damping,
@@ -520,6 +646,88 @@ impl Context<'_> {
                 })
             }
         }
+    }
+
+    fn tie(
+        &self,
+        i: usize,
+        tie: &Spanned<TieSection>,
+        objects: &[ObjectSpec],
+    ) -> Result<TieSet, WorldError> {
+        let key = format!("ties[{i}]");
+        let t = tie.get_ref();
+        let find = |name: &str| objects.iter().position(|o| o.name == name);
+        let (Some(a), Some(b)) = (find(&t.objects[0]), find(&t.objects[1])) else {
+            return Err(self.invalid(
+                tie,
+                &format!("{key}.objects"),
+                format!(
+                    "names an unknown object (known: {})",
+                    objects
+                        .iter()
+                        .map(|o| o.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        };
+        self.check(
+            tie,
+            &format!("{key}.objects"),
+            a != b,
+            "ties link two different objects",
+        )?;
+        self.check(
+            tie,
+            &format!("{key}.within_mm"),
+            t.within_mm.is_finite() && t.within_mm > 0.0,
+            "must be positive",
+        )?;
+        self.check(
+            tie,
+            &format!("{key}.stiffness_n_per_mm"),
+            t.stiffness_n_per_mm.is_finite() && t.stiffness_n_per_mm > 0.0,
+            "must be positive",
+        )?;
+        self.check(
+            tie,
+            &format!("{key}.damping_n_s_per_mm"),
+            t.damping_n_s_per_mm.is_finite() && t.damping_n_s_per_mm >= 0.0,
+            "must be >= 0",
+        )?;
+        let to_vec = |p: [f32; 3]| Vec3::new(p[0], p[1], p[2]);
+        let nodes_b = &objects[b].mesh.positions_mm;
+        let mut pairs = Vec::new();
+        for (na, pa) in objects[a].mesh.positions_mm.iter().enumerate() {
+            let pa = to_vec(*pa);
+            let nearest = nodes_b
+                .iter()
+                .enumerate()
+                .map(|(nb, pb)| (nb, (to_vec(*pb) - pa).norm()))
+                .min_by(|x, y| x.1.total_cmp(&y.1));
+            if let Some((nb, distance)) = nearest
+                && distance <= t.within_mm
+            {
+                pairs.push((na as u32, nb as u32, to_vec(nodes_b[nb]) - pa));
+            }
+        }
+        if pairs.is_empty() {
+            return Err(self.invalid(
+                tie,
+                &format!("{key}.within_mm"),
+                format!(
+                    "no node of `{}` lies within {} mm of `{}`",
+                    t.objects[0], t.within_mm, t.objects[1]
+                ),
+            ));
+        }
+        Ok(TieSet {
+            object_a: a,
+            object_b: b,
+            pairs,
+            stiffness_n_per_mm: t.stiffness_n_per_mm,
+            damping_n_s_per_mm: t.damping_n_s_per_mm,
+        })
     }
 
     fn tool(&self, i: usize, tool: &ToolSection, base: &Path) -> Result<ToolSpec, WorldError> {
