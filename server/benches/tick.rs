@@ -38,6 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut outputs = [ToolOutput::default(); 2];
     let mut tick = LatencyHistogram::new();
     let mut held = 0u64;
+    let mut retries = 0u64;
     for k in 0..ticks {
         // Both probes press 5 mm and stroke +-8 mm along x with a 2 s period (after a 0.5 s descent).
         let t = k as f32 * dt_s;
@@ -63,10 +64,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let report = sim.step(dt_s, &commands, &mut outputs);
         tick.record(start.elapsed());
         held += u64::from(report.held_nodes);
+        retries += u64::from(report.retries);
     }
     let us = |h: &LatencyHistogram, p: f64| h.percentile_ns(p) as f64 / 1000.0;
     println!(
-        "full tick (2 tools pressing+stroking): p50 {:.0} us  p99 {:.0} us  max {:.0} us  over {ticks} ticks, mean held nodes {:.0}",
+        "full tick (2 tools pressing+stroking): p50 {:.0} us  p99 {:.0} us  max {:.0} us  over {ticks} ticks, mean held nodes {:.0}, guard retries {retries}",
         us(&tick, 50.0),
         us(&tick, 99.0),
         tick.max_ns() as f64 / 1000.0,
@@ -79,7 +81,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut refit = LatencyHistogram::new();
     let mut integrator = SymplecticEuler;
     let mut collider = SurfaceCollider::new(&object.state.positions_mm, object.model.triangles())
-        .map_err(|e| format!("{e:?}"))?;
+        .map_err(|e| format!("{e:?}"))?
+        .with_refit_margin(sinew_server::sim::REFIT_MARGIN_MM);
     let h = world.objects[0].dt_s;
     for _ in 0..5_000 {
         let start = Instant::now();
@@ -89,6 +92,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         collider.refit(&object.state.positions_mm);
         refit.record(start.elapsed());
     }
+    // The guard's checks alone (absolute tests, then the energy pass).
+    let mut guard_check = LatencyHistogram::new();
+    let check = sinew_server::tissue::DivergenceGuard::new(&object.model);
+    for _ in 0..2_000 {
+        let start = Instant::now();
+        let assessment = check.assess(&object.model, &object.state);
+        guard_check.record(start.elapsed());
+        assert!(!assessment.broken && assessment.energy_n_mm.is_finite());
+    }
+    println!(
+        "anti-divergence checks (one assess: absolute tests + energy) p50 {:.0} us p99 {:.0} us",
+        us(&guard_check, 50.0),
+        us(&guard_check, 99.0)
+    );
     // The force kernel alone, warm caches.
     let mut forces = LatencyHistogram::new();
     let mut scratch = object.state.forces_n.clone();
@@ -116,7 +133,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         us(&warm_step, 99.0)
     );
     println!(
-        "stages (interleaved, as in a tick): one symplectic-Euler substep p50 {:.0} us p99 {:.0} us; TriMesh refit p50 {:.0} us p99 {:.0} us",
+        "stages (interleaved, as in a tick): one symplectic-Euler substep p50 {:.0} us p99 {:.0} us; BVH refit (0.05 mm leaf margin) p50 {:.0} us p99 {:.0} us",
         us(&integrate, 50.0),
         us(&integrate, 99.0),
         us(&refit, 50.0),

@@ -1,13 +1,13 @@
 //! Collision with parry3d, in millimetres.
 //!
-//! Owns: the tissue surface as a deformable parry `TriMesh` refitted every tick, the broad phase that finds
-//! the tissue nodes near a tool (BVH query), tool shapes and their point projection, and the one boundary
-//! where nalgebra meets parry's glam types ([`glam_boundary`]). Must not: move nodes or compute forces
-//! (that is [`crate::interaction`]).
+//! Owns: the tissue surface as an owned parry `Bvh` over its triangles, refitted every tick (whole, or around
+//! the nodes that moved), the broad phase that finds the tissue nodes near a tool (BVH query), tool shapes
+//! and their point projection, and the one boundary where nalgebra meets parry's glam types
+//! ([`glam_boundary`]). Must not: move nodes or compute forces (that is [`crate::interaction`]).
 
 pub mod glam_boundary;
 mod surface_collider;
 mod tool_collider;
 
-pub use surface_collider::{NodeMarks, SurfaceCollider};
+pub use surface_collider::{NodeMarks, SurfaceCollider, SurfaceColliderError};
 pub use tool_collider::ToolCollider;

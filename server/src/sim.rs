@@ -1,7 +1,7 @@
 //! The deterministic simulation core: objects, tools, and one fixed-dt step.
 //!
-//! Owns: the per-tick pipeline `tools <- device poses; broad phase; substeps (integrate, push out of tools);
-//! tool reaction forces; refit colliders; fault containment`. Time and dt come in as arguments, so tests run
+//! Owns: the per-tick pipeline `tools <- device poses; broad phase; regions of deformation; substeps
+//! (integrate, push out of tools); tool reaction forces; refit colliders; fault containment`. Time and dt come in as arguments, so tests run
 //! on virtual time and a recording replays exactly. Must not: touch zenoh, threads or wall-clock time.
 
 use nalgebra::{Quaternion, UnitQuaternion};
@@ -10,7 +10,8 @@ use thiserror::Error;
 use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
 use crate::interaction::ProbeContacts;
 use crate::tissue::{
-    DivergenceGuard, Integrator, MassSpringModel, TieSet, TissueState, Vec3, integrator_for,
+    DivergenceGuard, Integrator, MassSpringModel, RegionTracker, TieSet, TissueState, Vec3,
+    Verdict, guard, integrator_for,
 };
 use crate::world::{ToolShapeSpec, World};
 
@@ -25,7 +26,21 @@ pub enum SimBuildError {
         /// parry's reason.
         message: String,
     },
+    /// Region tracking asked for an object it cannot simulate faithfully.
+    #[error("`{object}`: region of deformation: {message}")]
+    Region {
+        /// Object name.
+        object: String,
+        /// Why.
+        message: String,
+    },
 }
+
+/// Leaf boxes of every object's collider are this much larger than their triangles, mm: a still or creeping
+/// surface then rewrites no BVH leaf at all, and a refit touches only the leaves whose triangle moved out of
+/// its box (on the pad under two stroking probes: a few hundred of 9,600). Far below the broad-phase margin
+/// (2 mm in the shipped worlds), so the broad phase only gains, never loses, candidates.
+pub const REFIT_MARGIN_MM: f32 = 0.05;
 
 /// One deformable object in the simulation.
 #[derive(Debug)]
@@ -41,12 +56,31 @@ pub struct SimObject {
     collider: SurfaceCollider,
     marks: NodeMarks,
     max_dt_s: f32,
+    /// Some when only the region of deformation is integrated.
+    region: Option<RegionTracker>,
 }
 
 impl SimObject {
     /// The integrator's name.
     pub fn integrator_name(&self) -> &'static str {
         self.integrator.name()
+    }
+
+    /// The region of deformation, when the object is region-tracked.
+    pub fn region(&self) -> Option<&RegionTracker> {
+        self.region.as_ref()
+    }
+
+    /// The guard's absolute test on this tick: over the active region only when region-tracked (nothing
+    /// else moved).
+    fn broken(&self) -> bool {
+        match &self.region {
+            Some(region) => {
+                self.guard
+                    .broken_nodes(&self.model, &self.state, region.active_nodes())
+            }
+            None => self.guard.broken(&self.model, &self.state),
+        }
     }
 }
 
@@ -70,6 +104,12 @@ pub struct SimTool {
     pub rotation: UnitQuaternion<f32>,
     /// A device drives it (released tools do not touch the tissue).
     pub active: bool,
+    /// Active on the previous tick.
+    was_active: bool,
+    /// Origin on the previous tick, mm.
+    last_position_mm: Vec3,
+    /// Largest distance from the tool origin to its surface, mm.
+    reach_mm: f32,
     /// One contact set per object.
     contacts: Vec<ProbeContacts>,
 }
@@ -108,8 +148,8 @@ pub struct ToolOutput {
     pub clamped: bool,
 }
 
-/// Times the anti-divergence guard may halve a tick's step before it gives up and resets the object (a
-/// step of 1/16 of the planned one).
+/// Times the anti-divergence guard may halve a tick's step (down to 1/16 of the planned one) before it gives
+/// up: a broken object is then reset to rest, a merely energetic one kept.
 pub const MAX_HALVINGS: u32 = 4;
 
 /// What happened in one step.
@@ -121,10 +161,15 @@ pub struct StepReport {
     pub retries: u32,
     /// Solver iterations (CG, XPBD sweeps, relaxation sweeps) summed over objects and substeps.
     pub solver_iterations: u32,
-    /// Objects still diverging at the smallest step, reset to rest this step.
+    /// Objects still broken (non-finite or beyond the guard's absolute limits) at the smallest step, reset to
+    /// rest this step.
     pub faults: u32,
     /// Nodes held by all tools.
     pub held_nodes: u32,
+    /// Nodes integrated this tick by region-tracked objects (their active regions, summed).
+    pub region_nodes: u32,
+    /// Region sub-models rebuilt this tick (the active set changed).
+    pub region_rebuilds: u32,
 }
 
 /// The whole simulated scene.
@@ -136,6 +181,8 @@ pub struct Sim {
     pub tools: Vec<SimTool>,
     /// Tie-nodes between objects.
     pub ties: Vec<TieSet>,
+    /// Energy at the end of the last tick (None after an outside change to a state, or a reset).
+    last_energy_n_mm: Option<f64>,
     collision_margin_mm: f32,
     time_s: f64,
     steps: u64,
@@ -151,9 +198,42 @@ impl Sim {
             let collider = SurfaceCollider::new(model.rest_positions_mm(), model.triangles())
                 .map_err(|e| SimBuildError::Collider {
                     object: spec.name.clone(),
-                    message: format!("{e:?}"),
-                })?;
+                    message: e.to_string(),
+                })?
+                .with_refit_margin(REFIT_MARGIN_MM);
+            let region = match spec.region {
+                None => None,
+                Some(params) => {
+                    let o = objects.len();
+                    let refuse = |message: &str| SimBuildError::Region {
+                        object: spec.name.clone(),
+                        message: message.to_owned(),
+                    };
+                    if model.global_volume().is_some() {
+                        return Err(refuse(
+                            "the global volume term couples every surface node: turn one of them off",
+                        ));
+                    }
+                    if world.gravity_mm_per_s2 != [0.0; 3] {
+                        return Err(refuse(
+                            "gravity moves the whole object, not a region: it needs sim.gravity_mm_per_s2 = 0",
+                        ));
+                    }
+                    if world
+                        .ties
+                        .iter()
+                        .any(|t| t.object_a == o || t.object_b == o)
+                    {
+                        return Err(refuse("tied objects move where ties pull them: untie it"));
+                    }
+                    if !(params.threshold_mm.is_finite() && params.threshold_mm > 0.0) {
+                        return Err(refuse("threshold_mm must be a positive number"));
+                    }
+                    Some(RegionTracker::new(&model, params))
+                }
+            };
             objects.push(SimObject {
+                region,
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
@@ -171,6 +251,14 @@ impl Sim {
                     object: spec.name.clone(),
                     message: format!("{e:?}"),
                 })?;
+            let reach_mm = {
+                let aabb = collider.aabb(&Vec3::zeros(), &UnitQuaternion::identity(), 0.0);
+                let (lo, hi) = (aabb.mins, aabb.maxs);
+                (0..3)
+                    .map(|a| lo[a].abs().max(hi[a].abs()).powi(2))
+                    .sum::<f32>()
+                    .sqrt()
+            };
             tools.push(SimTool {
                 name: spec.name.clone(),
                 device_id: spec.device_id.clone(),
@@ -181,6 +269,9 @@ impl Sim {
                 position_mm: Vec3::from(spec.device_origin_in_world_mm),
                 rotation: UnitQuaternion::identity(),
                 active: false,
+                was_active: false,
+                last_position_mm: Vec3::from(spec.device_origin_in_world_mm),
+                reach_mm,
                 contacts: objects
                     .iter()
                     .map(|_| ProbeContacts::with_capacity(4096))
@@ -191,10 +282,16 @@ impl Sim {
             objects,
             tools,
             ties: world.ties.clone(),
+            last_energy_n_mm: None,
             collision_margin_mm: world.collision_margin_mm,
             time_s: 0.0,
             steps: 0,
         })
+    }
+
+    /// Tell the guard that an object's state was changed from outside (its energy reference is stale).
+    pub fn note_state_changed(&mut self) {
+        self.last_energy_n_mm = None;
     }
 
     /// Simulated time, seconds.
@@ -235,6 +332,20 @@ impl Sim {
             }
         }
 
+        // Regions of deformation follow this tick's contacts and last tick's motion.
+        for (o, object) in self.objects.iter_mut().enumerate() {
+            let Some(region) = &mut object.region else {
+                continue;
+            };
+            region.clear_contacts();
+            for tool in self.tools.iter().filter(|t| t.active) {
+                region.add_contacts(&tool.contacts[o].candidates);
+            }
+            let update = region.update(&object.model, &mut object.state, dt_s);
+            report.region_nodes += update.active_nodes;
+            report.region_rebuilds += u32::from(update.rebuilt);
+        }
+
         // All objects step in lockstep (ties couple them every substep), at the smallest object dt.
         let planned = self
             .objects
@@ -242,42 +353,79 @@ impl Sim {
             .map(|o| (dt_s / o.max_dt_s).ceil().max(1.0) as u32)
             .max()
             .unwrap_or(1);
+        // The energy at the start of this tick is the one measured at the end of the last (one pass a tick).
+        let energy_before = match self.last_energy_n_mm.take() {
+            Some(e) => e,
+            None => self.assess().1,
+        };
+        let work_allowance = self.tool_work_allowance_n_mm();
         for object in &mut self.objects {
-            object.guard.save(&object.state);
+            match &object.region {
+                Some(region) => object
+                    .guard
+                    .save_nodes(&object.state, region.active_nodes()),
+                None => object.guard.save(&object.state),
+            }
         }
         let mut halvings = 0;
         loop {
             let substeps = planned << halvings;
             self.run_substeps(dt_s / substeps as f32, substeps, &mut report);
-            let diverged = self
-                .objects
-                .iter()
-                .filter(|o| o.guard.diverged(&o.model, &o.state))
-                .count();
-            if diverged == 0 {
+            let (broken, energy_after) = self.assess();
+            self.last_energy_n_mm = Some(energy_after);
+            let verdict = if broken {
+                Verdict::Broken
+            } else if guard::energy_grew(energy_before, energy_after, work_allowance) {
+                Verdict::Growing
+            } else {
+                Verdict::Fine
+            };
+            if verdict == Verdict::Fine {
                 break;
             }
             if halvings == MAX_HALVINGS {
-                // Still diverging at 1/16 of the step: contain it. Reset what diverged, keep the rest.
+                // Still wrong at 1/16 of the step. Growing energy may be a tool's real work: keep it. A broken
+                // object (non-finite, or beyond the absolute limits) is contained: reset to rest.
                 for (o, object) in self.objects.iter_mut().enumerate() {
-                    if object.guard.diverged(&object.model, &object.state) {
+                    if object.broken() {
                         object.state.reset_to_rest(&object.model);
+                        if let Some(region) = &mut object.region {
+                            // Everything moved back to rest: forget the region, refit every triangle.
+                            region.clear();
+                            object.collider.refit(&object.state.positions_mm);
+                        }
                         for tool in &mut self.tools {
                             tool.contacts[o].clear();
                         }
                         report.faults += 1;
+                        self.last_energy_n_mm = None;
                     }
                 }
                 break;
             }
             for object in &mut self.objects {
-                object.guard.restore(&mut object.state);
+                match &object.region {
+                    Some(region) => object
+                        .guard
+                        .restore_nodes(&mut object.state, region.active_nodes()),
+                    None => object.guard.restore(&mut object.state),
+                }
             }
             halvings += 1;
             report.retries += 1;
         }
         for object in &mut self.objects {
-            object.collider.refit(&object.state.positions_mm);
+            match &object.region {
+                // Only the active nodes moved this tick (nodes leaving the region kept their positions).
+                Some(region) => {
+                    object
+                        .collider
+                        .refit_nodes(&object.state.positions_mm, region.active_nodes());
+                }
+                None => {
+                    object.collider.refit(&object.state.positions_mm);
+                }
+            }
         }
 
         for (t, tool) in self.tools.iter().enumerate() {
@@ -297,11 +445,64 @@ impl Sim {
         report
     }
 
+    /// The guard's measurements over every object: whether any is broken, and the mechanical energy of the
+    /// objects that are not region-tracked plus the ties', N mm (a region-tracked object is judged by the
+    /// absolute tests over its active nodes only: a whole-object energy pass would cost what region tracking
+    /// saves).
+    fn assess(&self) -> (bool, f64) {
+        let mut broken = false;
+        let mut energy = 0.0;
+        for object in &self.objects {
+            match &object.region {
+                Some(region) => {
+                    broken |= object.guard.broken_nodes(
+                        &object.model,
+                        &object.state,
+                        region.active_nodes(),
+                    );
+                }
+                None => {
+                    let assessment = object.guard.assess(&object.model, &object.state);
+                    broken |= assessment.broken;
+                    energy += assessment.energy_n_mm;
+                }
+            }
+        }
+        for tie in &self.ties {
+            if let (Some(a), Some(b)) = (
+                self.objects.get(tie.object_a),
+                self.objects.get(tie.object_b),
+            ) {
+                energy += tie.energy_n_mm(&a.state, &b.state);
+            }
+        }
+        (broken, energy)
+    }
+
+    /// The most work the tools can have done on the tissue this tick, N mm: four times each active tool's
+    /// force limit times how far it moved (times its size when it has just become active), so a tool's real
+    /// work never looks like divergence.
+    fn tool_work_allowance_n_mm(&self) -> f64 {
+        self.tools
+            .iter()
+            .filter(|t| t.active)
+            .map(|t| {
+                let travel_mm = if t.was_active {
+                    (t.position_mm - t.last_position_mm).norm()
+                } else {
+                    t.reach_mm
+                };
+                4.0 * f64::from(t.max_force_n) * f64::from(travel_mm)
+            })
+            .sum()
+    }
+
     /// `substeps` steps of `h` for every object: ties, integrate, push out of the tools.
     fn run_substeps(&mut self, h: f32, substeps: u32, report: &mut StepReport) {
         for _ in 0..substeps {
             if !self.ties.is_empty() {
-                for object in &mut self.objects {
+                // Region-tracked objects are never tied (refused at build): their external forces stay zero.
+                for object in self.objects.iter_mut().filter(|o| o.region.is_none()) {
                     object.state.external_forces_n.fill(Vec3::zeros());
                 }
                 for tie in &self.ties {
@@ -316,8 +517,10 @@ impl Sim {
                 }
             }
             for (o, object) in self.objects.iter_mut().enumerate() {
-                report.solver_iterations +=
-                    object.integrator.step(&object.model, &mut object.state, h);
+                report.solver_iterations += match &mut object.region {
+                    Some(region) => region.step(object.integrator.as_mut(), &mut object.state, h),
+                    None => object.integrator.step(&object.model, &mut object.state, h),
+                };
                 for tool in self.tools.iter_mut().filter(|t| t.active) {
                     tool.contacts[o].project(
                         &tool.collider,
@@ -333,6 +536,10 @@ impl Sim {
     }
 
     fn apply_commands(&mut self, commands: &[ToolCommand]) {
+        for tool in &mut self.tools {
+            tool.was_active = tool.active;
+            tool.last_position_mm = tool.position_mm;
+        }
         for (t, tool) in self.tools.iter_mut().enumerate() {
             let Some(command) = commands.get(t) else {
                 tool.active = false;

@@ -2,7 +2,8 @@
 //! honest (stability bounds, the anti-divergence guard).
 //!
 //! Owns: node masses, springs (structure-of-arrays, one kernel for every integrator), spring laws, anchors to
-//! rest, fixed nodes, volume terms, tie-nodes between objects, and the integrator seam ([`Integrator`]).
+//! rest, fixed nodes, volume terms, tie-nodes between objects, the integrator seam ([`Integrator`]), and the
+//! region of deformation that limits integration to the part that moves ([`RegionTracker`]).
 //! Must not: know about tools, collision or the network.
 //!
 //! Units: positions mm, velocities mm/s, forces N, masses kg, stiffness N/mm, damping N s/mm. Newton's law in
@@ -11,6 +12,7 @@
 pub mod guard;
 pub mod integrators;
 mod mass_spring;
+pub mod region;
 pub mod spring_law;
 pub mod springs;
 pub mod stability;
@@ -18,12 +20,13 @@ mod state;
 pub mod ties;
 pub mod volume;
 
-pub use guard::DivergenceGuard;
+pub use guard::{DivergenceGuard, Verdict};
 pub use integrators::{
     ExplicitEuler, ImplicitEuler, Integrator, QuasiStatic, Rk2, Rk4, SymplecticEuler, Xpbd,
     integrator_for,
 };
 pub use mass_spring::{MassSpringModel, ModelParts};
+pub use region::{RegionParams, RegionTracker, RegionUpdate};
 pub use spring_law::SpringLaw;
 pub use state::TissueState;
 pub use ties::TieSet;

@@ -1,15 +1,20 @@
-//! World descriptions: the TOML file format, its validation, and mesh loading.
+//! World descriptions: the TOML file format, its validation, and mesh loading (OBJ surfaces, Gmsh tetrahedral
+//! volumes, surfaces extruded into volumes).
 //!
 //! Owns: turning `worlds/*.toml` plus its mesh files into a validated [`World`]. Every refusal names the
 //! file, the key and the line. Must not: build simulation state (that is [`crate::sim`]'s job).
 
+mod extrude;
 mod file_format;
 mod loader;
 mod mesh_file;
+mod tet_mesh;
 
+pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 pub use file_format::{IntegratorName, LengthUnit};
 pub use loader::{
     FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ToolShapeSpec, ToolSpec, World, WorldError,
     load_world, parse_world,
 };
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};
+pub use tet_mesh::{TetMesh, VolumeMeshError, load_msh_mesh, parse_msh};

@@ -303,13 +303,14 @@ fn an_open_tool_mesh_is_refused() {
     );
 }
 
-/// A diverging tissue (here forced past the loader's stability check: 20x the stable step) is reset and
-/// counted as a fault; no tool ever sees a non-finite or over-limit force.
+/// A diverging tissue (here forced past the loader's stability check: 200x the stable step, so even the
+/// anti-divergence guard's smallest step, 1/16, cannot save it) is reset and counted as a fault; no tool ever
+/// sees a non-finite or over-limit force.
 #[test]
 fn a_diverging_tissue_is_contained_and_never_reaches_a_tool() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let mut world = load_world(&path).unwrap();
-    world.objects[0].material.stiffness_n_per_mm *= 400.0; // stable bound drops ~20x below dt
+    world.objects[0].material.stiffness_n_per_mm *= 40_000.0; // stable bound drops ~200x below dt
     let mut sim = Sim::new(&world).unwrap();
     let mut out = [ToolOutput::default(); 2];
     let mut faults = 0;

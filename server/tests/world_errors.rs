@@ -190,3 +190,178 @@ fn the_server_refuses_to_start_with_a_malformed_world() {
         "{stderr}"
     );
 }
+
+/// Two tetrahedra (tags 7 and 9) over five nodes, MSH 4.1 ASCII; `{Z}` is node 4's z (1 = valid, 0 = element
+/// 7 flat).
+const TWO_TETS_MSH: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 5 1 5\n3 1 0 5\n1\n2\n3\n4\n5\n\
+0 0 0\n4 0 0\n0 4 0\n0 0 {Z}\n4 4 4\n$EndNodes\n$Elements\n1 2 7 9\n3 1 4 2\n7 1 2 3 4\n9 2 3 4 5\n$EndElements\n";
+
+/// `GOOD_WORLD` on a `.msh` volume (written next to it) with density alone (32 mg: half the step).
+fn msh_world() -> String {
+    GOOD_WORLD
+        .replace("sheet.obj", "block.msh")
+        .replace("mass_kg = 0.01", "density_kg_per_m3 = 1000.0")
+        .replace("dt_s = 0.001", "dt_s = 0.0005")
+}
+
+/// Write `world` and `msh` (as `block.msh`) next to the sheet; return the world path.
+fn write_msh_world(world: &str, msh: &str) -> PathBuf {
+    let path = write_world(world, None);
+    std::fs::write(path.with_file_name("block.msh"), msh).unwrap();
+    path
+}
+
+fn msh_refused(world: &str, msh: &str) -> (WorldError, String) {
+    let path = write_msh_world(world, msh);
+    let error = load_world(&path).expect_err("world must be refused");
+    let message = error.to_string();
+    assert!(
+        message.contains(&path.display().to_string()),
+        "no file in: {message}"
+    );
+    (error, message)
+}
+
+fn invalid_key_and_line(error: &WorldError) -> (&str, usize) {
+    match error {
+        WorldError::Invalid { key, line, .. } => (key, *line),
+        other => panic!("wrong error {other:?}"),
+    }
+}
+
+#[test]
+fn a_msh_volume_and_an_extruded_sheet_load_with_their_tetrahedra() {
+    let world = load_world(&write_msh_world(
+        &msh_world(),
+        &TWO_TETS_MSH.replace("{Z}", "4"),
+    ))
+    .unwrap();
+    let block = &world.objects[0];
+    assert_eq!((block.tets.len(), block.mesh.triangles.len()), (2, 6));
+    assert!(matches!(
+        block.material.mass,
+        sinew_server::world::MassSpec::Density { kg_per_m3, .. } if kg_per_m3 == 1000.0
+    ));
+    // The sheet extruded 1.5 mm in 2 layers: 3 x 8 triangles x 2 layers, and the fixed box (x <= 0.5) now
+    // also holds the extruded nodes under the fixed edge.
+    let extruded = GOOD_WORLD
+        .replace(
+            "units = \"mm\"",
+            "units = \"mm\"\nextrude = { thickness_mm = 1.5, layers = 2 }",
+        )
+        .replace("min_mm = [-1.0, -1.0, -1.0]", "min_mm = [-1.0, -1.0, -2.0]");
+    let world = load_world(&write_world(&extruded, None)).unwrap();
+    let sheet = &world.objects[0];
+    assert_eq!(sheet.tets.len(), 48);
+    assert_eq!(sheet.mesh.positions_mm.len(), 27);
+    let model =
+        sinew_server::tissue::MassSpringModel::build(sheet, sinew_server::tissue::Vec3::zeros());
+    let fixed: Vec<[f32; 3]> = (0..model.node_count())
+        .filter(|&i| model.is_fixed(i))
+        .map(|i| sheet.mesh.positions_mm[i])
+        .collect();
+    assert_eq!(
+        fixed.len(),
+        9,
+        "3 nodes on x = 0 in each of 3 layers: {fixed:?}"
+    );
+    assert!(fixed.iter().any(|p| p[2] == -1.5));
+}
+
+#[test]
+fn extrude_on_a_msh_volume_is_refused() {
+    let world = msh_world().replace(
+        "units = \"mm\"",
+        "units = \"mm\"\nextrude = { thickness_mm = 2.0 }",
+    );
+    let (error, message) = msh_refused(&world, &TWO_TETS_MSH.replace("{Z}", "4"));
+    assert_eq!(
+        invalid_key_and_line(&error),
+        ("objects[0].extrude", line_of(&world, "extrude ="))
+    );
+    assert!(message.contains("already a volume"), "{message}");
+}
+
+#[test]
+fn thickness_with_a_volume_mesh_is_refused() {
+    let world = msh_world().replace(
+        "density_kg_per_m3 = 1000.0",
+        "density_kg_per_m3 = 1000.0\nthickness_mm = 2.0",
+    );
+    let (error, message) = msh_refused(&world, &TWO_TETS_MSH.replace("{Z}", "4"));
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "objects[0].material.thickness_mm",
+            line_of(&world, "thickness_mm = 2.0")
+        )
+    );
+    assert!(
+        message.contains("give density_kg_per_m3 alone"),
+        "{message}"
+    );
+}
+
+#[test]
+fn a_non_positive_extrusion_thickness_is_refused() {
+    for thickness in ["0.0", "-1.0"] {
+        let world = GOOD_WORLD.replace(
+            "units = \"mm\"",
+            &format!("units = \"mm\"\nextrude = {{ thickness_mm = {thickness}, layers = 2 }}"),
+        );
+        let (error, message, _) = refused(&world, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (
+                "objects[0].extrude.thickness_mm",
+                line_of(&world, "extrude =")
+            )
+        );
+        assert!(message.contains("positive"), "{message}");
+    }
+}
+
+#[test]
+fn extrusion_layers_outside_1_to_16_are_refused() {
+    for layers in ["0", "17", "-3"] {
+        let world = GOOD_WORLD.replace(
+            "units = \"mm\"",
+            &format!("units = \"mm\"\nextrude = {{ thickness_mm = 1.0, layers = {layers} }}"),
+        );
+        let (error, message, _) = refused(&world, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            ("objects[0].extrude.layers", line_of(&world, "extrude ="))
+        );
+        assert!(message.contains("1..=16"), "{message}");
+    }
+}
+
+#[test]
+fn tet_volume_on_a_surface_mesh_is_refused() {
+    let world = GOOD_WORLD.replace(
+        "anchor_stiffness_n_per_mm = 0.001",
+        "anchor_stiffness_n_per_mm = 0.001\ntet_bulk_modulus_kpa = 50.0",
+    );
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "objects[0].material.tet_bulk_modulus_kpa",
+            line_of(&world, "tet_bulk_modulus_kpa")
+        )
+    );
+    assert!(message.contains("needs tetrahedra"), "{message}");
+}
+
+#[test]
+fn a_degenerate_tetrahedron_names_its_element_and_the_mesh_key() {
+    let world = msh_world();
+    let (error, message) = msh_refused(&world, &TWO_TETS_MSH.replace("{Z}", "0"));
+    assert!(
+        matches!(&error, WorldError::Mesh { key, line, .. }
+            if key == "objects[0].mesh" && *line == line_of(&world, "block.msh")),
+        "{message}"
+    );
+    assert!(message.contains("tetrahedron 7 is degenerate"), "{message}");
+}

@@ -1,15 +1,66 @@
 //! Anti-divergence: detect a step that blew up, so the caller can restore the saved state and retry it
 //! with the step halved.
 //!
-//! A step has diverged when any position or velocity is non-finite, any node moves faster than
-//! `max_speed_mm_s`, or any node is farther from its rest position than `max_displacement_mm` (the object's
-//! rest diagonal by default: tissue that has moved farther than its own size is not tissue any more). The
-//! guard owns the saved copy; saving and checking are O(nodes), allocation-free once built.
+//! Two tests, two verdicts ([`Verdict`]):
+//! - **Broken** ([`DivergenceGuard::broken`]): a non-finite position or velocity, a node farther from rest
+//!   than `max_displacement_mm` (the object's rest diagonal by default: tissue that moved farther than its own
+//!   size is not tissue any more), or a node faster than `max_speed_mm_s` (100 m/s). Retried; reset to rest if
+//!   it persists at the smallest step.
+//! - **Growing** ([`energy_grew`]): the mechanical energy (kinetic + potential) rose by more than
+//!   [`ENERGY_GROWTH`] times what it was plus the work the tools could have done (the caller's allowance).
+//!   A damped elastic body cannot gain energy on its own; an unstable mode multiplies it every substep, so
+//!   it is caught within a tick, before the saved state is contaminated. Retried; if it persists at the
+//!   smallest step the result is kept, never reset.
+//!
+//! Speed-growth tests were tried first and failed: within a tick, legitimate motion trades potential for
+//! kinetic energy, so a node's speed can grow tenfold, while a step just above the bound grows the energy
+//! only a little per tick. A fixed energy floor failed too: too small and a tool's work trips it, too large
+//! and a small object's instability creeps under it; hence the work allowance from the tools' own motion.
+//! Saving and checking are O(nodes), the energy O(springs); allocation-free once built.
 
 use super::{MassSpringModel, TissueState, Vec3};
 
-/// Default speed above which a node is taken as diverging, mm/s (10 m/s: ten times a fast hand).
-pub const DEFAULT_MAX_SPEED_MM_S: f32 = 10_000.0;
+/// Default speed above which a node is taken as diverging, mm/s (100 m/s: a hundred times a fast hand).
+pub const DEFAULT_MAX_SPEED_MM_S: f32 = 100_000.0;
+
+/// Largest factor by which the mechanical energy may grow over one tick beyond the work allowance.
+pub const ENERGY_GROWTH: f64 = 1.5;
+
+/// Energy any tick may add regardless of the tools, N mm (= mJ): rounding noise of a settled object.
+pub const ENERGY_FLOOR_N_MM: f64 = 1e-6;
+
+/// Whether the energy rose from `before` to `after` (N mm) by more than the growth factor, the floor and the
+/// `allowance_n_mm` of work done from outside. Non-finite `after` counts as growth.
+pub fn energy_grew(before_n_mm: f64, after_n_mm: f64, allowance_n_mm: f64) -> bool {
+    !after_n_mm.is_finite()
+        || after_n_mm > ENERGY_GROWTH * before_n_mm + allowance_n_mm + ENERGY_FLOOR_N_MM
+}
+
+/// Kinetic plus potential energy of one object, N mm (potential from rest, floored at zero: gravity can
+/// make it negative). O(nodes + springs + volume terms), no allocation.
+pub fn energy_n_mm(model: &MassSpringModel, state: &TissueState) -> f64 {
+    state.kinetic_energy_n_mm(model) + model.potential_energy_n_mm(&state.positions_mm).max(0.0)
+}
+
+/// What [`DivergenceGuard::assess`] measured on one object.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Assessment {
+    /// Non-finite, too fast or too far from rest.
+    pub broken: bool,
+    /// Kinetic plus potential energy (as [`energy_n_mm`]), N mm.
+    pub energy_n_mm: f64,
+}
+
+/// A tick's verdict.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Nothing wrong.
+    Fine,
+    /// Energy grew beyond what the step can explain: retry smaller, keep the result if it persists.
+    Growing,
+    /// Non-finite, or beyond the absolute limits: retry smaller, reset to rest if it persists.
+    Broken,
+}
 
 /// A saved state and the limits that define divergence.
 #[derive(Debug, Clone)]
@@ -67,8 +118,113 @@ impl DivergenceGuard {
             .copy_from_slice(&self.saved_velocities_mm_s);
     }
 
-    /// Whether `state` has diverged. Never panics; NaN counts as diverged.
-    pub fn diverged(&self, model: &MassSpringModel, state: &TissueState) -> bool {
+    /// Remember only the nodes in `nodes` (the caller guarantees no other node changes before
+    /// [`Self::restore_nodes`] with the same list). No allocation; never panics.
+    pub fn save_nodes(&mut self, state: &TissueState, nodes: &[u32]) {
+        self.saved_positions_mm.clear();
+        self.saved_velocities_mm_s.clear();
+        for &i in nodes {
+            if let (Some(x), Some(v)) = (
+                state.positions_mm.get(i as usize),
+                state.velocities_mm_s.get(i as usize),
+            ) {
+                self.saved_positions_mm.push(*x);
+                self.saved_velocities_mm_s.push(*v);
+            }
+        }
+    }
+
+    /// Put back what [`Self::save_nodes`] saved for the same `nodes`. No allocation; never panics.
+    pub fn restore_nodes(&self, state: &mut TissueState, nodes: &[u32]) {
+        for ((&i, x), v) in nodes
+            .iter()
+            .zip(&self.saved_positions_mm)
+            .zip(&self.saved_velocities_mm_s)
+        {
+            if let (Some(px), Some(pv)) = (
+                state.positions_mm.get_mut(i as usize),
+                state.velocities_mm_s.get_mut(i as usize),
+            ) {
+                *px = *x;
+                *pv = *v;
+            }
+        }
+    }
+
+    /// [`Self::broken`] over `nodes` only (region tracking: nothing else moved). O(nodes), never panics.
+    pub fn broken_nodes(
+        &self,
+        model: &MassSpringModel,
+        state: &TissueState,
+        nodes: &[u32],
+    ) -> bool {
+        let speed2 = self.max_speed_mm_s * self.max_speed_mm_s;
+        let displacement2 = self.max_displacement_mm * self.max_displacement_mm;
+        let rest = model.rest_positions_mm();
+        let mut sum = 0.0f32;
+        for &i in nodes {
+            let i = i as usize;
+            let (Some(x), Some(v), Some(r)) = (
+                state.positions_mm.get(i),
+                state.velocities_mm_s.get(i),
+                rest.get(i),
+            ) else {
+                continue;
+            };
+            let (s2, d2) = (v.norm_squared(), (x - r).norm_squared());
+            if s2 > speed2 || d2 > displacement2 {
+                return true;
+            }
+            sum += s2 + d2;
+        }
+        !sum.is_finite()
+    }
+
+    /// The absolute tests and the energy in one pass over the nodes plus one over the springs and volume
+    /// terms. Never panics; no allocation.
+    pub fn assess(&self, model: &MassSpringModel, state: &TissueState) -> Assessment {
+        let k_anchor = model.anchor_stiffness_n_per_mm();
+        let g = model.gravity_mm_per_s2() / super::MM_PER_M;
+        let (mut worst_speed2, mut worst_displacement2) = (0.0f32, 0.0f32);
+        let (mut finite, mut kinetic_2, mut nodes) = (0.0f32, 0.0f32, 0.0f32);
+        for ((((x, v), rest), m), w) in state
+            .positions_mm
+            .iter()
+            .zip(&state.velocities_mm_s)
+            .zip(model.rest_positions_mm())
+            .zip(model.mass_kg())
+            .zip(model.accel_per_force())
+        {
+            let d = x - rest;
+            let (v2, d2) = (v.norm_squared(), d.norm_squared());
+            worst_speed2 = worst_speed2.max(v2);
+            worst_displacement2 = worst_displacement2.max(d2);
+            finite += v2 + d2;
+            if *w > 0.0 {
+                kinetic_2 += m * v2;
+                nodes += 0.5 * k_anchor * d2 - m * g.dot(&d);
+            }
+        }
+        let broken = !finite.is_finite()
+            || worst_speed2 > self.max_speed_mm_s * self.max_speed_mm_s
+            || worst_displacement2 > self.max_displacement_mm * self.max_displacement_mm;
+        if broken {
+            return Assessment {
+                broken,
+                energy_n_mm: f64::INFINITY,
+            };
+        }
+        // kg (mm/s)^2 = 1e-3 N mm.
+        let kinetic = 0.5e-3 * f64::from(kinetic_2);
+        let potential = f64::from(nodes) + model.elastic_energy_n_mm(&state.positions_mm);
+        Assessment {
+            broken,
+            energy_n_mm: kinetic + potential.max(0.0),
+        }
+    }
+
+    /// The absolute tests: non-finite, too fast, too far from rest. O(nodes), never panics.
+    pub fn broken(&self, model: &MassSpringModel, state: &TissueState) -> bool {
         let speed2 = self.max_speed_mm_s * self.max_speed_mm_s;
         let displacement2 = self.max_displacement_mm * self.max_displacement_mm;
         let mut worst_speed2 = 0.0f32;
@@ -79,7 +235,7 @@ impl DivergenceGuard {
             .zip(&state.velocities_mm_s)
             .zip(model.rest_positions_mm())
         {
-            // max() drops NaN; a plain sum carries it, so check finiteness on sums below.
+            // max() drops NaN; is_finite() below catches it.
             worst_speed2 = worst_speed2.max(v.norm_squared());
             worst_displacement2 = worst_displacement2.max((x - rest).norm_squared());
         }

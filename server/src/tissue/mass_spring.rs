@@ -4,7 +4,11 @@
 //! gravity, fixed nodes, the surface triangles, optional volume terms (global and per tetrahedron), and the
 //! node adjacency every integrator and the region tracker walk. Must not: know about tools or time stepping.
 
-use super::springs::SpringSet;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use std::cell::RefCell;
+
+use super::springs::{KernelScratch, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
 use crate::world::{MassSpec, ObjectSpec};
@@ -47,6 +51,8 @@ pub struct ModelParts {
 /// to its rest position (the tissue underneath); fixed nodes never move.
 #[derive(Debug, Clone)]
 pub struct MassSpringModel {
+    /// Unique per built model (see [`Self::id`]).
+    id: u64,
     rest_positions_mm: Vec<Vec3>,
     rest_normals: Vec<Vec3>,
     mass_kg: Vec<f32>,
@@ -68,7 +74,15 @@ pub struct MassSpringModel {
     node_triangles: Vec<u32>,
     node_tet_start: Vec<u32>,
     node_tets: Vec<u32>,
+    /// Small-strain stiffness diagonal per node (incident springs plus anchor), N/mm.
+    diagonal_stiffness_n_per_mm: Vec<f32>,
+    /// The spring kernel's padded buffers: scratch, not state (a model is stepped by one thread at a time;
+    /// `compute_forces` stays `&self` so every integrator shares one model).
+    kernel_scratch: RefCell<KernelScratch>,
 }
+
+/// Source of [`MassSpringModel::id`].
+static NEXT_MODEL_ID: AtomicU64 = AtomicU64::new(1);
 
 /// Compressed rows: for each node, the list of items that touch it.
 fn incidence<const K: usize>(n: usize, items: &[[u32; K]]) -> (Vec<u32>, Vec<u32>) {
@@ -228,7 +242,19 @@ impl MassSpringModel {
             rest_volume_mm3: super::volume::enclosed_volume_mm3(&positions, &parts.triangles),
             bulk_modulus_n_per_mm2: parts.global_bulk_modulus_n_per_mm2,
         });
+        let diagonal_stiffness_n_per_mm = (0..n)
+            .map(|i| {
+                node_springs[node_spring_start[i] as usize..node_spring_start[i + 1] as usize]
+                    .iter()
+                    .map(|&s| springs.stiffness_n_per_mm[s as usize])
+                    .sum::<f32>()
+                    + parts.anchor_stiffness_n_per_mm
+            })
+            .collect();
         Self {
+            id: NEXT_MODEL_ID.fetch_add(1, Ordering::Relaxed),
+            diagonal_stiffness_n_per_mm,
+            kernel_scratch: RefCell::new(KernelScratch::default()),
             rest_positions_mm: positions,
             rest_normals,
             mass_kg: parts.mass_kg,
@@ -248,6 +274,12 @@ impl MassSpringModel {
             node_tet_start,
             node_tets,
         }
+    }
+
+    /// An id no other model built in this process has (a clone keeps it: same topology). Caches keyed on a
+    /// model (XPBD's edge colouring) use it, so two sub-models of equal size never share a cache entry.
+    pub fn id(&self) -> u64 {
+        self.id
     }
 
     /// Number of nodes.
@@ -352,14 +384,15 @@ impl MassSpringModel {
             [self.node_triangle_start[i] as usize..self.node_triangle_start[i + 1] as usize]
     }
 
+    /// Tetrahedra incident to node `i` (indices into [`Self::tets`]).
+    pub fn node_tets(&self, i: usize) -> &[u32] {
+        &self.node_tets[self.node_tet_start[i] as usize..self.node_tet_start[i + 1] as usize]
+    }
+
     /// Sum over incident springs of their small-strain stiffness, plus the anchor: the diagonal of the
     /// stiffness matrix at rest, N/mm (quasi-static relaxation divides by it).
     pub fn diagonal_stiffness_n_per_mm(&self, i: usize) -> f32 {
-        self.node_springs(i)
-            .iter()
-            .map(|&s| self.springs.stiffness_n_per_mm[s as usize])
-            .sum::<f32>()
-            + self.anchor_stiffness_n_per_mm
+        self.diagonal_stiffness_n_per_mm[i]
     }
 
     /// Force on every node except drag (springs with their dampers, anchors, gravity, volume terms, plus
@@ -387,13 +420,63 @@ impl MassSpringModel {
                 *f += e;
             }
         }
-        self.springs
-            .accumulate_forces(self.law, positions_mm, velocities_mm_s, forces_n);
+        match self.kernel_scratch.try_borrow_mut() {
+            Ok(mut scratch) => self.springs.accumulate_forces(
+                self.law,
+                positions_mm,
+                velocities_mm_s,
+                forces_n,
+                &mut scratch,
+            ),
+            // Re-entered (never, in practice): a throwaway scratch is slower but correct.
+            Err(_) => self.springs.accumulate_forces(
+                self.law,
+                positions_mm,
+                velocities_mm_s,
+                forces_n,
+                &mut KernelScratch::default(),
+            ),
+        }
         self.tets.accumulate_forces(positions_mm, forces_n);
         match &self.global_volume {
             Some(global) => global.accumulate_forces(positions_mm, &self.triangles, forces_n),
             None => 0.0,
         }
+    }
+
+    /// Potential energy at these positions (springs, anchors, volume terms, gravity), N mm (= mJ). O(springs +
+    /// tetrahedra + triangles); no allocation.
+    pub fn potential_energy_n_mm(&self, positions_mm: &[Vec3]) -> f64 {
+        let mut total = self.elastic_energy_n_mm(positions_mm);
+        let g = self.gravity_mm_per_s2 / MM_PER_M;
+        for ((x, rest), m) in positions_mm
+            .iter()
+            .zip(&self.rest_positions_mm)
+            .zip(&self.mass_kg)
+        {
+            total += f64::from(0.5 * self.anchor_stiffness_n_per_mm * (x - rest).norm_squared());
+            total -= f64::from(*m * g.dot(&(x - rest)));
+        }
+        total
+    }
+
+    /// Energy stored in the springs and the volume terms (not the anchors or gravity), N mm.
+    pub fn elastic_energy_n_mm(&self, positions_mm: &[Vec3]) -> f64 {
+        let mut total = self.springs.energy_n_mm(self.law, positions_mm);
+        let tets = &self.tets;
+        if tets.bulk_modulus_n_per_mm2 > 0.0 {
+            for (t, &v0) in tets.rest_volume_mm3.iter().enumerate() {
+                let dv = super::volume::tet_volume_mm3(positions_mm, tets.tets[t]) - v0;
+                total += f64::from(0.5 * tets.bulk_modulus_n_per_mm2 * dv * dv / v0);
+            }
+        }
+        if let Some(global) = &self.global_volume {
+            let dv = super::volume::enclosed_volume_mm3(positions_mm, &self.triangles)
+                - global.rest_volume_mm3;
+            total +=
+                f64::from(0.5 * global.bulk_modulus_n_per_mm2 * dv * dv / global.rest_volume_mm3);
+        }
+        total
     }
 
     /// The global-volume pressure at these positions, N/mm^2 (0 if off). O(triangles).
@@ -446,10 +529,23 @@ impl MassSpringModel {
         f
     }
 
-    /// Per free node, Gershgorin bounds on the stiffness and damping rates: `(w^2, g)` with
-    /// `w^2 = 1000 K / m` and `g = 1000 C / m + drag`, where `K = 2 sum(k_edge) stiffening + k_anchor (+ volume)`
-    /// and `C = 2 sum(c_edge)`. `stiffening` is the law's largest tangent over the strains assumed.
+    /// Per free node, Gershgorin bounds on the stiffness and edge-damping rates `(w^2, g_edge)`, with
+    /// `w^2 = 1000 K / m` and `g_edge = 1000 C / m` (drag is separate: [`Self::drag_per_s`]). `K` sums
+    /// `2 k_edge stiffening` over incident springs, the anchor, and the volume terms' Hessian rows at rest
+    /// (`K_bulk / V0 |g_i| sum_j |g_j|` per tetrahedron, and the same over the surface for the global term);
+    /// `C = 2 sum(c_edge)`. `stiffening` is the law's largest tangent over the strains assumed.
     pub fn node_rates(&self, stiffening: f32) -> impl Iterator<Item = (f32, f32)> + '_ {
+        let x = &self.rest_positions_mm;
+        let global_gradient_norm = move |i: usize| {
+            self.global_volume.map_or(0.0, |_| {
+                GlobalVolume::vertex_force(1.0, i, self.node_triangles(i), x, &self.triangles)
+                    .norm()
+            })
+        };
+        let global_row: f32 = match &self.global_volume {
+            Some(_) => (0..self.node_count()).map(global_gradient_norm).sum(),
+            None => 0.0,
+        };
         (0..self.node_count()).filter_map(move |i| {
             let w = self.accel_per_force[i];
             if w == 0.0 {
@@ -460,7 +556,29 @@ impl MassSpringModel {
                 k += 2.0 * self.springs.stiffness_n_per_mm[s as usize] * stiffening;
                 c += 2.0 * self.springs.damping_n_s_per_mm[s as usize];
             }
-            Some((w * k, w * c + self.drag_per_s))
+            let x = &self.rest_positions_mm;
+            if self.tets.bulk_modulus_n_per_mm2 > 0.0 {
+                let tets = &self.node_tets
+                    [self.node_tet_start[i] as usize..self.node_tet_start[i + 1] as usize];
+                for &t in tets {
+                    let tet = self.tets.tets[t as usize];
+                    let g = super::volume::tet_volume_gradients(x, tet);
+                    let own = tet
+                        .iter()
+                        .position(|&v| v as usize == i)
+                        .map_or(0.0, |k| g[k].norm());
+                    let row: f32 = g.iter().map(|gj| gj.norm()).sum();
+                    k += self.tets.bulk_modulus_n_per_mm2 / self.tets.rest_volume_mm3[t as usize]
+                        * own
+                        * row;
+                }
+            }
+            if let Some(global) = &self.global_volume {
+                k += global.bulk_modulus_n_per_mm2 / global.rest_volume_mm3
+                    * global_gradient_norm(i)
+                    * global_row;
+            }
+            Some((w * k, w * c))
         })
     }
 }

@@ -59,6 +59,40 @@ impl SpringLaw {
         }
     }
 
+    /// Elastic energy stored at this stretch (the integral of the tension), N mm (= mJ).
+    #[inline(always)]
+    pub fn energy_n_mm(&self, stretch_mm: f32, rest_mm: f32, k_n_per_mm: f32) -> f32 {
+        match *self {
+            SpringLaw::Linear => 0.5 * k_n_per_mm * stretch_mm * stretch_mm,
+            SpringLaw::PiecewiseLinear {
+                knee_strain,
+                stiffness_ratio,
+            } => {
+                let knee_mm = knee_strain * rest_mm;
+                let beyond = stretch_mm - stretch_mm.clamp(-knee_mm, knee_mm);
+                0.5 * k_n_per_mm
+                    * (stretch_mm * stretch_mm + (stiffness_ratio - 1.0) * beyond * beyond)
+            }
+            SpringLaw::Exponential { stiffening } => {
+                let length_scale_mm = rest_mm.max(1e-6) / stiffening;
+                let e = stretch_mm / length_scale_mm;
+                let capped = e.min(MAX_EXPONENT);
+                let within = k_n_per_mm
+                    * length_scale_mm
+                    * (length_scale_mm * capped.exp_m1() - capped * length_scale_mm);
+                if e <= MAX_EXPONENT {
+                    within
+                } else {
+                    let beyond = stretch_mm - MAX_EXPONENT * length_scale_mm;
+                    let top = MAX_EXPONENT.exp();
+                    within
+                        + k_n_per_mm * length_scale_mm * (top - 1.0) * beyond
+                        + 0.5 * k_n_per_mm * top * beyond * beyond
+                }
+            }
+        }
+    }
+
     /// Tangent stiffness `dT / ds` at this stretch, N/mm (never negative).
     #[inline(always)]
     pub fn tangent_n_per_mm(&self, stretch_mm: f32, rest_mm: f32, k_n_per_mm: f32) -> f32 {
@@ -131,6 +165,31 @@ mod tests {
                 assert!(
                     (analytic - numeric).abs() < 2e-2 * analytic,
                     "{law:?} at {s}: {analytic} vs {numeric}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn energy_is_the_integral_of_tension() {
+        let laws = [
+            SpringLaw::Linear,
+            SpringLaw::PiecewiseLinear {
+                knee_strain: 0.1,
+                stiffness_ratio: 4.0,
+            },
+            SpringLaw::Exponential { stiffening: 5.0 },
+        ];
+        for law in laws {
+            for s in [-2.0f32, -0.5, 0.3, 0.7, 3.0] {
+                let h = 1e-3;
+                let numeric = (law.energy_n_mm(s + h, 10.0, 0.5)
+                    - law.energy_n_mm(s - h, 10.0, 0.5))
+                    / (2.0 * h);
+                let tension = law.tension_n(s, 10.0, 0.5);
+                assert!(
+                    (numeric - tension).abs() < 1e-2 * tension.abs().max(0.1),
+                    "{law:?} at {s}: {numeric} vs {tension}"
                 );
             }
         }

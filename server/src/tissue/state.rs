@@ -47,12 +47,14 @@ impl TissueState {
         sum.is_finite()
     }
 
-    /// Kinetic energy, J (mm/s velocities, kg masses). No allocation.
-    pub fn kinetic_energy_j(&self, model: &MassSpringModel) -> f64 {
+    /// Kinetic energy of the free nodes, N mm (= mJ; kg (mm/s)^2 is 1e-3 mJ). No allocation.
+    pub fn kinetic_energy_n_mm(&self, model: &MassSpringModel) -> f64 {
         self.velocities_mm_s
             .iter()
             .zip(model.mass_kg())
-            .map(|(v, m)| 0.5 * f64::from(*m) * f64::from(v.norm_squared()) * 1e-6)
+            .zip(model.accel_per_force())
+            .filter(|(_, w)| **w > 0.0)
+            .map(|((v, m), _)| 0.5e-3 * f64::from(*m) * f64::from(v.norm_squared()))
             .sum()
     }
 }

@@ -36,4 +36,16 @@ impl TieSet {
             }
         }
     }
+
+    /// Elastic energy stored in the ties, N mm.
+    pub fn energy_n_mm(&self, a: &TissueState, b: &TissueState) -> f64 {
+        self.pairs
+            .iter()
+            .map(|&(na, nb, rest_offset)| {
+                let stretch =
+                    (b.positions_mm[nb as usize] - a.positions_mm[na as usize]) - rest_offset;
+                f64::from(0.5 * self.stiffness_n_per_mm * stretch.norm_squared())
+            })
+            .sum()
+    }
 }

@@ -160,8 +160,12 @@ fn default_margin_mm() -> Spanned<f32> {
 #[serde(deny_unknown_fields)]
 pub(crate) struct ObjectSection {
     pub name: Spanned<String>,
+    /// `.obj` (a surface) or `.msh` (Gmsh MSH 4.1 tetrahedra: a volume).
     pub mesh: Spanned<String>,
     pub units: LengthUnit,
+    /// Turn an OBJ surface into a volume: `{ thickness_mm, layers }`.
+    #[serde(default)]
+    pub extrude: Option<Spanned<ExtrudeSection>>,
     pub integrator: Spanned<IntegratorName>,
     pub dt_s: Spanned<f32>,
     #[serde(default)]
@@ -171,10 +175,27 @@ pub(crate) struct ObjectSection {
     pub material: MaterialSection,
     #[serde(default)]
     pub fixed: Vec<Spanned<FixedSection>>,
+    /// Region of deformation: integrate only the part that moves, `{ threshold_mm }` (default: off).
+    #[serde(default)]
+    pub region: Option<Spanned<RegionSection>>,
 }
 
 fn default_quant_margin_mm() -> Spanned<f32> {
     Spanned::new(0..0, 40.0)
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ExtrudeSection {
+    /// Depth of the layer of volume under the surface (along minus its normal), mm.
+    pub thickness_mm: Spanned<f32>,
+    /// Tetrahedra layers through the thickness (1..=16).
+    #[serde(default = "default_extrude_layers")]
+    pub layers: Spanned<i64>,
+}
+
+fn default_extrude_layers() -> Spanned<i64> {
+    Spanned::new(0..0, 1)
 }
 
 #[derive(Debug, Deserialize)]
@@ -249,4 +270,11 @@ pub(crate) enum ShapeSection {
     Sphere { radius_mm: f32 },
     Capsule { half_length_mm: f32, radius_mm: f32 },
     Mesh { mesh: String, units: LengthUnit },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RegionSection {
+    /// A node farther than this from rest, or moving more than this per tick, keeps its level active, mm.
+    pub threshold_mm: Spanned<f32>,
 }

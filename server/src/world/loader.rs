@@ -6,12 +6,14 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 use toml::Spanned;
 
+use super::extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 use super::file_format::{
     FixedSection, IntegratorName, LawSection, MaterialSection, ObjectSection, ShapeSection,
     TieSection, ToolSection, WorldFile,
 };
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
-use crate::tissue::{SpringLaw, TieSet, Vec3};
+use super::tet_mesh::load_msh_mesh;
+use crate::tissue::{RegionParams, SpringLaw, TieSet, Vec3};
 
 /// Why a world was refused. The server does not start with a world that fails here.
 #[derive(Debug, Error)]
@@ -92,9 +94,10 @@ pub struct World {
 pub struct ObjectSpec {
     /// Name (key segment).
     pub name: String,
-    /// Surface, mm.
+    /// Surface, mm. For a volume (a `.msh` file or an extrusion) its positions hold every node, surface nodes
+    /// first; interior nodes are on no triangle.
     pub mesh: SurfaceMesh,
-    /// Tetrahedra over the mesh's nodes (empty for a surface-only object).
+    /// Tetrahedra over the mesh's nodes, positively oriented (empty for a surface-only object).
     pub tets: Vec<[u32; 4]>,
     /// Time integrator.
     pub integrator: IntegratorName,
@@ -108,18 +111,21 @@ pub struct ObjectSpec {
     pub material: MaterialSpec,
     /// Fixed-node selections.
     pub fixed: Vec<FixedSelection>,
+    /// Region of deformation (`None`: the whole object is integrated every tick).
+    pub region: Option<RegionParams>,
 }
 
 /// How node masses are given.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MassSpec {
-    /// Total mass, distributed by vertex area share.
+    /// Total mass, distributed by vertex area share (a volume: by tetrahedron volume share).
     TotalKg(f32),
-    /// Area density: density times thickness, distributed by vertex area share.
+    /// Density: for a sheet, times thickness, distributed by vertex area share; for a volume, by tetrahedron
+    /// volume share.
     Density {
         /// kg/m^3.
         kg_per_m3: f32,
-        /// Thickness of the sheet, mm.
+        /// Thickness of the sheet, mm (0 for a volume, whose mass comes from its tetrahedra).
         thickness_mm: f32,
     },
 }
@@ -348,6 +354,13 @@ fn line_of(text: &str, byte: usize) -> usize {
         + 1
 }
 
+/// A Gmsh mesh (a tetrahedral volume) rather than an OBJ surface: the `.msh` extension, any case.
+fn is_msh_path(mesh: &str) -> bool {
+    Path::new(mesh)
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("msh"))
+}
+
 struct Context<'a> {
     path: &'a Path,
     text: &'a str,
@@ -425,20 +438,23 @@ impl Context<'_> {
             &format!("must not exceed the tick period {tick_dt_s} s"),
         )?;
         let quant_margin_mm = self.positive(&object.quant_margin_mm, &key("quant_margin_mm"))?;
-        let material = self.material(i, &object.material)?;
+        let is_volume = object.extrude.is_some() || is_msh_path(object.mesh.get_ref());
+        let material = self.material(i, &object.material, is_volume)?;
         let mut fixed = Vec::with_capacity(object.fixed.len());
         for (f, selection) in object.fixed.iter().enumerate() {
             fixed.push(self.fixed(&key(&format!("fixed[{f}]")), selection)?);
         }
-        let mesh_path = base.join(object.mesh.get_ref());
-        let mesh =
-            load_obj_mesh(&mesh_path, object.units.to_mm()).map_err(|reason| WorldError::Mesh {
-                file: self.path.to_owned(),
-                line: self.line(object.mesh.span()),
-                key: key("mesh"),
-                mesh: object.mesh.get_ref().clone(),
-                reason,
-            })?;
+        let (mesh, tets) = self.object_mesh(i, object, base)?;
+        if let Some(at) = &object.material.tet_bulk_modulus_kpa
+            && material.tet_bulk_modulus_n_per_mm2 > 0.0
+            && tets.is_empty()
+        {
+            return Err(self.invalid(
+                at,
+                &key("material.tet_bulk_modulus_kpa"),
+                "per-tetrahedron volume needs tetrahedra: load a .msh mesh or add `extrude` to this OBJ",
+            ));
+        }
         let integrator = *object.integrator.get_ref();
         let solver_iterations = match &object.solver_iterations {
             None => None,
@@ -477,16 +493,18 @@ impl Context<'_> {
                 reason,
             });
         }
+        let region = self.region(i, object, &material, gravity_mm_per_s2)?;
         let spec = ObjectSpec {
             name,
             mesh,
-            tets: Vec::new(),
+            tets,
             integrator,
             solver_iterations,
             dt_s,
             quant_margin_mm,
             material,
             fixed,
+            region,
         };
         // An explicit integrator must be stable at this dt for this stiffness, damping and mass.
         let model = crate::tissue::MassSpringModel::build(&spec, Vec3::from(gravity_mm_per_s2));
@@ -495,7 +513,10 @@ impl Context<'_> {
         {
             let undamped = material.drag_per_s == 0.0
                 && material.damping_n_s_per_mm == 0.0
-                && matches!(integrator, IntegratorName::ExplicitEuler | IntegratorName::Rk2);
+                && matches!(
+                    integrator,
+                    IntegratorName::ExplicitEuler | IntegratorName::Rk2
+                );
             let hint = if undamped {
                 "it is unstable at every step without damping: add damping or drag, or choose symplectic-euler".to_owned()
             } else {
@@ -522,9 +543,78 @@ impl Context<'_> {
         Ok(spec)
     }
 
-    fn material(&self, i: usize, m: &MaterialSection) -> Result<MaterialSpec, WorldError> {
+    /// The object's mesh and tetrahedra: an OBJ surface (no tetrahedra), an OBJ surface extruded into a
+    /// volume (`extrude`), or a Gmsh `.msh` volume.
+    fn object_mesh(
+        &self,
+        i: usize,
+        object: &ObjectSection,
+        base: &Path,
+    ) -> Result<(SurfaceMesh, Vec<[u32; 4]>), WorldError> {
+        let key = |k: &str| format!("objects[{i}].{k}");
+        let mesh_error = |key: String, line: usize| {
+            move |reason| WorldError::Mesh {
+                file: self.path.to_owned(),
+                line,
+                key,
+                mesh: object.mesh.get_ref().clone(),
+                reason,
+            }
+        };
+        let mesh_line = self.line(object.mesh.span());
+        let path = base.join(object.mesh.get_ref());
+        let scale_to_mm = object.units.to_mm();
+        if is_msh_path(object.mesh.get_ref()) {
+            if let Some(extrude) = &object.extrude {
+                return Err(self.invalid(
+                    extrude,
+                    &key("extrude"),
+                    "a .msh mesh is already a volume: remove `extrude` (it extrudes OBJ surfaces)",
+                ));
+            }
+            let volume =
+                load_msh_mesh(&path, scale_to_mm).map_err(mesh_error(key("mesh"), mesh_line))?;
+            return Ok((volume.surface, volume.tets));
+        }
+        let surface =
+            load_obj_mesh(&path, scale_to_mm).map_err(mesh_error(key("mesh"), mesh_line))?;
+        let Some(extrude) = &object.extrude else {
+            return Ok((surface, Vec::new()));
+        };
+        let section = extrude.get_ref();
+        let thickness_mm = self.positive(&section.thickness_mm, &key("extrude.thickness_mm"))?;
+        let layers = *section.layers.get_ref();
+        self.check(
+            &section.layers,
+            &key("extrude.layers"),
+            (1..=i64::from(MAX_EXTRUDE_LAYERS)).contains(&layers),
+            &format!("must be in 1..={MAX_EXTRUDE_LAYERS} (got {layers})"),
+        )?;
+        let volume = extrude_surface(&surface, thickness_mm, layers as u32)
+            .map_err(mesh_error(key("extrude"), self.line(extrude.span())))?;
+        Ok((volume.surface, volume.tets))
+    }
+
+    /// `is_volume`: the object has tetrahedra (a `.msh` mesh or `extrude`), so density needs no thickness.
+    fn material(
+        &self,
+        i: usize,
+        m: &MaterialSection,
+        is_volume: bool,
+    ) -> Result<MaterialSpec, WorldError> {
         let key = |k: &str| format!("objects[{i}].material.{k}");
         let mass = match (&m.mass_kg, &m.density_kg_per_m3, &m.thickness_mm) {
+            (_, _, Some(thickness)) if is_volume => {
+                return Err(self.invalid(
+                    thickness,
+                    &key("thickness_mm"),
+                    "a volume mesh (.msh or extrude) takes its mass from its tetrahedra: give density_kg_per_m3 alone",
+                ));
+            }
+            (None, Some(density), None) if is_volume => MassSpec::Density {
+                kg_per_m3: self.positive(density, &key("density_kg_per_m3"))?,
+                thickness_mm: 0.0,
+            },
             (Some(total), None, None) => MassSpec::TotalKg(self.positive(total, &key("mass_kg"))?),
             (None, Some(density), Some(thickness)) => MassSpec::Density {
                 kg_per_m3: self.positive(density, &key("density_kg_per_m3"))?,
@@ -534,7 +624,11 @@ impl Context<'_> {
                 return Err(self.invalid(
                     &m.stiffness_n_per_mm,
                     &key("mass_kg"),
-                    "give either mass_kg, or density_kg_per_m3 with thickness_mm",
+                    if is_volume {
+                        "give either mass_kg or density_kg_per_m3"
+                    } else {
+                        "give either mass_kg, or density_kg_per_m3 with thickness_mm"
+                    },
                 ));
             }
         };
@@ -677,6 +771,16 @@ impl Context<'_> {
             a != b,
             "ties link two different objects",
         )?;
+        if let Some(o) = [a, b].into_iter().find(|&o| objects[o].region.is_some()) {
+            return Err(self.invalid(
+                tie,
+                &format!("{key}.objects"),
+                format!(
+                    "`{}` is region-tracked (`region`): a tied object moves where the tie pulls it, not only where a tool touches; drop one of them",
+                    objects[o].name
+                ),
+            ));
+        }
         self.check(
             tie,
             &format!("{key}.within_mm"),
@@ -794,5 +898,42 @@ impl Context<'_> {
             device_origin_in_world_mm: tool.device_origin_in_world_mm,
             max_force_n,
         })
+    }
+}
+
+impl Context<'_> {
+    /// The optional `region` table of object `i`, and the combinations region tracking cannot simulate.
+    fn region(
+        &self,
+        i: usize,
+        object: &ObjectSection,
+        material: &MaterialSpec,
+        gravity_mm_per_s2: [f32; 3],
+    ) -> Result<Option<RegionParams>, WorldError> {
+        let Some(at) = &object.region else {
+            return Ok(None);
+        };
+        let key = format!("objects[{i}].region");
+        let threshold = &at.get_ref().threshold_mm;
+        let threshold_mm = *threshold.get_ref();
+        self.check(
+            threshold,
+            &format!("{key}.threshold_mm"),
+            threshold_mm.is_finite() && threshold_mm > 0.0 && threshold_mm <= 1.0,
+            &format!("must be in (0, 1] mm (got {threshold_mm})"),
+        )?;
+        self.check(
+            at,
+            &key,
+            material.global_bulk_modulus_n_per_mm2 == 0.0,
+            "cannot be combined with material.bulk_modulus_kpa: the global volume term couples every surface node",
+        )?;
+        self.check(
+            at,
+            &key,
+            gravity_mm_per_s2 == [0.0; 3],
+            "needs sim.gravity_mm_per_s2 = [0, 0, 0]: gravity moves the whole object, not a region",
+        )?;
+        Ok(Some(RegionParams { threshold_mm }))
     }
 }

@@ -47,6 +47,9 @@ pub enum MeshError {
         /// Triangles sharing it.
         count: usize,
     },
+    /// A tetrahedral volume mesh (a `.msh` file or an extrusion) that is not valid.
+    #[error(transparent)]
+    Volume(#[from] super::tet_mesh::VolumeMeshError),
 }
 
 /// Load an OBJ file (all its models merged), scaled by `scale_to_mm`, and validate it as a surface.

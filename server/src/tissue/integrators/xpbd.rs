@@ -15,20 +15,16 @@ use crate::tissue::{MM_PER_M, MassSpringModel, TissueState, Vec3};
 /// Springs of one model reordered by colour, with the colour boundaries.
 #[derive(Debug, Clone, Default)]
 struct ColouredSprings {
-    /// Which model (its spring count and first/last endpoints) this was built for.
-    key: (usize, u32, u32, usize),
+    /// Which model ([`MassSpringModel::id`]) this was built for; 0 before the first build (ids start at 1).
+    key: u64,
     springs: SpringSet,
     colour_start: Vec<usize>,
 }
 
-fn model_key(model: &MassSpringModel) -> (usize, u32, u32, usize) {
-    let s = model.springs();
-    (
-        s.len(),
-        s.a.first().copied().unwrap_or(0),
-        s.b.last().copied().unwrap_or(0),
-        model.node_count(),
-    )
+/// The colouring cache key. Regression guard: the key was (spring count, first a, last b, node count), and two
+/// region sub-models of the same size and ends shared one colouring; the model's unique id cannot collide.
+fn model_key(model: &MassSpringModel) -> u64 {
+    model.id()
 }
 
 impl ColouredSprings {
@@ -135,7 +131,9 @@ impl Integrator for Xpbd {
             let f = (model.rest_positions_mm()[i] - x) * k_anchor
                 + g * model.mass_kg()[i]
                 + state.external_forces_n[i];
-            state.velocities_mm_s[i] = (state.velocities_mm_s[i] + f * (w[i] * h)) * drag_factor;
+            // Drag acts on the velocity carried over, not on this step's force impulse: damping the impulse
+            // would bias the rest state (a chain under gravity sagged by 1 / (1 + h drag) too little).
+            state.velocities_mm_s[i] = state.velocities_mm_s[i] * drag_factor + f * (w[i] * h);
             state.positions_mm[i] = x + state.velocities_mm_s[i] * h;
         }
 
