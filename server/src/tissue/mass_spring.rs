@@ -397,7 +397,7 @@ impl MassSpringModel {
 
     /// Force on every node except drag (springs with their dampers, anchors, gravity, volume terms, plus
     /// `external_n` if given), N, written into `forces_n`. Returns the global-volume pressure (0 if off).
-    /// Real-time contract: no allocation, never panics on non-finite input.
+    /// Real-time contract: no allocation once warm, never panics on non-finite input.
     pub fn compute_forces(
         &self,
         positions_mm: &[Vec3],
@@ -405,34 +405,53 @@ impl MassSpringModel {
         external_n: Option<&[Vec3]>,
         forces_n: &mut [Vec3],
     ) -> f32 {
+        self.forces(positions_mm, Some(velocities_mm_s), external_n, forces_n)
+    }
+
+    /// [`Self::compute_forces`] at zero velocity (no damper forces, and no velocity pass): for static
+    /// solves (quasi-static relaxation, the implicit integrator's right-hand side).
+    pub fn compute_static_forces(
+        &self,
+        positions_mm: &[Vec3],
+        external_n: Option<&[Vec3]>,
+        forces_n: &mut [Vec3],
+    ) -> f32 {
+        self.forces(positions_mm, None, external_n, forces_n)
+    }
+
+    fn forces(
+        &self,
+        positions_mm: &[Vec3],
+        velocities_mm_s: Option<&[Vec3]>,
+        external_n: Option<&[Vec3]>,
+        forces_n: &mut [Vec3],
+    ) -> f32 {
         let k_anchor = self.anchor_stiffness_n_per_mm;
         let g = self.gravity_mm_per_s2 / MM_PER_M;
-        for (((f, x), rest), m) in forces_n
-            .iter_mut()
-            .zip(positions_mm)
-            .zip(&self.rest_positions_mm)
-            .zip(&self.mass_kg)
-        {
-            *f = (rest - x) * k_anchor + g * *m;
-        }
-        if let Some(external) = external_n {
-            for (f, e) in forces_n.iter_mut().zip(external) {
-                *f += e;
+        let rest = &self.rest_positions_mm;
+        let mass = &self.mass_kg;
+        let base = |i: usize| {
+            let own = (rest[i] - positions_mm[i]) * k_anchor + g * mass[i];
+            match external_n.and_then(|e| e.get(i)) {
+                Some(e) => own + e,
+                None => own,
             }
-        }
+        };
         match self.kernel_scratch.try_borrow_mut() {
-            Ok(mut scratch) => self.springs.accumulate_forces(
+            Ok(mut scratch) => self.springs.forces_into(
                 self.law,
                 positions_mm,
                 velocities_mm_s,
+                base,
                 forces_n,
                 &mut scratch,
             ),
             // Re-entered (never, in practice): a throwaway scratch is slower but correct.
-            Err(_) => self.springs.accumulate_forces(
+            Err(_) => self.springs.forces_into(
                 self.law,
                 positions_mm,
                 velocities_mm_s,
+                base,
                 forces_n,
                 &mut KernelScratch::default(),
             ),

@@ -93,62 +93,71 @@ impl SpringSet {
         )
     }
 
-    /// Add every spring's spring-plus-damper force to `forces_n` (end `a` gets `+f`, end `b` gets `-f`).
-    pub fn accumulate_forces(
+    /// Write into `forces_n` each node's `base_n(i)` plus every spring's force (end `a` gets `+f`, end `b`
+    /// gets `-f`); with `velocities_mm_s` the dampers too, without them springs only (a static solve).
+    pub fn forces_into(
         &self,
         law: SpringLaw,
         positions_mm: &[Vec3],
-        velocities_mm_s: &[Vec3],
+        velocities_mm_s: Option<&[Vec3]>,
+        base_n: impl Fn(usize) -> Vec3,
         forces_n: &mut [Vec3],
         scratch: &mut KernelScratch,
     ) {
-        let n = positions_mm
-            .len()
-            .min(velocities_mm_s.len())
-            .min(forces_n.len());
+        let n = positions_mm.len().min(forces_n.len());
         for buffer in [&mut scratch.x, &mut scratch.v, &mut scratch.f] {
             if buffer.len() != n {
                 buffer.resize(n, Padded::default());
             }
         }
-        for ((px, pv), (x, v)) in scratch
-            .x
-            .iter_mut()
-            .zip(scratch.v.iter_mut())
-            .zip(positions_mm.iter().zip(velocities_mm_s))
-        {
-            *px = Padded::from_vec3(x);
-            *pv = Padded::from_vec3(v);
+        for (i, (px, pf)) in scratch.x.iter_mut().zip(scratch.f.iter_mut()).enumerate() {
+            *px = Padded::from_vec3(&positions_mm[i]);
+            *pf = Padded::from_vec3(&base_n(i));
         }
-        scratch.f.fill(Padded::default());
-        // One monomorphised kernel per law: the law's branch leaves the inner loop.
-        match law {
-            SpringLaw::Linear => self.kernel(|s, _rest, k| k * s, scratch),
-            other => self.kernel(|s, rest, k| other.tension_n(s, rest, k), scratch),
+        // One monomorphised kernel per law and per damping: the branches leave the inner loop.
+        match (law, velocities_mm_s) {
+            (SpringLaw::Linear, None) => self.kernel::<false>(|s, _rest, k| k * s, scratch),
+            (other, None) => {
+                self.kernel::<false>(|s, rest, k| other.tension_n(s, rest, k), scratch)
+            }
+            (law, Some(v)) => {
+                for (pv, v) in scratch.v.iter_mut().zip(v) {
+                    *pv = Padded::from_vec3(v);
+                }
+                match law {
+                    SpringLaw::Linear => self.kernel::<true>(|s, _rest, k| k * s, scratch),
+                    other => self.kernel::<true>(|s, rest, k| other.tension_n(s, rest, k), scratch),
+                }
+            }
         }
         for (f, p) in forces_n.iter_mut().zip(&scratch.f) {
-            *f += Vec3::new(p.0[0], p.0[1], p.0[2]);
+            *f = Vec3::new(p.0[0], p.0[1], p.0[2]);
         }
     }
 
     #[inline(always)]
-    fn kernel(&self, tension: impl Fn(f32, f32, f32) -> f32, scratch: &mut KernelScratch) {
+    fn kernel<const DAMPED: bool>(
+        &self,
+        tension: impl Fn(f32, f32, f32) -> f32,
+        scratch: &mut KernelScratch,
+    ) {
         let (x, v, f) = (&scratch.x, &scratch.v, &mut scratch.f);
         for s in 0..self.len() {
             let (a, b) = (self.a[s] as usize, self.b[s] as usize);
-            let (Some(xa), Some(xb), Some(va), Some(vb)) = (x.get(a), x.get(b), v.get(a), v.get(b))
-            else {
+            let (Some(xa), Some(xb)) = (x.get(a), x.get(b)) else {
                 continue;
             };
             let d = xb.minus(xa);
-            let dv = vb.minus(va);
             let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let inv = if len > 1e-9 { 1.0 / len } else { 0.0 };
-            let rate = (dv[0] * d[0] + dv[1] * d[1] + dv[2] * d[2]) * inv;
             let rest = self.rest_mm[s];
-            let scale = (tension(len - rest, rest, self.stiffness_n_per_mm[s])
-                + self.damping_n_s_per_mm[s] * rate)
-                * inv;
+            let mut magnitude = tension(len - rest, rest, self.stiffness_n_per_mm[s]);
+            if DAMPED && let (Some(va), Some(vb)) = (v.get(a), v.get(b)) {
+                let dv = vb.minus(va);
+                let rate = (dv[0] * d[0] + dv[1] * d[1] + dv[2] * d[2]) * inv;
+                magnitude += self.damping_n_s_per_mm[s] * rate;
+            }
+            let scale = magnitude * inv;
             if let Some(fa) = f.get_mut(a) {
                 for (out, dq) in fa.0.iter_mut().zip(d) {
                     *out += dq * scale;

@@ -17,7 +17,6 @@ const TOLERANCE: f32 = 1e-6;
 #[derive(Debug, Clone)]
 pub struct ImplicitEuler {
     max_iterations: u32,
-    zero_velocities: Vec<Vec3>,
     blocks: Vec<SpringJacobian>,
     diagonal_mass: Vec<f32>,
     rhs: Vec<Vec3>,
@@ -33,7 +32,6 @@ impl ImplicitEuler {
     pub fn new(max_iterations: u32) -> Self {
         Self {
             max_iterations: max_iterations.max(1),
-            zero_velocities: Vec::new(),
             blocks: Vec::new(),
             diagonal_mass: Vec::new(),
             rhs: Vec::new(),
@@ -78,7 +76,6 @@ impl Integrator for ImplicitEuler {
         let n = model.node_count();
         let h = dt_s;
         for buffer in [
-            &mut self.zero_velocities,
             &mut self.rhs,
             &mut self.residual,
             &mut self.direction,
@@ -95,9 +92,8 @@ impl Integrator for ImplicitEuler {
             self.blocks
                 .resize(model.edge_count(), SpringJacobian::default());
         }
-        model.compute_forces(
+        model.compute_static_forces(
             &state.positions_mm,
-            &self.zero_velocities,
             Some(&state.external_forces_n),
             &mut state.forces_n,
         );

@@ -16,7 +16,6 @@ const RELAXATION: f32 = 0.8;
 #[derive(Debug, Clone)]
 pub struct QuasiStatic {
     sweeps: u32,
-    zero_velocities: Vec<Vec3>,
     start: Vec<Vec3>,
     inverse_diagonal: Vec<f32>,
 }
@@ -26,7 +25,6 @@ impl QuasiStatic {
     pub fn new(sweeps: u32) -> Self {
         Self {
             sweeps: sweeps.max(1),
-            zero_velocities: Vec::new(),
             start: Vec::new(),
             inverse_diagonal: Vec::new(),
         }
@@ -65,7 +63,6 @@ impl Integrator for QuasiStatic {
 
     fn step(&mut self, model: &MassSpringModel, state: &mut TissueState, dt_s: f32) -> u32 {
         let n = model.node_count();
-        fit(&mut self.zero_velocities, n);
         fit(&mut self.start, n);
         if self.inverse_diagonal.len() != n {
             self.inverse_diagonal.resize(n, 0.0);
@@ -79,9 +76,8 @@ impl Integrator for QuasiStatic {
             if !linear {
                 inverse_diagonal(model, Some(&state.positions_mm), &mut self.inverse_diagonal);
             }
-            model.compute_forces(
+            model.compute_static_forces(
                 &state.positions_mm,
-                &self.zero_velocities,
                 Some(&state.external_forces_n),
                 &mut state.forces_n,
             );
