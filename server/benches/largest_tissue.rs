@@ -19,32 +19,14 @@ use std::time::Instant;
 
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
-use sinew_server::world::{World, load_world};
+use sinew_server::world::{World, grid_sheet, load_world, to_obj_text};
 
 /// Tick budget, us.
 const BUDGET_US: f64 = 1000.0;
 
-/// `side` x `side` cells of 1 mm on z = 0, centred, diagonals alternating (as make_pad_mesh writes them).
+/// A `side` x `side` sheet of 1 mm cells as OBJ text.
 fn sheet_obj(side: usize) -> String {
-    let mut text = String::with_capacity(side * side * 40);
-    let x0 = -(side as f32) / 2.0;
-    for j in 0..=side {
-        for i in 0..=side {
-            writeln!(text, "v {} {} 0", x0 + i as f32, x0 + j as f32).unwrap();
-        }
-    }
-    let id = |i: usize, j: usize| j * (side + 1) + i + 1;
-    for j in 0..side {
-        for i in 0..side {
-            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-            if (i + j) % 2 == 0 {
-                writeln!(text, "f {a} {b} {c}\nf {a} {c} {d}").unwrap();
-            } else {
-                writeln!(text, "f {a} {b} {d}\nf {b} {c} {d}").unwrap();
-            }
-        }
-    }
-    text
+    to_obj_text(&grid_sheet(side, side, 1.0), &[])
 }
 
 /// The world around a sheet of `side` x `side` cells, region tracking on (the caller turns it off).

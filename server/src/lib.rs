@@ -7,6 +7,7 @@
 #![warn(missing_docs)]
 
 pub mod collision;
+mod incidence;
 pub mod interaction;
 pub mod node;
 pub mod replication;

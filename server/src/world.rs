@@ -6,12 +6,14 @@
 
 mod extrude;
 mod file_format;
+mod grid_sheet;
 mod loader;
 mod mesh_file;
 mod tet_mesh;
 
 pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 pub use file_format::{IntegratorName, LengthUnit};
+pub use grid_sheet::{grid_sheet, to_obj_text};
 pub use loader::{
     FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ToolShapeSpec, ToolSpec, World, WorldError,
     load_world, parse_world,

@@ -13,7 +13,7 @@ use sinew_server::tissue::{
 };
 use sinew_server::world::{
     FixedSelection, IntegratorName, MassSpec, MaterialSpec, ObjectSpec, SurfaceMesh, World,
-    load_world, parse_world,
+    grid_sheet, load_world, parse_world,
 };
 
 const G_MM_S2: f32 = 9810.0;
@@ -193,30 +193,13 @@ fn symplectic_euler_keeps_energy_bounded_where_explicit_euler_gains_it() {
     assert!(growth > 50.0, "explicit Euler energy grew only {growth}x");
 }
 
-/// A square grid sheet, `side` nodes per edge, spacing 2 mm, rim fixed.
+/// A square grid sheet, `side` nodes per edge, spacing 2 mm, centred on the origin.
 fn sheet_mesh(side: usize) -> SurfaceMesh {
-    let mut positions_mm = Vec::new();
-    for j in 0..side {
-        for i in 0..side {
-            positions_mm.push([2.0 * i as f32, 2.0 * j as f32, 0.0]);
-        }
-    }
-    let mut triangles = Vec::new();
-    let id = |i: usize, j: usize| (j * side + i) as u32;
-    for j in 0..side - 1 {
-        for i in 0..side - 1 {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    SurfaceMesh {
-        positions_mm,
-        triangles,
-    }
+    grid_sheet(side - 1, side - 1, 2.0)
 }
 
 fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> ObjectSpec {
-    let extent = 2.0 * (side - 1) as f32;
+    let half = (side - 1) as f32; // 2 mm cells: half the sheet's width
     ObjectSpec {
         name: "sheet".into(),
         mesh: sheet_mesh(side),
@@ -235,7 +218,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             global_bulk_modulus_n_per_mm2: 0.0,
             tet_bulk_modulus_n_per_mm2: 0.0,
         },
-        fixed: [[-1.0, 0.0], [1.0, extent]]
+        fixed: [[-1.0, -half], [1.0, half]]
             .iter()
             .flat_map(|&[sign, at]| {
                 (0..2).map(move |axis| {

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, MassSpringModel, ModelParts, TissueState, Vec3, Xpbd};
-use sinew_server::world::{IntegratorName, World, load_world};
+use sinew_server::world::{IntegratorName, World, grid_sheet, load_world, to_obj_text};
 
 /// Largest relative difference allowed between the region-tracked and the full tool force, on every tick where
 /// the full force is at least [`FORCE_FLOOR_N`] (2%: the "same forces within a stated tolerance").
@@ -33,27 +33,9 @@ fn scratch_dir() -> PathBuf {
     dir
 }
 
-/// An `nx` x `ny` sheet of 1 mm cells on z = 0 centred on the origin, as make_pad_mesh writes it.
+/// An `nx` x `ny` sheet of 1 mm cells as OBJ text.
 fn sheet_obj(nx: usize, ny: usize) -> String {
-    let mut text = String::new();
-    let (x0, y0) = (-(nx as f32) / 2.0, -(ny as f32) / 2.0);
-    for j in 0..=ny {
-        for i in 0..=nx {
-            writeln!(text, "v {} {} 0", x0 + i as f32, y0 + j as f32).unwrap();
-        }
-    }
-    let id = |i: usize, j: usize| j * (nx + 1) + i + 1;
-    for j in 0..ny {
-        for i in 0..nx {
-            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-            if (i + j) % 2 == 0 {
-                writeln!(text, "f {a} {b} {c}\nf {a} {c} {d}").unwrap();
-            } else {
-                writeln!(text, "f {a} {b} {d}\nf {b} {c} {d}").unwrap();
-            }
-        }
-    }
-    text
+    to_obj_text(&grid_sheet(nx, ny, 1.0), &[])
 }
 
 /// A world around an `nx` x `ny` sheet with worlds/pad.toml's material per 1 mm cell (mass scaled by area),

@@ -139,23 +139,7 @@ impl SurfaceCollider {
             BvhBuildStrategy::Binned,
             leaf_boxes.iter().copied().enumerate(),
         );
-        let mut start = vec![0u32; n + 1];
-        for tri in triangles {
-            for &v in tri {
-                start[v as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut list = vec![0u32; start[n] as usize];
-        for (t, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                list[fill[v as usize] as usize] = t as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let (start, list) = crate::incidence::incidence(n, triangles);
         Ok(Self {
             bvh,
             vertices,

@@ -11,6 +11,7 @@ use std::cell::RefCell;
 use super::springs::{KernelScratch, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
+use crate::incidence::incidence;
 use crate::world::{MassSpec, ObjectSpec};
 
 /// Everything a model is built from. Public so tests and the region tracker can build models that are not
@@ -83,28 +84,6 @@ pub struct MassSpringModel {
 
 /// Source of [`MassSpringModel::id`].
 static NEXT_MODEL_ID: AtomicU64 = AtomicU64::new(1);
-
-/// Compressed rows: for each node, the list of items that touch it.
-fn incidence<const K: usize>(n: usize, items: &[[u32; K]]) -> (Vec<u32>, Vec<u32>) {
-    let mut start = vec![0u32; n + 1];
-    for item in items {
-        for &v in item {
-            start[v as usize + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut list = vec![0u32; start[n] as usize];
-    for (e, item) in items.iter().enumerate() {
-        for &v in item {
-            list[fill[v as usize] as usize] = e as u32;
-            fill[v as usize] += 1;
-        }
-    }
-    (start, list)
-}
 
 impl MassSpringModel {
     /// Build from a validated object spec: masses by vertex area share, springs along the unique mesh edges
