@@ -10,7 +10,8 @@ use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::Vec3;
 use sinew_server::tissue::volume::{enclosed_volume_mm3, tet_volume_mm3};
 use sinew_server::world::{
-    MeshError, TetMesh, VolumeMeshError, load_msh_mesh, load_world, parse_msh, validate_closed,
+    MeshError, TetMesh, VolumeMeshError, load_msh_mesh, load_world, parse_msh, parse_world,
+    validate_closed,
 };
 
 fn worlds() -> PathBuf {
@@ -415,4 +416,45 @@ fn the_tet_volume_term_keeps_a_squeezed_block_volume() {
         out_on.force_world_n.z > out_off.force_world_n.z,
         "a volume-keeping block is stiffer under the probe"
     );
+}
+
+/// Region tracking on a tetrahedral volume (interior nodes, tetrahedron volume terms in the sub-model) gives the
+/// full step's force on a press and hold, within 2% relative (or 1 mN under 0.05 N), tick by tick.
+#[test]
+fn region_tracking_on_the_tet_block_gives_the_full_steps_force() {
+    let path = worlds().join("tet_block.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let tracked = text.replace(
+        "quant_margin_mm = 40.0",
+        "quant_margin_mm = 40.0\nregion = { threshold_mm = 0.001 }",
+    );
+    assert_ne!(tracked, text, "the region key was not inserted");
+    let mut full = Sim::new(&load_world(&path).unwrap()).unwrap();
+    let mut region = Sim::new(&parse_world(&path, &tracked).unwrap()).unwrap();
+    assert!(region.objects[0].region().is_some());
+    let (mut out_full, mut out_region) = ([ToolOutput::default(); 2], [ToolOutput::default(); 2]);
+    let (mut worst, mut largest_region) = (0.0f32, 0usize);
+    for k in 0..600 {
+        let depth = 3.0 * ((k + 1) as f32 / 300.0).min(1.0);
+        let commands = [press(depth), ToolCommand::default()];
+        full.step(0.001, &commands, &mut out_full);
+        let report = region.step(0.001, &commands, &mut out_region);
+        assert_eq!(report.faults, 0, "tick {k}");
+        largest_region = largest_region.max(report.region_nodes as usize);
+        let (a, b) = (out_full[0].force_world_n, out_region[0].force_world_n);
+        let difference = (a - b).norm();
+        if a.norm() > 0.05 {
+            worst = worst.max(difference / a.norm());
+        } else {
+            assert!(difference < 1e-3, "tick {k}: {a:?} vs {b:?}");
+        }
+    }
+    println!(
+        "tet block, 3 mm press: final force {:.4} N full, {:.4} N region; worst relative difference {worst:.2e}; region up to {largest_region} of {} nodes",
+        out_full[0].force_world_n.z,
+        out_region[0].force_world_n.z,
+        full.objects[0].model.node_count()
+    );
+    assert!(worst < 0.02, "region force differs by {worst}");
+    assert!(out_full[0].force_world_n.z > 0.1);
 }
