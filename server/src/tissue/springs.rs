@@ -237,7 +237,7 @@ impl SpringSet {
 
     /// For the implicit integrator: per spring, the 3x3 block `h c u u^T + h^2 J` where `J = d f_a / d x_b` with
     /// the geometric term clamped to tension (a compressed spring's negative term would make the system
-    /// indefinite). Also returns nothing else; the caller multiplies with [`Self::add_block_products`].
+    /// indefinite), written into `out`; [`Self::add_block_products`] multiplies with them.
     pub fn implicit_blocks(&self, law: SpringLaw, x: &[Vec3], h: f32, out: &mut [SpringJacobian]) {
         for (s, out) in out.iter_mut().enumerate().take(self.len()) {
             let (ia, ib, rest, k, c) = self.get(s);

@@ -6,7 +6,7 @@
 //! has spectral radius <= 1 for every one of them. Implicit Euler, quasi-static relaxation and XPBD have no
 //! bound. Pure functions; used by the world loader, never in a tick.
 
-use super::{MassSpringModel, SpringLaw};
+use super::MassSpringModel;
 use crate::world::IntegratorName;
 
 /// Strain up to which a stiffening law's tangent is assumed when bounding the step (beyond it, the
@@ -118,11 +118,6 @@ pub fn max_stable_dt_s(method: IntegratorName, model: &MassSpringModel) -> Optio
         if stable(mid) { lo = mid } else { hi = mid }
     }
     Some(lo as f32)
-}
-
-/// Whether `law` stiffens (so the bound above holds only up to [`DESIGN_STRAIN`]).
-pub fn law_stiffens(law: SpringLaw) -> bool {
-    law.stiffening_at(DESIGN_STRAIN) > 1.0
 }
 
 #[cfg(test)]

@@ -1,0 +1,118 @@
+//! The real-time contract of `Sim::step`: after warm-up, a tick allocates nothing. A counting global allocator
+//! wraps the system one; the test warms the pad up under two probes (contacts grow their buffers, integrator
+//! scratch is sized), then counts allocations over a second of pressing and stroking ticks.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+// test code: a failed setup should panic loudly
+// A global allocator must implement the unsafe `GlobalAlloc` trait; this one only forwards to `System` and
+// counts, in this test binary alone.
+#![allow(unsafe_code)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::world::{IntegratorName, load_world, parse_world};
+
+struct Counting;
+
+static COUNTING: AtomicBool = AtomicBool::new(false);
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: every method forwards to `System` with the caller's own arguments, so `System`'s guarantees hold;
+// the counter is a relaxed atomic.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: forwarded unchanged.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: forwarded unchanged.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: forwarded unchanged.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn commands(k: usize) -> [ToolCommand; 2] {
+    let t = k as f32 * 0.001;
+    let depth = (t / 0.3).min(1.0) * 4.0;
+    let stroke = 6.0 * (std::f32::consts::TAU * t).sin();
+    let at = |x: f32, y: f32| ToolCommand {
+        active: true,
+        position_device_mm: [x, y, 4.0 - depth],
+        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+    };
+    [at(stroke, 0.0), at(-stroke, 4.0)]
+}
+
+/// Allocations over ticks `warm..warm + counted` of the two-probe press-and-stroke.
+fn allocations_while_stepping(sim: &mut Sim, warm: usize, counted: usize) -> u64 {
+    let mut out = [ToolOutput::default(); 2];
+    for k in 0..warm {
+        sim.step(0.001, &commands(k), &mut out);
+    }
+    ALLOCATIONS.store(0, Ordering::Relaxed);
+    COUNTING.store(true, Ordering::Relaxed);
+    for k in warm..warm + counted {
+        sim.step(0.001, &commands(k), &mut out);
+    }
+    COUNTING.store(false, Ordering::Relaxed);
+    ALLOCATIONS.load(Ordering::Relaxed)
+}
+
+/// One test function, so no other test thread allocates while counting.
+#[test]
+fn a_warm_tick_allocates_nothing_with_every_integrator() {
+    // The counter sees allocations at all (else this test could not fail).
+    ALLOCATIONS.store(0, Ordering::Relaxed);
+    COUNTING.store(true, Ordering::Relaxed);
+    let probe = std::hint::black_box(vec![1u8; 64]);
+    COUNTING.store(false, Ordering::Relaxed);
+    drop(probe);
+    assert!(
+        ALLOCATIONS.load(Ordering::Relaxed) > 0,
+        "the counting allocator is not in use"
+    );
+
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    for method in IntegratorName::ALL {
+        let with_method = text.replace(
+            "integrator = \"symplectic-euler\"",
+            &format!("integrator = \"{}\"", method.as_str()),
+        );
+        // Explicit Euler and RK2 need a smaller step on the pad (the loader says so): take the first that passes.
+        let world = ["dt_s = 0.001", "dt_s = 0.00025", "dt_s = 0.0001"]
+            .iter()
+            .find_map(|dt| parse_world(&path, &with_method.replace("dt_s = 0.001", dt)).ok())
+            .unwrap();
+        let mut sim = Sim::new(&world).unwrap();
+        let allocations = allocations_while_stepping(&mut sim, 400, 200);
+        println!(
+            "{}: {allocations} allocations in 200 warm ticks",
+            method.as_str()
+        );
+        assert_eq!(
+            allocations,
+            0,
+            "{} allocated in a warm tick",
+            method.as_str()
+        );
+    }
+    // The shipped world as it is.
+    let mut sim = Sim::new(&load_world(&path).unwrap()).unwrap();
+    assert_eq!(allocations_while_stepping(&mut sim, 600, 1000), 0);
+}
