@@ -11,7 +11,7 @@ use std::cell::RefCell;
 use super::springs::{KernelScratch, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
-use crate::incidence::incidence;
+use crate::incidence::incidence_into;
 use crate::world::{MassSpec, ObjectSpec};
 
 /// Everything a model is built from. Public so tests and the region tracker can build models that are not
@@ -77,6 +77,8 @@ pub struct MassSpringModel {
     node_tets: Vec<u32>,
     /// Small-strain stiffness diagonal per node (incident springs plus anchor), N/mm.
     diagonal_stiffness_n_per_mm: Vec<f32>,
+    /// Scratch of [`Self::rebuild_from`]: the spring sort order.
+    build_order: Vec<usize>,
     /// The spring kernel's padded buffers: scratch, not state (a model is stepped by one thread at a time;
     /// `compute_forces` stays `&self` so every integrator shares one model).
     kernel_scratch: RefCell<KernelScratch>,
@@ -84,6 +86,12 @@ pub struct MassSpringModel {
 
 /// Source of [`MassSpringModel::id`].
 static NEXT_MODEL_ID: AtomicU64 = AtomicU64::new(1);
+
+/// `dst = src`, reusing `dst`'s buffer.
+fn refill<T: Copy>(dst: &mut Vec<T>, src: &[T]) {
+    dst.clear();
+    dst.extend_from_slice(src);
+}
 
 impl MassSpringModel {
     /// Build from a validated object spec: masses by vertex area share, springs along the unique mesh edges
@@ -172,14 +180,61 @@ impl MassSpringModel {
 
     /// Build from parts (indices must be in range; edges with `a < b`).
     pub fn from_parts(parts: ModelParts) -> Self {
+        let mut model = Self::empty();
+        model.rebuild_from(&parts);
+        model
+    }
+
+    /// A model with no nodes, to be filled by [`Self::rebuild_from`].
+    fn empty() -> Self {
+        Self {
+            id: 0,
+            rest_positions_mm: Vec::new(),
+            rest_normals: Vec::new(),
+            mass_kg: Vec::new(),
+            accel_per_force: Vec::new(),
+            springs: SpringSet::default(),
+            law: SpringLaw::Linear,
+            anchor_stiffness_n_per_mm: 0.0,
+            drag_per_s: 0.0,
+            gravity_mm_per_s2: Vec3::zeros(),
+            triangles: Vec::new(),
+            tets: TetVolumes::default(),
+            global_volume: None,
+            node_spring_start: Vec::new(),
+            node_springs: Vec::new(),
+            node_triangle_start: Vec::new(),
+            node_triangles: Vec::new(),
+            node_tet_start: Vec::new(),
+            node_tets: Vec::new(),
+            diagonal_stiffness_n_per_mm: Vec::new(),
+            kernel_scratch: RefCell::new(KernelScratch::default()),
+            build_order: Vec::new(),
+        }
+    }
+
+    /// Refill this model from `parts` in place, reusing every buffer: allocates only where `parts` is larger
+    /// than anything this model held before (the region tracker rebuilds its sub-model inside a tick this
+    /// way). The model gets a new [`Self::id`]. Indices must be in range; edges with `a < b`.
+    pub fn rebuild_from(&mut self, parts: &ModelParts) {
         let n = parts.rest_positions_mm.len();
-        let positions = parts.rest_positions_mm;
-        let mut order: Vec<usize> = (0..parts.edges.len()).collect();
-        order.sort_unstable_by_key(|&e| parts.edges[e]);
-        let mut springs = SpringSet::default();
-        for &e in &order {
+        self.id = NEXT_MODEL_ID.fetch_add(1, Ordering::Relaxed);
+        refill(&mut self.rest_positions_mm, &parts.rest_positions_mm);
+        refill(&mut self.mass_kg, &parts.mass_kg);
+        refill(&mut self.triangles, &parts.triangles);
+        self.law = parts.law.unwrap_or(SpringLaw::Linear);
+        self.anchor_stiffness_n_per_mm = parts.anchor_stiffness_n_per_mm;
+        self.drag_per_s = parts.drag_per_s;
+        self.gravity_mm_per_s2 = parts.gravity_mm_per_s2;
+        let positions = &self.rest_positions_mm;
+
+        self.build_order.clear();
+        self.build_order.extend(0..parts.edges.len());
+        self.build_order.sort_unstable_by_key(|&e| parts.edges[e]);
+        self.springs.clear();
+        for &e in &self.build_order {
             let [a, b] = parts.edges[e];
-            springs.push(
+            self.springs.push(
                 a,
                 b,
                 (positions[b as usize] - positions[a as usize]).norm(),
@@ -187,72 +242,66 @@ impl MassSpringModel {
                 parts.edge_damping_n_s_per_mm[e],
             );
         }
-        let spring_pairs: Vec<[u32; 2]> = springs
-            .a
-            .iter()
-            .zip(&springs.b)
-            .map(|(&a, &b)| [a, b])
-            .collect();
-        let (node_spring_start, node_springs) = incidence(n, &spring_pairs);
-        let (node_triangle_start, node_triangles) = incidence(n, &parts.triangles);
+        let springs = &self.springs;
+        incidence_into(
+            n,
+            springs.len(),
+            |s| [springs.a[s], springs.b[s]],
+            &mut self.node_spring_start,
+            &mut self.node_springs,
+        );
+        let triangles = &self.triangles;
+        incidence_into(
+            n,
+            triangles.len(),
+            |t| triangles[t],
+            &mut self.node_triangle_start,
+            &mut self.node_triangles,
+        );
 
-        let mut normal_sum = vec![Vec3::zeros(); n];
-        for tri in &parts.triangles {
+        self.rest_normals.clear();
+        self.rest_normals.resize(n, Vec3::zeros());
+        for tri in triangles {
             let [a, b, c] = tri.map(|v| positions[v as usize]);
             let area_normal = 0.5 * (b - a).cross(&(c - a));
             for v in tri {
-                normal_sum[*v as usize] += area_normal;
+                self.rest_normals[*v as usize] += area_normal;
             }
         }
-        let rest_normals = normal_sum
-            .iter()
-            .map(|s| s.try_normalize(1e-12).unwrap_or_else(Vec3::z))
-            .collect();
-        let accel_per_force = parts
-            .mass_kg
-            .iter()
-            .zip(&parts.fixed)
-            .map(|(m, &f)| if f || *m <= 0.0 { 0.0 } else { MM_PER_M / m })
-            .collect();
-        let (tets, _degenerate) =
-            TetVolumes::new(&parts.tets, &positions, parts.tet_bulk_modulus_n_per_mm2);
-        let (node_tet_start, node_tets) = incidence(n, &tets.tets);
-        let global_volume = (parts.global_bulk_modulus_n_per_mm2 > 0.0).then(|| GlobalVolume {
-            rest_volume_mm3: super::volume::enclosed_volume_mm3(&positions, &parts.triangles),
+        for normal in &mut self.rest_normals {
+            *normal = normal.try_normalize(1e-12).unwrap_or_else(Vec3::z);
+        }
+        self.accel_per_force.clear();
+        self.accel_per_force.extend(
+            parts
+                .mass_kg
+                .iter()
+                .zip(&parts.fixed)
+                .map(|(m, &f)| if f || *m <= 0.0 { 0.0 } else { MM_PER_M / m }),
+        );
+        self.tets
+            .refill(&parts.tets, positions, parts.tet_bulk_modulus_n_per_mm2);
+        let tets = &self.tets.tets;
+        incidence_into(
+            n,
+            tets.len(),
+            |t| tets[t],
+            &mut self.node_tet_start,
+            &mut self.node_tets,
+        );
+        self.global_volume = (parts.global_bulk_modulus_n_per_mm2 > 0.0).then(|| GlobalVolume {
+            rest_volume_mm3: super::volume::enclosed_volume_mm3(positions, triangles),
             bulk_modulus_n_per_mm2: parts.global_bulk_modulus_n_per_mm2,
         });
-        let diagonal_stiffness_n_per_mm = (0..n)
-            .map(|i| {
-                node_springs[node_spring_start[i] as usize..node_spring_start[i + 1] as usize]
-                    .iter()
-                    .map(|&s| springs.stiffness_n_per_mm[s as usize])
-                    .sum::<f32>()
-                    + parts.anchor_stiffness_n_per_mm
-            })
-            .collect();
-        Self {
-            id: NEXT_MODEL_ID.fetch_add(1, Ordering::Relaxed),
-            diagonal_stiffness_n_per_mm,
-            kernel_scratch: RefCell::new(KernelScratch::default()),
-            rest_positions_mm: positions,
-            rest_normals,
-            mass_kg: parts.mass_kg,
-            accel_per_force,
-            springs,
-            law: parts.law.unwrap_or(SpringLaw::Linear),
-            anchor_stiffness_n_per_mm: parts.anchor_stiffness_n_per_mm,
-            drag_per_s: parts.drag_per_s,
-            gravity_mm_per_s2: parts.gravity_mm_per_s2,
-            triangles: parts.triangles,
-            tets,
-            global_volume,
-            node_spring_start,
-            node_springs,
-            node_triangle_start,
-            node_triangles,
-            node_tet_start,
-            node_tets,
-        }
+        let (start, list) = (&self.node_spring_start, &self.node_springs);
+        self.diagonal_stiffness_n_per_mm.clear();
+        self.diagonal_stiffness_n_per_mm.extend((0..n).map(|i| {
+            list[start[i] as usize..start[i + 1] as usize]
+                .iter()
+                .map(|&s| springs.stiffness_n_per_mm[s as usize])
+                .sum::<f32>()
+                + parts.anchor_stiffness_n_per_mm
+        }));
     }
 
     /// An id no other model built in this process has (a clone keeps it: same topology). Caches keyed on a

@@ -19,7 +19,7 @@
 //!   `max(2, depth / 4)` levels to spare; empty the region when no tool touches and nothing is live at
 //!   `threshold_mm / 2` for [`SETTLE_S`]. A node leaving the active set keeps its position and has its velocity
 //!   zeroed (it is still, up to the threshold).
-//! - The sub-model ([`MassSpringModel::from_parts`]) holds the active nodes plus the boundary ring (fixed), in
+//! - The sub-model ([`MassSpringModel::rebuild_from`], refilled in place) holds the active nodes plus the boundary ring (fixed), in
 //!   the original index order (springs stay local), every spring and tetrahedron touching an active node, and
 //!   the original rest positions, masses, law, anchors, drag and gravity. It is rebuilt only when the active
 //!   set changes; each substep copies active + boundary state in, steps, and copies the active nodes back.
@@ -30,8 +30,9 @@
 //! step by the force such a displacement makes at the region's edge, which decays towards the tool.
 //!
 //! Real-time contract: [`RegionTracker::update`] and [`RegionTracker::step`] never panic and never log; they are
-//! O(active region) (never O(object)) and allocate nothing except when the active set changes, where the
-//! sub-model is rebuilt (O(region), a few times per touch; a still region allocates nothing).
+//! O(active region) (never O(object)). A rebuild (the active set changed: O(region), a few times per touch)
+//! refills the kept parts and sub-model in place, so nothing is allocated once the buffers have held a
+//! region this large (`server/tests/no_allocation.rs` counts it).
 
 use super::integrators::fit;
 use super::{Integrator, MassSpringModel, ModelParts, TissueState, Vec3};
@@ -95,6 +96,10 @@ pub struct RegionTracker {
     previous_active: Vec<u32>,
     /// The sub-model and its state; local node k is global node `sub_nodes[k]`.
     sub_model: Option<MassSpringModel>,
+    /// The last sub-model while the region is empty, kept so the next rebuild reuses its buffers.
+    spare_model: Option<MassSpringModel>,
+    /// The sub-model's parts, refilled in place by every rebuild.
+    parts: ModelParts,
     sub_state: TissueState,
     sub_nodes: Vec<u32>,
     sub_active: Vec<bool>,
@@ -125,6 +130,8 @@ impl RegionTracker {
             seeds: Vec::with_capacity(n),
             previous_active: Vec::with_capacity(n),
             sub_model: None,
+            spare_model: None,
+            parts: ModelParts::default(),
             sub_state: TissueState {
                 positions_mm: Vec::new(),
                 velocities_mm_s: Vec::new(),
@@ -442,7 +449,9 @@ impl RegionTracker {
         self.sub_nodes.clear();
         self.sub_active.clear();
         if self.depth == 0 {
-            self.sub_model = None;
+            if let Some(model) = self.sub_model.take() {
+                self.spare_model = Some(model);
+            }
             return;
         }
         self.rebuilds += 1;
@@ -455,26 +464,32 @@ impl RegionTracker {
         let n = self.sub_nodes.len();
         let rest = model.rest_positions_mm();
         let springs = model.springs();
-        let mut parts = ModelParts {
-            rest_positions_mm: self.sub_nodes.iter().map(|&g| rest[g as usize]).collect(),
-            mass_kg: self
-                .sub_nodes
-                .iter()
-                .map(|&g| model.mass_kg()[g as usize])
-                .collect(),
-            fixed: self
-                .sub_nodes
+        // Refill the kept parts in place: no allocation once they have held a region this large.
+        let parts = &mut self.parts;
+        parts.rest_positions_mm.clear();
+        parts
+            .rest_positions_mm
+            .extend(self.sub_nodes.iter().map(|&g| rest[g as usize]));
+        parts.mass_kg.clear();
+        parts
+            .mass_kg
+            .extend(self.sub_nodes.iter().map(|&g| model.mass_kg()[g as usize]));
+        parts.fixed.clear();
+        parts.fixed.extend(
+            self.sub_nodes
                 .iter()
                 .zip(&self.sub_active)
-                .map(|(&g, &active)| !active || model.is_fixed(g as usize))
-                .collect(),
-            law: Some(model.law()),
-            anchor_stiffness_n_per_mm: model.anchor_stiffness_n_per_mm(),
-            drag_per_s: model.drag_per_s(),
-            gravity_mm_per_s2: model.gravity_mm_per_s2(),
-            tet_bulk_modulus_n_per_mm2: model.tets().bulk_modulus_n_per_mm2,
-            ..ModelParts::default()
-        };
+                .map(|(&g, &active)| !active || model.is_fixed(g as usize)),
+        );
+        parts.law = Some(model.law());
+        parts.anchor_stiffness_n_per_mm = model.anchor_stiffness_n_per_mm();
+        parts.drag_per_s = model.drag_per_s();
+        parts.gravity_mm_per_s2 = model.gravity_mm_per_s2();
+        parts.tet_bulk_modulus_n_per_mm2 = model.tets().bulk_modulus_n_per_mm2;
+        parts.edges.clear();
+        parts.edge_stiffness_n_per_mm.clear();
+        parts.edge_damping_n_s_per_mm.clear();
+        parts.tets.clear();
         let expected_springs = n * 3;
         parts.edges.reserve(expected_springs);
         parts.edge_stiffness_n_per_mm.reserve(expected_springs);
@@ -524,7 +539,11 @@ impl RegionTracker {
                 }
             }
         }
-        let sub = MassSpringModel::from_parts(parts);
+        let mut sub = match self.sub_model.take().or_else(|| self.spare_model.take()) {
+            Some(model) => model,
+            None => MassSpringModel::from_parts(ModelParts::default()),
+        };
+        sub.rebuild_from(&self.parts);
         let s = &mut self.sub_state;
         for buffer in [
             &mut s.positions_mm,

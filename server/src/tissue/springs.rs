@@ -72,6 +72,15 @@ impl SpringSet {
         self.a.is_empty()
     }
 
+    /// Remove every spring (keeps the buffers).
+    pub fn clear(&mut self) {
+        self.a.clear();
+        self.b.clear();
+        self.rest_mm.clear();
+        self.stiffness_n_per_mm.clear();
+        self.damping_n_s_per_mm.clear();
+    }
+
     /// Append one spring.
     pub fn push(&mut self, a: u32, b: u32, rest_mm: f32, k: f32, c: f32) {
         self.a.push(a);

@@ -106,11 +106,21 @@ impl TetVolumes {
         rest_positions_mm: &[Vec3],
         bulk_modulus_n_per_mm2: f32,
     ) -> (Self, usize) {
-        let mut out = Self {
-            tets: Vec::with_capacity(tets.len()),
-            rest_volume_mm3: Vec::with_capacity(tets.len()),
-            bulk_modulus_n_per_mm2,
-        };
+        let mut out = Self::default();
+        let dropped = out.refill(tets, rest_positions_mm, bulk_modulus_n_per_mm2);
+        (out, dropped)
+    }
+
+    /// [`Self::new`] into this value's buffers; returns the number dropped.
+    pub fn refill(
+        &mut self,
+        tets: &[[u32; 4]],
+        rest_positions_mm: &[Vec3],
+        bulk_modulus_n_per_mm2: f32,
+    ) -> usize {
+        self.tets.clear();
+        self.rest_volume_mm3.clear();
+        self.bulk_modulus_n_per_mm2 = bulk_modulus_n_per_mm2;
         let mut dropped = 0;
         for &tet in tets {
             let mut tet = tet;
@@ -120,13 +130,13 @@ impl TetVolumes {
                 v = -v;
             }
             if v > 1e-9 {
-                out.tets.push(tet);
-                out.rest_volume_mm3.push(v);
+                self.tets.push(tet);
+                self.rest_volume_mm3.push(v);
             } else {
                 dropped += 1;
             }
         }
-        (out, dropped)
+        dropped
     }
 
     /// Number of tetrahedra.

@@ -19,6 +19,10 @@ struct ColouredSprings {
     key: u64,
     springs: SpringSet,
     colour_start: Vec<usize>,
+    /// Build scratch, kept so a rebuild for a new model of no larger size allocates nothing.
+    used: Vec<u128>,
+    colour_of: Vec<usize>,
+    order: Vec<usize>,
 }
 
 /// The colouring cache key. Regression guard: the key was (spring count, first a, last b, node count), and two
@@ -28,42 +32,41 @@ fn model_key(model: &MassSpringModel) -> u64 {
 }
 
 impl ColouredSprings {
-    /// Greedy edge colouring: each spring takes the lowest colour neither endpoint uses yet.
-    fn build(model: &MassSpringModel) -> Self {
+    /// Greedy edge colouring: each spring takes the lowest colour neither endpoint uses yet; springs are then
+    /// reordered by colour (index order within a colour). Reuses this value's buffers.
+    fn rebuild(&mut self, model: &MassSpringModel) {
         let springs = model.springs();
-        let n = model.node_count();
-        let mut used = vec![0u128; n];
-        let mut colour_of = Vec::with_capacity(springs.len());
+        self.used.clear();
+        self.used.resize(model.node_count(), 0);
+        self.colour_of.clear();
         let mut colours = 0usize;
         for s in 0..springs.len() {
             let (a, b) = (springs.a[s] as usize, springs.b[s] as usize);
-            let free = !(used[a] | used[b]);
-            let colour = free.trailing_zeros() as usize;
+            let free = !(self.used[a] | self.used[b]);
             // 128 colours exceed any mesh of degree < 64; beyond that, share the last colour (still correct
             // as Gauss-Seidel, just not conflict-free).
-            let colour = colour.min(127);
-            used[a] |= 1 << colour;
-            used[b] |= 1 << colour;
-            colour_of.push(colour);
+            let colour = (free.trailing_zeros() as usize).min(127);
+            self.used[a] |= 1 << colour;
+            self.used[b] |= 1 << colour;
+            self.colour_of.push(colour);
             colours = colours.max(colour + 1);
         }
-        let mut order: Vec<usize> = (0..springs.len()).collect();
-        order.sort_by_key(|&s| (colour_of[s], s));
-        let mut out = SpringSet::default();
-        let mut colour_start = vec![0usize; colours + 1];
-        for &s in &order {
+        self.order.clear();
+        self.order.extend(0..springs.len());
+        let colour_of = &self.colour_of;
+        self.order.sort_unstable_by_key(|&s| (colour_of[s], s));
+        self.springs.clear();
+        self.colour_start.clear();
+        self.colour_start.resize(colours + 1, 0);
+        for &s in &self.order {
             let (a, b, rest, k, c) = springs.get(s);
-            out.push(a as u32, b as u32, rest, k, c);
-            colour_start[colour_of[s] + 1] += 1;
+            self.springs.push(a as u32, b as u32, rest, k, c);
+            self.colour_start[colour_of[s] + 1] += 1;
         }
         for c in 0..colours {
-            colour_start[c + 1] += colour_start[c];
+            self.colour_start[c + 1] += self.colour_start[c];
         }
-        Self {
-            key: model_key(model),
-            springs: out,
-            colour_start,
-        }
+        self.key = model_key(model);
     }
 }
 
@@ -106,7 +109,7 @@ impl Integrator for Xpbd {
     fn step(&mut self, model: &MassSpringModel, state: &mut TissueState, dt_s: f32) -> u32 {
         let n = model.node_count();
         if self.coloured.key != model_key(model) || self.coloured.colour_start.is_empty() {
-            self.coloured = ColouredSprings::build(model);
+            self.coloured.rebuild(model);
         }
         fit(&mut self.previous, n);
         fit(&mut self.gradient, n);
