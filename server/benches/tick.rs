@@ -133,7 +133,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         us(&warm_step, 99.0)
     );
     println!(
-        "stages (interleaved, as in a tick): one symplectic-Euler substep p50 {:.0} us p99 {:.0} us; BVH refit (0.05 mm leaf margin) p50 {:.0} us p99 {:.0} us",
+        "stages (interleaved, as in a tick): one symplectic-Euler substep p50 {:.0} us p99 {:.0} us; BVH refit (fat leaves, sim::REFIT_MARGIN_MM) p50 {:.0} us p99 {:.0} us",
         us(&integrate, 50.0),
         us(&integrate, 99.0),
         us(&refit, 50.0),
