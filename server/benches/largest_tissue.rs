@@ -13,72 +13,34 @@
 //! `--sides 70,100,...`, cells per side).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::fmt::Write as _;
-use std::path::PathBuf;
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::time::Instant;
+
+use common::{sheet_world_text, write_sheet_world};
 
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
-use sinew_server::world::{World, grid_sheet, load_world, to_obj_text};
+use sinew_server::world::{World, load_world};
 
 /// Tick budget, us.
 const BUDGET_US: f64 = 1000.0;
 
-/// A `side` x `side` sheet of 1 mm cells as OBJ text.
-fn sheet_obj(side: usize) -> String {
-    to_obj_text(&grid_sheet(side, side, 1.0), &[])
-}
-
 /// The world around a sheet of `side` x `side` cells, region tracking on (the caller turns it off).
 fn world(side: usize) -> World {
-    let dir: PathBuf = std::env::temp_dir().join(format!(
-        "sinew-largest-tissue-{}-{side}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("sheet.obj"), sheet_obj(side)).unwrap();
-    // pad.toml: 0.6 kg over 80 x 60 mm.
-    let mass_kg = 0.6 * (side * side) as f32 / (80.0 * 60.0);
-    let h = side as f32 / 2.0;
-    let mut text = format!(
-        r#"scene = "largest"
-
-[[objects]]
-name = "sheet"
-mesh = "sheet.obj"
-units = "mm"
-integrator = "symplectic-euler"
-dt_s = 0.001
-region = {{ threshold_mm = 0.001 }}
-
-[objects.material]
-mass_kg = {mass_kg}
-stiffness_n_per_mm = 0.015
-damping_n_s_per_mm = 0.000003
-anchor_stiffness_n_per_mm = 0.008
-drag_per_s = 150.0
-"#
+    let text = sheet_world_text(
+        side,
+        side,
+        "symplectic-euler",
+        0.001,
+        "region = { threshold_mm = 0.001 }",
     );
-    for (point, normal) in [
-        ([-h, 0.0], [-1.0, 0.0]),
-        ([h, 0.0], [1.0, 0.0]),
-        ([0.0, -h], [0.0, -1.0]),
-        ([0.0, h], [0.0, 1.0]),
-    ] {
-        write!(
-            text,
-            "\n[[objects.fixed]]\nkind = \"plane\"\npoint_mm = [{:.1}, {:.1}, 0.0]\nnormal = [{:.1}, {:.1}, 0.0]\ntolerance_mm = 0.01\n",
-            point[0], point[1], normal[0], normal[1]
-        )
-        .unwrap();
-    }
-    text.push_str(
-        "\n[[tools]]\nname = \"probe\"\ndevice = \"probe\"\nshape = { kind = \"sphere\", radius_mm = 4.0 }\n",
-    );
-    let path = dir.join("world.toml");
-    std::fs::write(&path, text).unwrap();
+    let path = write_sheet_world("sinew-largest-tissue", &text, side, side);
     let world = load_world(&path).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
+    if let Some(dir) = path.parent() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
     world
 }
 

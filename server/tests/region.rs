@@ -4,13 +4,15 @@
 //! world file refuses what region tracking cannot simulate (with file, line and key).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::fmt::Write as _;
+mod common;
+
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU32, Ordering};
+
+use common::{sheet_world_text, write_sheet_world};
 
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, MassSpringModel, ModelParts, TissueState, Vec3, Xpbd};
-use sinew_server::world::{IntegratorName, World, grid_sheet, load_world, to_obj_text};
+use sinew_server::world::{IntegratorName, World, load_world};
 
 /// Largest relative difference allowed between the region-tracked and the full tool force, on every tick where
 /// the full force is at least [`FORCE_FLOOR_N`] (2%: the issue's "same forces within a stated tolerance").
@@ -22,77 +24,8 @@ const FORCE_FLOOR_N: f32 = 0.05;
 /// The region threshold used throughout, mm (1 um).
 const THRESHOLD_MM: f32 = 0.001;
 
-fn scratch_dir() -> PathBuf {
-    static NEXT: AtomicU32 = AtomicU32::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "sinew-region-test-{}-{}",
-        std::process::id(),
-        NEXT.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// An `nx` x `ny` sheet of 1 mm cells as OBJ text.
-fn sheet_obj(nx: usize, ny: usize) -> String {
-    to_obj_text(&grid_sheet(nx, ny, 1.0), &[])
-}
-
-/// A world around an `nx` x `ny` sheet with worlds/pad.toml's material per 1 mm cell (mass scaled by area),
-/// its rim fixed, one 4 mm sphere probe over the centre. `extra` is spliced into the object table.
-fn sheet_world_text(nx: usize, ny: usize, integrator: &str, dt_s: f32, extra: &str) -> String {
-    let mass_kg = 0.6 * (nx * ny) as f32 / (80.0 * 60.0);
-    let (hx, hy) = (nx as f32 / 2.0, ny as f32 / 2.0);
-    let mut text = format!(
-        r#"scene = "region"
-
-[[objects]]
-name = "sheet"
-mesh = "sheet.obj"
-units = "mm"
-integrator = "{integrator}"
-dt_s = {dt_s}
-{extra}
-
-[objects.material]
-mass_kg = {mass_kg}
-stiffness_n_per_mm = 0.015
-damping_n_s_per_mm = 0.000003
-anchor_stiffness_n_per_mm = 0.008
-drag_per_s = 150.0
-"#
-    );
-    for (point, normal) in [
-        ([-hx, 0.0], [-1.0, 0.0]),
-        ([hx, 0.0], [1.0, 0.0]),
-        ([0.0, -hy], [0.0, -1.0]),
-        ([0.0, hy], [0.0, 1.0]),
-    ] {
-        write!(
-            text,
-            "\n[[objects.fixed]]\nkind = \"plane\"\npoint_mm = [{:.1}, {:.1}, 0.0]\nnormal = [{:.1}, {:.1}, 0.0]\ntolerance_mm = 0.01\n",
-            point[0], point[1], normal[0], normal[1]
-        )
-        .unwrap();
-    }
-    text.push_str(
-        r#"
-[[tools]]
-name = "probe"
-device = "probe"
-shape = { kind = "sphere", radius_mm = 4.0 }
-max_force_n = 3.3
-"#,
-    );
-    text
-}
-
 fn write_world(text: &str, nx: usize, ny: usize) -> PathBuf {
-    let dir = scratch_dir();
-    std::fs::write(dir.join("sheet.obj"), sheet_obj(nx, ny)).unwrap();
-    let path = dir.join("world.toml");
-    std::fs::write(&path, text).unwrap();
-    path
+    write_sheet_world("sinew-region-test", text, nx, ny)
 }
 
 /// The sheet world, loaded, with region tracking on at `THRESHOLD_MM` (set to `None` for the full step).
@@ -355,8 +288,8 @@ fn the_world_file_refuses_what_region_tracking_cannot_simulate() {
         "region =",
     );
     let with_gravity = base("region = { threshold_mm = 0.001 }").replace(
-        "scene = \"region\"\n",
-        "scene = \"region\"\n[sim]\ngravity_mm_per_s2 = [0.0, 0.0, -9810.0]\n",
+        "scene = \"sheet\"\n",
+        "scene = \"sheet\"\n[sim]\ngravity_mm_per_s2 = [0.0, 0.0, -9810.0]\n",
     );
     refused(&with_gravity, "objects[0].region", "gravity", "region =");
     let tied = base("region = { threshold_mm = 0.001 }")

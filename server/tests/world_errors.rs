@@ -2,8 +2,9 @@
 //! refuses to start with it.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU32, Ordering};
 
 use sinew_server::world::{WorldError, load_world};
 
@@ -37,20 +38,9 @@ device = "left"
 shape = { kind = "sphere", radius_mm = 1.0 }
 "#;
 
-fn scratch_dir() -> PathBuf {
-    static NEXT: AtomicU32 = AtomicU32::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "sinew-world-test-{}-{}",
-        std::process::id(),
-        NEXT.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// Write `world` (and the sheet mesh, or `mesh` if given) into a fresh directory; return the world path.
 fn write_world(world: &str, mesh: Option<&str>) -> PathBuf {
-    let dir = scratch_dir();
+    let dir = common::scratch_dir("sinew-world-test");
     std::fs::write(dir.join("sheet.obj"), mesh.unwrap_or(GRID_OBJ)).unwrap();
     let path = dir.join("world.toml");
     std::fs::write(&path, world).unwrap();

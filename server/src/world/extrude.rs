@@ -116,29 +116,8 @@ mod tests {
     use crate::world::validate_closed;
 
     /// An `n` x `n` cell sheet of `cell` mm squares on z = 0, normal +z, diagonals alternating.
-    fn sheet(n: u32, cell: f32) -> SurfaceMesh {
-        let mut positions_mm = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                positions_mm.push([i as f32 * cell, j as f32 * cell, 0.0]);
-            }
-        }
-        let id = |i: u32, j: u32| j * (n + 1) + i;
-        let mut triangles = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                if (i + j) % 2 == 0 {
-                    triangles.extend([[a, b, c], [a, c, d]]);
-                } else {
-                    triangles.extend([[a, b, d], [b, c, d]]);
-                }
-            }
-        }
-        SurfaceMesh {
-            positions_mm,
-            triangles,
-        }
+    fn sheet(n: usize, cell: f32) -> SurfaceMesh {
+        crate::world::grid_sheet(n, n, cell)
     }
 
     #[test]

@@ -1,0 +1,86 @@
+//! Fixtures shared by the server's integration tests and benches (the largest-tissue bench includes this file
+//! with `#[path]`): scratch directories, and a world around a flat sheet with the pad's material.
+#![allow(dead_code)] // each test binary uses its own subset
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use sinew_server::world::{grid_sheet, to_obj_text};
+
+/// A fresh directory under the system temp dir, unique per process and call.
+pub fn scratch_dir(prefix: &str) -> PathBuf {
+    static NEXT: AtomicU32 = AtomicU32::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "{prefix}-{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A world around an `nx` x `ny` sheet of 1 mm cells (`sheet.obj`, written by [`write_sheet_world`]) with
+/// worlds/pad.toml's material per cell (mass scaled by area: every node has the pad's mass), its rim fixed, and
+/// one 4 mm sphere probe (device `probe`) over the centre. `extra` is spliced into the object table.
+pub fn sheet_world_text(nx: usize, ny: usize, integrator: &str, dt_s: f32, extra: &str) -> String {
+    let mass_kg = 0.6 * (nx * ny) as f32 / (80.0 * 60.0);
+    let (hx, hy) = (nx as f32 / 2.0, ny as f32 / 2.0);
+    let mut text = format!(
+        r#"scene = "sheet"
+
+[[objects]]
+name = "sheet"
+mesh = "sheet.obj"
+units = "mm"
+integrator = "{integrator}"
+dt_s = {dt_s}
+{extra}
+
+[objects.material]
+mass_kg = {mass_kg}
+stiffness_n_per_mm = 0.015
+damping_n_s_per_mm = 0.000003
+anchor_stiffness_n_per_mm = 0.008
+drag_per_s = 150.0
+"#
+    );
+    for (point, normal) in [
+        ([-hx, 0.0], [-1.0, 0.0]),
+        ([hx, 0.0], [1.0, 0.0]),
+        ([0.0, -hy], [0.0, -1.0]),
+        ([0.0, hy], [0.0, 1.0]),
+    ] {
+        write!(
+            text,
+            "\n[[objects.fixed]]\nkind = \"plane\"\npoint_mm = [{:.1}, {:.1}, 0.0]\nnormal = [{:.1}, {:.1}, 0.0]\ntolerance_mm = 0.01\n",
+            point[0], point[1], normal[0], normal[1]
+        )
+        .unwrap();
+    }
+    text.push_str(
+        r#"
+[[tools]]
+name = "probe"
+device = "probe"
+shape = { kind = "sphere", radius_mm = 4.0 }
+max_force_n = 3.3
+"#,
+    );
+    text
+}
+
+/// Write `text` as `world.toml` beside an `nx` x `ny` sheet of 1 mm cells in a fresh directory; returns the
+/// world path.
+pub fn write_sheet_world(prefix: &str, text: &str, nx: usize, ny: usize) -> PathBuf {
+    let dir = scratch_dir(prefix);
+    std::fs::write(
+        dir.join("sheet.obj"),
+        to_obj_text(&grid_sheet(nx, ny, 1.0), &[]),
+    )
+    .unwrap();
+    let path = dir.join("world.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
