@@ -80,7 +80,7 @@ impl SimObject {
                 self.guard
                     .broken_nodes(&self.model, &self.state, region.active_nodes())
             }
-            None => self.guard.broken(&self.model, &self.state),
+            None => self.guard.assess(&self.model, &self.state).broken,
         }
     }
 }

@@ -2,7 +2,7 @@
 //! with the step halved.
 //!
 //! Two tests, two verdicts ([`Verdict`]):
-//! - **Broken** ([`DivergenceGuard::broken`]): a non-finite position or velocity, a node farther from rest
+//! - **Broken** ([`DivergenceGuard::assess`]): a non-finite position or velocity, a node farther from rest
 //!   than `max_displacement_mm` (the object's rest diagonal by default: tissue that moved farther than its own
 //!   size is not tissue any more), or a node faster than `max_speed_mm_s` (100 m/s). Retried; reset to rest if
 //!   it persists at the smallest step.
@@ -36,18 +36,13 @@ pub fn energy_grew(before_n_mm: f64, after_n_mm: f64, allowance_n_mm: f64) -> bo
         || after_n_mm > ENERGY_GROWTH * before_n_mm + allowance_n_mm + ENERGY_FLOOR_N_MM
 }
 
-/// Kinetic plus potential energy of one object, N mm (potential from rest, floored at zero: gravity can
-/// make it negative). O(nodes + springs + volume terms), no allocation.
-pub fn energy_n_mm(model: &MassSpringModel, state: &TissueState) -> f64 {
-    state.kinetic_energy_n_mm(model) + model.potential_energy_n_mm(&state.positions_mm).max(0.0)
-}
-
 /// What [`DivergenceGuard::assess`] measured on one object.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Assessment {
     /// Non-finite, too fast or too far from rest.
     pub broken: bool,
-    /// Kinetic plus potential energy (as [`energy_n_mm`]), N mm.
+    /// Kinetic plus potential energy (springs, anchors, volume terms, gravity; potential from rest, floored at
+    /// zero: gravity can make it negative), N mm.
     pub energy_n_mm: f64,
 }
 
@@ -91,13 +86,6 @@ impl DivergenceGuard {
             max_speed_mm_s: DEFAULT_MAX_SPEED_MM_S,
             max_displacement_mm: diagonal,
         }
-    }
-
-    /// Override the limits.
-    pub fn with_limits(mut self, max_speed_mm_s: f32, max_displacement_mm: f32) -> Self {
-        self.max_speed_mm_s = max_speed_mm_s;
-        self.max_displacement_mm = max_displacement_mm;
-        self
     }
 
     /// Remember `state` (no allocation once sized).
@@ -151,7 +139,8 @@ impl DivergenceGuard {
         }
     }
 
-    /// [`Self::broken`] over `nodes` only (region tracking: nothing else moved). O(nodes), never panics.
+    /// The absolute tests of [`Self::assess`] over `nodes` only (region tracking: nothing else moved).
+    /// O(nodes), never panics.
     pub fn broken_nodes(
         &self,
         model: &MassSpringModel,
@@ -221,24 +210,5 @@ impl DivergenceGuard {
             broken,
             energy_n_mm: kinetic + potential.max(0.0),
         }
-    }
-
-    /// The absolute tests: non-finite, too fast, too far from rest. O(nodes), never panics.
-    pub fn broken(&self, model: &MassSpringModel, state: &TissueState) -> bool {
-        let speed2 = self.max_speed_mm_s * self.max_speed_mm_s;
-        let displacement2 = self.max_displacement_mm * self.max_displacement_mm;
-        let mut worst_speed2 = 0.0f32;
-        let mut worst_displacement2 = 0.0f32;
-        for ((x, v), rest) in state
-            .positions_mm
-            .iter()
-            .zip(&state.velocities_mm_s)
-            .zip(model.rest_positions_mm())
-        {
-            // max() drops NaN; is_finite() below catches it.
-            worst_speed2 = worst_speed2.max(v.norm_squared());
-            worst_displacement2 = worst_displacement2.max((x - rest).norm_squared());
-        }
-        !state.is_finite() || worst_speed2 > speed2 || worst_displacement2 > displacement2
     }
 }

@@ -491,22 +491,6 @@ impl MassSpringModel {
         }
     }
 
-    /// Potential energy at these positions (springs, anchors, volume terms, gravity), N mm (= mJ). O(springs +
-    /// tetrahedra + triangles); no allocation.
-    pub fn potential_energy_n_mm(&self, positions_mm: &[Vec3]) -> f64 {
-        let mut total = self.elastic_energy_n_mm(positions_mm);
-        let g = self.gravity_mm_per_s2 / MM_PER_M;
-        for ((x, rest), m) in positions_mm
-            .iter()
-            .zip(&self.rest_positions_mm)
-            .zip(&self.mass_kg)
-        {
-            total += f64::from(0.5 * self.anchor_stiffness_n_per_mm * (x - rest).norm_squared());
-            total -= f64::from(*m * g.dot(&(x - rest)));
-        }
-        total
-    }
-
     /// Energy stored in the springs and the volume terms (not the anchors or gravity), N mm.
     pub fn elastic_energy_n_mm(&self, positions_mm: &[Vec3]) -> f64 {
         let mut total = self.springs.energy_n_mm(self.law, positions_mm);

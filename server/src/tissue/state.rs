@@ -46,15 +46,4 @@ impl TissueState {
             .sum();
         sum.is_finite()
     }
-
-    /// Kinetic energy of the free nodes, N mm (= mJ; kg (mm/s)^2 is 1e-3 mJ). No allocation.
-    pub fn kinetic_energy_n_mm(&self, model: &MassSpringModel) -> f64 {
-        self.velocities_mm_s
-            .iter()
-            .zip(model.mass_kg())
-            .zip(model.accel_per_force())
-            .filter(|(_, w)| **w > 0.0)
-            .map(|((v, m), _)| 0.5e-3 * f64::from(*m) * f64::from(v.norm_squared()))
-            .sum()
-    }
 }
