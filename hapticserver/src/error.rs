@@ -35,6 +35,12 @@ pub enum HapticError {
         /// zenoh's message.
         detail: String,
     },
+    /// An `--emulate-*` option is out of range.
+    #[error("network emulation: {reason}")]
+    Emulation {
+        /// Which option, and why.
+        reason: String,
+    },
     /// A thread could not be spawned.
     #[error("could not spawn thread {name}: {source}")]
     Thread {

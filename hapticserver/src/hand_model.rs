@@ -16,33 +16,99 @@ use nalgebra::Vector3;
 /// Physical parameters of the simulated hand and stylus.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HandParams {
-    /// Stylus (plus the moving part of the device) mass, kg.
+    /// Moving mass: stylus, the device's moving parts and the part of the arm that moves with them, kg.
     pub stylus_mass_kg: f32,
     /// Grip stiffness of the hand holding the stylus, N/mm.
     pub stiffness_n_per_mm: f32,
-    /// Damping as a fraction of critical damping (1.0 = critical).
-    pub damping_ratio: f32,
+    /// Damping of the hand on the stylus's velocity relative to the target's, N s/mm.
+    pub damping_n_s_per_mm: f32,
     /// Longest integration substep, s.
     pub max_substep_s: f32,
 }
 
 impl Default for HandParams {
-    /// A light grip on a Touch-like stylus: 45 g, 0.4 N/mm, critically damped, 0.25 ms substeps.
+    /// A light grip on a Touch-like stylus: 45 g, 0.4 N/mm, critically damped (8.5 N s/m), 0.25 ms substeps.
     fn default() -> Self {
-        Self {
-            stylus_mass_kg: 0.045,
-            stiffness_n_per_mm: 0.4,
-            damping_ratio: 1.0,
+        Self::with_damping_ratio(0.045, 0.4, 1.0)
+    }
+}
+
+/// The operator presets of the latency drills (DESIGN.md; measured arms: about 0.55 kg, 6.5 N s/m, 135 N/m,
+/// van Beek et al. 2015). `Light` is the hardest case for stability: little mass and damping to soak up
+/// energy a delayed loop puts into the hand.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HandPreset {
+    /// The default grip ([`HandParams::default`]): 45 g, 0.4 N/mm, critically damped.
+    Grip,
+    /// 0.1 kg, 1.5 N s/m, 30 N/m.
+    Light,
+    /// 0.3 kg, 5 N s/m, 150 N/m.
+    Nominal,
+    /// 0.6 kg, 15 N s/m, 1000 N/m.
+    Firm,
+}
+
+impl HandPreset {
+    /// Every preset, lightest first.
+    pub const ALL: [HandPreset; 4] = [
+        HandPreset::Grip,
+        HandPreset::Light,
+        HandPreset::Nominal,
+        HandPreset::Firm,
+    ];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            HandPreset::Grip => "grip",
+            HandPreset::Light => "light",
+            HandPreset::Nominal => "nominal",
+            HandPreset::Firm => "firm",
+        }
+    }
+
+    /// The parameters (SI values converted to mm: N/m / 1000 = N/mm, N s/m / 1000 = N s/mm).
+    pub fn params(self) -> HandParams {
+        let si = |mass_kg: f32, damping_n_s_per_m: f32, stiffness_n_per_m: f32| HandParams {
+            stylus_mass_kg: mass_kg,
+            stiffness_n_per_mm: stiffness_n_per_m / 1000.0,
+            damping_n_s_per_mm: damping_n_s_per_m / 1000.0,
             max_substep_s: 0.000_25,
+        };
+        match self {
+            HandPreset::Grip => HandParams::default(),
+            HandPreset::Light => si(0.1, 1.5, 30.0),
+            HandPreset::Nominal => si(0.3, 5.0, 150.0),
+            HandPreset::Firm => si(0.6, 15.0, 1000.0),
         }
     }
 }
 
+impl std::str::FromStr for HandPreset {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        HandPreset::ALL
+            .into_iter()
+            .find(|p| p.name() == s.trim())
+            .ok_or_else(|| format!("unknown hand `{s}`: expected grip, light, nominal or firm"))
+    }
+}
+
 impl HandParams {
-    /// Damping coefficient, N/(mm/s): `ratio * 2 * sqrt(k * m)` with k in N/m, converted to per-mm.
+    /// Parameters with damping given as a fraction of critical (`ratio * 2 sqrt(k m)`).
+    pub fn with_damping_ratio(mass_kg: f32, stiffness_n_per_mm: f32, ratio: f32) -> Self {
+        let stiffness_n_per_m = stiffness_n_per_mm * 1000.0;
+        Self {
+            stylus_mass_kg: mass_kg,
+            stiffness_n_per_mm,
+            damping_n_s_per_mm: ratio * 2.0 * (stiffness_n_per_m * mass_kg).sqrt() / 1000.0,
+            max_substep_s: 0.000_25,
+        }
+    }
+
+    /// Damping coefficient, N/(mm/s).
     pub fn damping_n_per_mm_s(&self) -> f32 {
-        let stiffness_n_per_m = self.stiffness_n_per_mm * 1000.0;
-        self.damping_ratio * 2.0 * (stiffness_n_per_m * self.stylus_mass_kg).sqrt() / 1000.0
+        self.damping_n_s_per_mm
     }
 
     /// Undamped natural frequency of the stylus on the hand spring, rad/s.

@@ -50,6 +50,21 @@ pub enum HandScript {
         /// Period of one back-and-forth stroke, s.
         stroke_period_s: f32,
     },
+    /// [`HandScript::Press`], then push deeper and back along -z: `depth + pulse_mm (1 - cos(2 pi t / period)) / 2`.
+    PressAndPulse {
+        /// Surface point, mm.
+        at_mm: [f32; 3],
+        /// How far below the surface the hand aims before pulsing, mm.
+        depth_mm: f32,
+        /// Starting height above the surface, mm.
+        approach_mm: f32,
+        /// Duration of the descent, s.
+        descend_s: f32,
+        /// Extra depth at the peak of each pulse, mm.
+        pulse_mm: f32,
+        /// Period of one pulse, s.
+        pulse_period_s: f32,
+    },
     /// The target is set from outside (a test, a replay); the hand holds the last target it saw.
     Follow(Arc<LatestValue<[f32; 3]>>),
 }
@@ -88,6 +103,19 @@ impl fmt::Debug for HandScript {
                 .field("descend_s", descend_s)
                 .field("stroke_mm", stroke_mm)
                 .field("stroke_period_s", stroke_period_s)
+                .finish(),
+            HandScript::PressAndPulse {
+                at_mm,
+                depth_mm,
+                pulse_mm,
+                pulse_period_s,
+                ..
+            } => f
+                .debug_struct("PressAndPulse")
+                .field("at_mm", at_mm)
+                .field("depth_mm", depth_mm)
+                .field("pulse_mm", pulse_mm)
+                .field("pulse_period_s", pulse_period_s)
                 .finish(),
             HandScript::Follow(target) => f.debug_tuple("Follow").field(&target.peek()).finish(),
         }
@@ -153,6 +181,25 @@ impl HandScript {
                     let stroke_mm = f64::from(*stroke_mm);
                     target.position_mm[0] = at_mm[0] + (stroke_mm * phase_rad.sin()) as f32;
                     target.velocity_mm_s[0] = (stroke_mm * omega_rad_s * phase_rad.cos()) as f32;
+                }
+                Some(target)
+            }
+            HandScript::PressAndPulse {
+                at_mm,
+                depth_mm,
+                approach_mm,
+                descend_s,
+                pulse_mm,
+                pulse_period_s,
+            } => {
+                let mut target = press_target(*at_mm, *depth_mm, *approach_mm, *descend_s, t_s);
+                let pulse_t_s = t_s - f64::from(*descend_s);
+                if pulse_t_s > 0.0 && *pulse_period_s > 0.0 {
+                    let omega_rad_s = std::f64::consts::TAU / f64::from(*pulse_period_s);
+                    let phase_rad = omega_rad_s * pulse_t_s;
+                    let half = f64::from(*pulse_mm) / 2.0;
+                    target.position_mm[2] -= (half * (1.0 - phase_rad.cos())) as f32;
+                    target.velocity_mm_s[2] = -(half * omega_rad_s * phase_rad.sin()) as f32;
                 }
                 Some(target)
             }

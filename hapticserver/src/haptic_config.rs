@@ -4,6 +4,7 @@
 //! the client network default). Must not: open anything (that is [`crate::haptic_server`]).
 
 use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::rt::EmulationConfig;
 
 use crate::device::Device;
 use crate::safety::SafetyConfig;
@@ -34,8 +35,15 @@ pub struct HapticConfig {
     /// Safety limits; `None` = the device's own limits with default timing. Always tightened to the device's
     /// limits at start, never loosened.
     pub safety: Option<SafetyConfig>,
-    /// Passivity observer only (default), or observer and controller.
+    /// Passivity observer only (default), or observer and controller, while rendering directly (the
+    /// controller is always on while the local model is rendered).
     pub passivity: crate::passivity::PassivityMode,
+    /// Direct, moderated or auto (default).
+    pub mode: crate::render_mode::ModePolicy,
+    /// Emulated delay, jitter and loss on the poses this hapticserver publishes (`--emulate-*`).
+    pub emulation: EmulationConfig,
+    /// Record this many ticks of trace (0 = none); [`crate::HapticHandle::take_trace`] returns it after stop.
+    pub trace_ticks: usize,
 }
 
 impl std::fmt::Debug for HapticConfig {
@@ -50,6 +58,9 @@ impl std::fmt::Debug for HapticConfig {
             .field("spin_accuracy_ns", &self.spin_accuracy_ns)
             .field("safety", &self.safety)
             .field("passivity", &self.passivity)
+            .field("mode", &self.mode)
+            .field("emulation", &self.emulation)
+            .field("trace_ticks", &self.trace_ticks)
             .finish()
     }
 }
@@ -67,6 +78,9 @@ impl HapticConfig {
             spin_accuracy_ns: DEFAULT_SPIN_ACCURACY_NS,
             safety: None,
             passivity: crate::passivity::PassivityMode::Observe,
+            mode: crate::render_mode::ModePolicy::default(),
+            emulation: EmulationConfig::default(),
+            trace_ticks: 0,
         }
     }
 }

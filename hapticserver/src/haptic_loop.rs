@@ -1,9 +1,13 @@
 //! One tick of the device loop, independent of zenoh and of wall-clock time.
 //!
-//! Owns: the per-device loop state: the [`Device`], the [`ForceSafety`] filter, pose sequencing and encoding
-//! into a reused buffer, round-trip measurement from echoed poses, and the loop's counters and histograms.
-//! [`HapticLoop::tick`] is the whole 1 kHz body: read the device, publish the pose, take the newest force
-//! command, measure the round trip, filter, render. Time and the publish sink are passed in, so tests drive it
+//! Owns: the per-device loop state: the [`Device`], the local-model renderer ([`ModelRenderer`]), the mode
+//! switch ([`ModeSwitch`]), the [`ForceSafety`] filter, the passivity controller, pose sequencing and encoding
+//! into a reused buffer, round-trip measurement from echoed poses, the trace, and the loop's counters and
+//! histograms. [`HapticLoop::tick`] is the whole 1 kHz body: read the device, publish the pose (saying how
+//! this device renders), take the newest force command (a new local model is blended in), measure the round
+//! trip, evaluate the model against the CURRENT position, blend it with the streamed force as the mode says,
+//! apply passivity (in moderated mode the controller is on, with the server's energy allowance), filter
+//! through safety, render. Time and the publish sink are passed in, so tests drive it
 //! on virtual time with a closure as the network.
 //!
 //! Must not: sleep, spawn, lock (except `try_lock`), log, or allocate in a tick (the encode buffer and
@@ -13,14 +17,17 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use sinew_protocol::rt::LatencyHistogram;
-use sinew_protocol::{DevicePose, ForceMode, encode};
+use sinew_protocol::{DevicePose, ForceMode, RenderMode, encode};
 
 use crate::clock::ns_to_s;
 use crate::device::Device;
 use crate::force_inbox::{ForceInbox, ReceivedForce};
 use crate::passivity::{Passivity, PassivityMode};
+use crate::render::{ModelRenderer, RenderConfig};
+use crate::render_mode::{ModePolicy, ModeSwitch};
 use crate::report::HapticReport;
 use crate::safety::ForceSafety;
+use crate::trace::{Trace, TraceSample};
 
 /// Scalar loop counters (`Copy`, copied into the report).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -35,6 +42,7 @@ struct LoopCounters {
     last_rendered_force_n: [f32; 3],
     last_commanded_force_n: [f32; 3],
     last_position_mm: [f32; 3],
+    models_received: u64,
 }
 
 /// The state of one device loop.
@@ -42,6 +50,11 @@ pub struct HapticLoop {
     device: Box<dyn Device>,
     safety: ForceSafety,
     passivity: Passivity,
+    passivity_mode: PassivityMode,
+    renderer: ModelRenderer,
+    mode: ModeSwitch,
+    allowance_mj: f64,
+    trace: Trace,
     last_velocity_mm_s: [f32; 3],
     inbox: Arc<ForceInbox>,
     period: Duration,
@@ -86,6 +99,11 @@ impl HapticLoop {
             device,
             safety,
             passivity: Passivity::new(PassivityMode::Observe),
+            passivity_mode: PassivityMode::Observe,
+            renderer: ModelRenderer::new(RenderConfig::default()),
+            mode: ModeSwitch::new(ModePolicy::default()),
+            allowance_mj: 0.0,
+            trace: Trace::default(),
             last_velocity_mm_s: [0.0; 3],
             inbox,
             period,
@@ -105,9 +123,36 @@ impl HapticLoop {
         }
     }
 
-    /// Choose whether the passivity controller may correct forces (default: observe only).
+    /// Choose whether the passivity controller may correct forces while rendering directly (default: observe
+    /// only). While the local model is rendered the controller is always on, with the server's allowance.
     pub fn set_passivity_mode(&mut self, mode: PassivityMode) {
+        self.passivity_mode = mode;
         self.passivity = Passivity::new(mode);
+    }
+
+    /// Choose between the streamed force and the local model (default: auto).
+    pub fn set_mode_policy(&mut self, policy: ModePolicy) {
+        self.mode = ModeSwitch::new(policy);
+    }
+
+    /// Record up to `capacity` ticks (allocated now).
+    pub fn record_trace(&mut self, capacity: usize) {
+        self.trace = Trace::with_capacity(capacity);
+    }
+
+    /// The recorded ticks.
+    pub fn trace(&self) -> &Trace {
+        &self.trace
+    }
+
+    /// Take the recorded ticks (the loop records no more).
+    pub fn take_trace(&mut self) -> Trace {
+        std::mem::take(&mut self.trace)
+    }
+
+    /// The mode switch.
+    pub fn mode(&self) -> &ModeSwitch {
+        &self.mode
     }
 
     /// Ticks run.
@@ -166,6 +211,11 @@ impl HapticLoop {
                     buttons: reading.buttons,
                     jaw_angle_rad: reading.jaw_angle_rad,
                     round_trip_us: self.last_round_trip_us,
+                    render_mode: if self.mode.moderated() {
+                        RenderMode::Moderated
+                    } else {
+                        RenderMode::Direct
+                    },
                 };
                 encode(&pose, &mut self.pose_bytes);
                 if publish(&self.pose_bytes) {
@@ -181,10 +231,26 @@ impl HapticLoop {
         }
 
         // 2. Newest command, and the round trip of the pose it answers.
+        let position_mm = self.counters.last_position_mm;
+        let velocity_mm_s = self.last_velocity_mm_s;
+        let now_s = ns_to_s(now_ns);
         if let Some(received) = self.inbox.latest().take_newer(&mut self.seen_writes) {
             self.latest = Some(received);
             let command = received.command;
             self.counters.last_commanded_force_n = command.force_n;
+            match &command.mode {
+                ForceMode::LocalModel(model) => {
+                    self.renderer
+                        .accept(model, now_s, position_mm, velocity_mm_s);
+                    self.allowance_mj = f64::from(model.energy_allowance_mj);
+                    self.counters.models_received += 1;
+                }
+                // The explicit zero of a released tool: no model any more.
+                ForceMode::Direct => {
+                    self.renderer.clear();
+                    self.allowance_mj = 0.0;
+                }
+            }
             let echoes_our_pose = command.echo_pose_seq > self.last_echo_seq
                 && command.echo_pose_seq <= self.pose_seq
                 && command.echo_device_time_ns <= now_ns;
@@ -198,30 +264,63 @@ impl HapticLoop {
                         .saturating_sub(command.echo_device_time_ns),
                 );
                 self.last_round_trip_us = u32::try_from(round_trip_ns / 1000).unwrap_or(u32::MAX);
+                self.mode.observe_round_trip(round_trip_ns as f32 * 1e-6);
             }
         }
 
-        // 3. Safety, the only way to the motor.
+        // 3. The force to render: the streamed one, the local model against the current position, or a
+        // cross-fade between them while the mode switches.
+        let direct_n = self.latest.map_or([0.0; 3], |r| r.command.force_n);
+        let model_n = if self.renderer.has_model() {
+            self.renderer.force_n(now_s, position_mm, velocity_mm_s)
+        } else {
+            direct_n
+        };
+        let target_n = self.mode.blend(self.dt_s, direct_n, model_n);
+
+        // 4. Passivity may only remove force; it acts on the target BEFORE safety, so its corrections are
+        // rate-limited like everything else (applied after safety it could drop the force in one tick). While
+        // the local model is rendered the controller is on, with the energy the other ports sent (the
+        // server's allowance).
+        let passive_n = if self.mode.weight() > 0.0 {
+            self.passivity.set_mode(PassivityMode::Control);
+            self.passivity.apply_with_allowance(
+                target_n,
+                velocity_mm_s,
+                self.dt_s,
+                self.allowance_mj,
+            )
+        } else {
+            self.passivity.set_mode(self.passivity_mode);
+            self.passivity.apply(target_n, velocity_mm_s, self.dt_s)
+        };
+
+        // 5. Safety, the only way to the motor: the last word on every force.
         let latest = if self.shutting_down {
             None
         } else {
-            self.latest.map(|received| {
-                let force_n = match received.command.mode {
-                    ForceMode::Direct => received.command.force_n,
-                };
-                (ns_to_s(received.received_ns), force_n)
-            })
+            self.latest
+                .map(|received| (ns_to_s(received.received_ns), passive_n))
         };
-        let safe_n = self.safety.filter(ns_to_s(now_ns), self.dt_s, latest);
-        // Passivity may only remove force (|out| <= |safe_n|), so the safety guarantees still hold.
-        let force_n = self
-            .passivity
-            .apply(safe_n, self.last_velocity_mm_s, self.dt_s);
+        let force_n = self.safety.filter(now_s, self.dt_s, latest);
+        if self.safety.is_stale() {
+            // The silence rule is ramping down: the model it came from is never rendered again.
+            self.renderer.clear();
+            self.allowance_mj = 0.0;
+        }
 
-        // 4. Render.
+        // 6. Render.
         if self.device.write_force(force_n).is_err() {
             self.counters.device_write_errors += 1;
         }
+        self.trace.push(TraceSample {
+            t_s: now_s,
+            position_mm,
+            velocity_mm_s,
+            force_n,
+            model_weight: self.mode.weight(),
+            stale: self.safety.is_stale(),
+        });
         self.counters.last_rendered_force_n = force_n;
         self.counters.max_rendered_force_n =
             self.counters.max_rendered_force_n.max(norm3(&force_n));
@@ -259,6 +358,12 @@ impl HapticLoop {
         report.decode_rejects = self.inbox.rejects();
         report.device_read_errors = c.device_read_errors;
         report.device_write_errors = c.device_write_errors;
+        report.models_received = c.models_received;
+        report.moderated = self.mode.moderated();
+        report.mode_policy = self.mode.policy().name();
+        report.mode_switches = self.mode.switches();
+        report.smoothed_rtt_ms = self.mode.smoothed_rtt_ms().unwrap_or(0.0);
+        report.energy_allowance_mj = self.allowance_mj;
     }
 
     /// Publish into the shared report if nobody holds it right now. Never blocks; returns whether it published.

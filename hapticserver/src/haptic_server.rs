@@ -16,12 +16,12 @@ use std::time::{Duration, Instant};
 
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::keys::SceneKeys;
-use sinew_protocol::rt::Pacer;
+use sinew_protocol::rt::{DelayedSender, Pacer};
 use sinew_protocol::{ParticipantHello, Role};
 use zenoh::Wait;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
-use zenoh::qos::CongestionControl;
+use zenoh::qos::{CongestionControl, Reliability};
 
 use crate::clock::MonotonicClock;
 use crate::error::HapticError;
@@ -30,6 +30,7 @@ use crate::haptic_config::HapticConfig;
 use crate::haptic_loop::HapticLoop;
 use crate::report::HapticReport;
 use crate::safety::{ForceSafety, SafetyConfig};
+use crate::trace::Trace;
 use crate::zenoh_session::open_session;
 
 /// How often the hello is repeated.
@@ -62,7 +63,13 @@ impl HapticServer {
             spin_accuracy_ns,
             safety,
             passivity,
+            mode,
+            emulation,
+            trace_ticks,
         } = config;
+        emulation
+            .validate()
+            .map_err(|reason| HapticError::Emulation { reason })?;
         if !(1..=20_000).contains(&loop_rate_hz) {
             return Err(HapticError::LoopRate {
                 rate_hz: loop_rate_hz,
@@ -99,6 +106,7 @@ impl HapticServer {
         let pose_publisher = session
             .declare_publisher(pose_key.clone())
             .congestion_control(CongestionControl::Drop)
+            .reliability(Reliability::BestEffort)
             .express(true)
             .wait()
             .map_err(HapticError::zenoh(format!(
@@ -142,13 +150,34 @@ impl HapticServer {
             abrupt: Arc::new(AtomicBool::new(false)),
             report: Arc::new(Mutex::new(HapticReport::new(&device_id))),
             inbox: inbox.clone(),
+            trace: Arc::new(Mutex::new(Trace::default())),
         };
 
         let mut haptic = HapticLoop::new(device, safety, inbox, period);
         haptic.set_passivity_mode(passivity);
+        haptic.set_mode_policy(mode);
+        haptic.record_trace(trace_ticks);
+        let outlet = if emulation.is_off() {
+            PoseOutlet::Direct(pose_publisher)
+        } else {
+            PoseOutlet::Delayed(
+                DelayedSender::start(
+                    &format!("hapticserver-{device_id}-delay"),
+                    emulation,
+                    move |bytes: &[u8]| {
+                        let _ = pose_publisher.put(bytes).wait();
+                    },
+                )
+                .map_err(|source| HapticError::Thread {
+                    name: format!("hapticserver-{device_id}-delay"),
+                    source,
+                })?,
+            )
+        };
         let device_loop = DeviceLoop {
             haptic,
-            publisher: pose_publisher,
+            outlet,
+            trace: handle.trace.clone(),
             clock,
             period,
             spin_accuracy_ns,
@@ -193,10 +222,29 @@ impl HapticServer {
     }
 }
 
+/// Where poses go: straight to zenoh, or through the emulated network first.
+enum PoseOutlet {
+    Direct(Publisher<'static>),
+    Delayed(DelayedSender),
+}
+
+impl PoseOutlet {
+    fn send(&mut self, bytes: &[u8]) -> bool {
+        match self {
+            PoseOutlet::Direct(publisher) => publisher.put(bytes).wait().is_ok(),
+            PoseOutlet::Delayed(sender) => {
+                sender.send(bytes);
+                true
+            }
+        }
+    }
+}
+
 /// Everything the device-loop thread owns.
 struct DeviceLoop {
     haptic: HapticLoop,
-    publisher: Publisher<'static>,
+    outlet: PoseOutlet,
+    trace: Arc<Mutex<Trace>>,
     clock: MonotonicClock,
     period: Duration,
     spin_accuracy_ns: u32,
@@ -211,8 +259,8 @@ impl DeviceLoop {
     /// The thread body: paced ticks until stopped, then a ramp to zero (unless killed) and a final zero force.
     fn run(mut self) {
         lock_report(&self.report).running = true;
-        let publisher = &self.publisher;
-        let mut publish = |bytes: &[u8]| publisher.put(bytes).wait().is_ok();
+        let outlet = &mut self.outlet;
+        let mut publish = |bytes: &[u8]| outlet.send(bytes);
         let mut pacer = Pacer::new(self.period, self.spin_accuracy_ns);
         while !self.stop.load(Ordering::Acquire) {
             let interval = pacer.wait();
@@ -235,6 +283,9 @@ impl DeviceLoop {
             }
         }
         self.haptic.write_zero_force();
+        if let Ok(mut trace) = self.trace.lock() {
+            *trace = self.haptic.take_trace();
+        }
         let mut report = lock_report(&self.report);
         self.haptic.write_report(&mut report);
         report.running = false;
@@ -275,6 +326,7 @@ pub struct HapticHandle {
     abrupt: Arc<AtomicBool>,
     report: Arc<Mutex<HapticReport>>,
     inbox: Arc<ForceInbox>,
+    trace: Arc<Mutex<Trace>>,
 }
 
 impl std::fmt::Debug for HapticHandle {
@@ -318,6 +370,15 @@ impl HapticHandle {
         report.forces_received = self.inbox.received();
         report.decode_rejects = self.inbox.rejects();
         report
+    }
+
+    /// The trace the loop recorded (`HapticConfig::trace_ticks`), available once the loop has stopped
+    /// (empty before).
+    pub fn take_trace(&self) -> Trace {
+        self.trace
+            .lock()
+            .map(|mut t| std::mem::take(&mut *t))
+            .unwrap_or_default()
     }
 
     /// Stop gracefully: the loop ignores further commands, ramps the force to zero within the safety ramp

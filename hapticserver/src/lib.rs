@@ -3,7 +3,7 @@
 //! Owns: the device abstraction ([`device`]) and its backends (the simulated hand: [`sim_device`],
 //! [`hand_model`], [`hand_script`]), device-side force safety ([`safety`]), the 1 kHz loop body
 //! ([`haptic_loop`]) and the process around it ([`haptic_server`]: zenoh declarations, threads, handle,
-//! [`report`]).
+//! [`report`]), and the latency-moderated renderer of the server's local models ([`render`]).
 //!
 //! Data flow: device --read--> [`haptic_loop::HapticLoop::tick`] --DevicePose, 1 kHz--> server;
 //! server --ForceCommand--> zenoh callback --> [`force_inbox::ForceInbox`] (latest-value mailbox) -->
@@ -23,19 +23,24 @@ pub mod haptic_config;
 pub mod haptic_loop;
 pub mod haptic_server;
 pub mod passivity;
+pub mod render;
+pub mod render_mode;
 pub mod report;
 pub mod safety;
 pub mod sim_device;
+pub mod trace;
 pub mod zenoh_session;
 
 pub use device::{Device, DeviceError, DeviceModel, DeviceReading};
 pub use error::HapticError;
 pub use force_inbox::DecodeRejects;
-pub use hand_model::{HandModel, HandParams, HandTarget};
+pub use hand_model::{HandModel, HandParams, HandPreset, HandTarget};
 pub use hand_script::{HandScript, ScriptError, ScriptKind, ScriptOptions, parse_vec3_mm};
 pub use haptic_config::HapticConfig;
 pub use haptic_server::{HapticHandle, HapticServer};
 pub use passivity::{Passivity, PassivityCounters, PassivityMode};
+pub use render_mode::{ModePolicy, ModeSwitch};
 pub use report::HapticReport;
 pub use safety::{ForceSafety, SafetyConfig, SafetyCounters};
 pub use sim_device::SimDevice;
+pub use trace::{Trace, TraceSample};

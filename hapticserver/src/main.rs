@@ -8,7 +8,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
 use hapticserver::{
-    Device, HapticConfig, HapticServer, ScriptKind, ScriptOptions, SimDevice, parse_vec3_mm,
+    Device, HandPreset, HapticConfig, HapticServer, ModePolicy, ScriptKind, ScriptOptions,
+    SimDevice, parse_vec3_mm, sim_device::sim_device_model,
 };
 use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
 
@@ -78,6 +79,29 @@ struct Args {
     /// Stop after this many seconds (default: run until killed).
     #[arg(long)]
     duration_s: Option<f64>,
+    /// How to render forces: `direct` (the streamed force; right on a LAN), `moderated` (the local model
+    /// against the current position every tick; for distant servers) or `auto` (moderated above a 20 ms
+    /// round trip, direct below 10 ms).
+    #[arg(long, default_value = "auto")]
+    mode: ModePolicy,
+    /// Simulated operator: grip (default), light, nominal or firm.
+    #[arg(long, default_value = "grip")]
+    hand: HandPreset,
+    /// Emulate a distant site: delay every pose this hapticserver publishes by this much, ms.
+    #[arg(long, default_value_t = 0.0)]
+    emulate_delay_ms: f64,
+    /// Vary each emulated delay uniformly by up to this much either way, ms (order is kept).
+    #[arg(long, default_value_t = 0.0)]
+    emulate_jitter_ms: f64,
+    /// Lose this fraction of the poses (0..1), seeded by --emulate-seed.
+    #[arg(long, default_value_t = 0.0)]
+    emulate_loss: f64,
+    /// Seed of the emulated loss and jitter.
+    #[arg(long, default_value_t = 1)]
+    emulate_seed: u64,
+    /// Write every tick (time, position, velocity, force, mode) to this CSV file when the server stops.
+    #[arg(long)]
+    trace_csv: Option<std::path::PathBuf>,
 }
 
 fn build_device(args: &Args) -> Result<Box<dyn Device>> {
@@ -94,7 +118,11 @@ fn build_device(args: &Args) -> Result<Box<dyn Device>> {
                 .script
                 .build(&options)
                 .with_context(|| format!("building the `{}` script", args.script))?;
-            Ok(Box::new(SimDevice::new(script)))
+            Ok(Box::new(SimDevice::with_params(
+                script,
+                args.hand.params(),
+                sim_device_model(),
+            )))
         }
     }
 }
@@ -117,6 +145,18 @@ fn main() -> Result<()> {
     config.tool = args.tool.clone();
     config.loop_rate_hz = args.rate_hz;
     config.spin_accuracy_ns = args.spin_ns;
+    config.mode = args.mode;
+    config.emulation = sinew_protocol::rt::EmulationConfig {
+        delay_ms: args.emulate_delay_ms,
+        jitter_ms: args.emulate_jitter_ms,
+        loss: args.emulate_loss,
+        seed: args.emulate_seed,
+    };
+    if args.trace_csv.is_some() {
+        // Up to an hour at 1 kHz would be 3.6 M samples; cap at the run's length (or 10 minutes).
+        let seconds = args.duration_s.unwrap_or(600.0).min(3600.0);
+        config.trace_ticks = (seconds * f64::from(args.rate_hz)).ceil() as usize + 1000;
+    }
     config.passivity = match args.passivity {
         PassivityArg::Observe => hapticserver::PassivityMode::Observe,
         PassivityArg::Control => hapticserver::PassivityMode::Control,
@@ -167,5 +207,19 @@ fn main() -> Result<()> {
     }
     handle.stop().context("stopping the hapticserver")?;
     println!("final: {}", handle.report());
+    if let Some(path) = &args.trace_csv {
+        let trace = handle.take_trace();
+        let mut file = std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+        );
+        trace
+            .write_csv(&mut file)
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!(
+            "trace: {} ticks written to {}",
+            trace.samples().len(),
+            path.display()
+        );
+    }
     Ok(())
 }

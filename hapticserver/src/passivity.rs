@@ -9,10 +9,12 @@
 //! The controller only ever removes a component of the force it is given: it never adds force, never exceeds
 //! the safety filter's output, and zero in gives zero out (the ramp-to-zero guarantee is untouched).
 //!
-//! Default [`PassivityMode::Observe`]: account and report only. A per-port controller cannot tell a delayed,
-//! active loop from energy that legitimately flows between two surgeons through the tissue (one yields to the
-//! other's pull): it would delete exactly that shared feel. Until the server keeps an energy budget across
-//! ports, control is opt-in ([`PassivityMode::Control`], `--passivity control`).
+//! A per-port controller alone cannot tell a delayed, active loop from energy that legitimately flows between
+//! two surgeons through the tissue (one yields to the other's pull): it would delete exactly that shared feel.
+//! So the controller takes an allowance: the energy the server's budget (`sinew_server::haptics::
+//! energy_budget`) says the OTHER ports put into the shared tissue, and acts only when `E + allowance < 0`.
+//! In latency-moderated mode the controller is on with that allowance; in direct mode it is opt-in
+//! ([`PassivityMode::Control`], `--passivity control`) and the default only observes.
 //! Must not: clamp, rate-limit or handle staleness (that is [`crate::safety`]). Real-time contract: no
 //! allocation, never panics, never returns a non-finite value.
 
@@ -71,6 +73,29 @@ impl Passivity {
     /// Observe and, if needed, correct the force about to be rendered while the stylus moves at
     /// `velocity_mm_s`, over a tick of `dt_s`. Returns the force to render (|out| <= |force_n|).
     pub fn apply(&mut self, force_n: [f32; 3], velocity_mm_s: [f32; 3], dt_s: f32) -> [f32; 3] {
+        self.apply_with_allowance(force_n, velocity_mm_s, dt_s, 0.0)
+    }
+
+    /// Switch between observing and controlling, keeping the energy account.
+    pub fn set_mode(&mut self, mode: PassivityMode) {
+        self.mode = mode;
+    }
+
+    /// [`Passivity::apply`] where the port may also output `allowance_mj` (>= 0; non-finite or negative
+    /// counts as 0) that other ports legitimately put into the shared tissue: the controller acts only while
+    /// `E + allowance < 0`.
+    pub fn apply_with_allowance(
+        &mut self,
+        force_n: [f32; 3],
+        velocity_mm_s: [f32; 3],
+        dt_s: f32,
+        allowance_mj: f64,
+    ) -> [f32; 3] {
+        let allowance_mj = if allowance_mj.is_finite() {
+            allowance_mj.max(0.0)
+        } else {
+            0.0
+        };
         let finite = |v: &[f32; 3]| v.iter().all(|c| c.is_finite());
         if !(finite(&force_n) && finite(&velocity_mm_s) && dt_s.is_finite() && dt_s > 0.0) {
             // Nothing trustworthy to observe: pass the (already safety-filtered) force, or zero if non-finite.
@@ -80,7 +105,7 @@ impl Passivity {
         let speed2 = dot3(&velocity_mm_s, &velocity_mm_s);
         let power_mw = dot3(&force_n, &velocity_mm_s); // > 0: the force does work on the hand
         let mut out = force_n;
-        let deficit_mj = -(self.energy_mj - power_mw * dt);
+        let deficit_mj = -(self.energy_mj + allowance_mj - power_mw * dt);
         if deficit_mj > 0.0 && power_mw > 0.0 && speed2 > 1e-12 {
             self.counters.active_ticks += 1;
         }
@@ -207,6 +232,22 @@ mod tests {
         for _ in 0..100 {
             assert_eq!(pc.apply([0.0; 3], [0.0, 0.0, 50.0], DT), [0.0; 3]);
         }
+    }
+
+    #[test]
+    fn an_allowance_lets_the_other_ports_energy_through_and_no_more() {
+        // A force pushing the hand along its motion outputs 1 N x 10 mm/s x 1 ms = 0.01 mJ a tick.
+        let mut granted = Passivity::new(PassivityMode::Control);
+        let mut passed = 0.0;
+        for _ in 0..1000 {
+            let out = granted.apply_with_allowance([0.0, 0.0, 1.0], [0.0, 0.0, 10.0], DT, 5.0);
+            passed += f64::from(out[2]) * 10.0 * f64::from(DT);
+        }
+        // 5 mJ granted: the first 500 ticks pass whole, then the controller holds the port at E = -5 mJ.
+        assert!((passed - 5.0).abs() < 0.02, "passed {passed} mJ");
+        let mut denied = Passivity::new(PassivityMode::Control);
+        let out = denied.apply_with_allowance([0.0, 0.0, 1.0], [0.0, 0.0, 10.0], DT, f64::NAN);
+        assert_eq!(out, [0.0; 3], "no allowance: the active force is removed");
     }
 
     #[test]

@@ -56,6 +56,18 @@ pub struct HapticReport {
     pub device_read_errors: u64,
     /// Failed device force writes.
     pub device_write_errors: u64,
+    /// Local models received.
+    pub models_received: u64,
+    /// The local model is (becoming) the rendered force.
+    pub moderated: bool,
+    /// The mode policy: direct, moderated or auto.
+    pub mode_policy: &'static str,
+    /// Times the mode switched.
+    pub mode_switches: u64,
+    /// Smoothed pose -> force round trip, ms.
+    pub smoothed_rtt_ms: f32,
+    /// The energy allowance of the latest model, mJ.
+    pub energy_allowance_mj: f64,
 }
 
 impl HapticReport {
@@ -82,6 +94,12 @@ impl HapticReport {
             decode_rejects: DecodeRejects::default(),
             device_read_errors: 0,
             device_write_errors: 0,
+            models_received: 0,
+            moderated: false,
+            mode_policy: "auto",
+            mode_switches: 0,
+            smoothed_rtt_ms: 0.0,
+            energy_allowance_mj: 0.0,
         }
     }
 
@@ -98,9 +116,14 @@ impl fmt::Display for HapticReport {
         let p = self.last_position_mm;
         write!(
             f,
-            "{id}: ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
+            "{id}: {mode} ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
              forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej}",
             id = self.device_id,
+            mode = if self.moderated {
+                "moderated"
+            } else {
+                "direct"
+            },
             ticks = self.ticks,
             p50 = self.round_trip.percentile_us(50.0),
             p99 = self.round_trip.percentile_us(99.0),

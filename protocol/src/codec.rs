@@ -9,7 +9,7 @@ use serde::{Serialize, de::DeserializeOwned};
 use thiserror::Error;
 
 /// Protocol revision carried by every message. Bump on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Bytes of envelope before the postcard body.
 pub const HEADER_LEN: usize = 3;

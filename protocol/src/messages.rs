@@ -2,6 +2,7 @@
 
 mod force;
 mod hello;
+pub mod local_model;
 mod mesh_delta;
 mod pose;
 mod snapshot;
@@ -10,8 +11,9 @@ mod tools;
 
 pub use force::{ForceCommand, ForceMode};
 pub use hello::{ParticipantHello, Role};
+pub use local_model::{ContactPlane, LocalModel, MAX_CONTACT_PLANES, Sym3};
 pub use mesh_delta::MeshDelta;
-pub use pose::DevicePose;
+pub use pose::{DevicePose, RenderMode};
 pub use snapshot::{ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShape};
 pub use stats::{DeviceStats, RejectCounts, ServerStats};
 pub use tools::{ToolState, ToolStates};

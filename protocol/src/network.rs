@@ -61,6 +61,9 @@ impl NetworkOptions {
         }
         if defaults {
             entries.push(("scouting/multicast/enabled", "false".to_owned()));
+            // A device's transport may hold a TCP and a UDP link to the server: reliable messages take TCP,
+            // poses and forces (best effort) take UDP, so a lost packet never holds later forces back.
+            entries.push(("transport/unicast/max_links", "2".to_owned()));
         }
         entries
     }

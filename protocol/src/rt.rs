@@ -3,11 +3,16 @@
 //! - [`LatestValue`]: single-slot mailbox from a zenoh callback to a hot loop.
 //! - [`LatencyHistogram`]: fixed-size, allocation-free percentile recorder.
 //! - [`Pacer`]: fixed-rate loop pacing with spin_sleep, counting overruns instead of bursting to catch up.
+//! - [`DelayLine`], [`DelayedSender`]: in-process network emulation (delay, jitter, seeded loss).
 
+mod delay_line;
 mod latency_histogram;
 mod latest_value;
 mod pacer;
 
+pub use delay_line::{
+    DelayLine, DelayedSender, DelayedSenderCounters, EmulationConfig, MAX_DELAYED_MESSAGE_BYTES,
+};
 pub use latency_histogram::LatencyHistogram;
 pub use latest_value::LatestValue;
 pub use pacer::Pacer;

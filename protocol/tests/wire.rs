@@ -30,6 +30,47 @@ fn pose(rng: &mut fastrand::Rng) -> DevicePose {
         buttons: rng.u32(..),
         jaw_angle_rad: rng.f32(),
         round_trip_us: rng.u32(..),
+        render_mode: if rng.bool() {
+            RenderMode::Moderated
+        } else {
+            RenderMode::Direct
+        },
+    }
+}
+
+/// A random symmetric positive semi-definite matrix: `A^T A` of a random `A`, in the wire layout.
+fn psd(rng: &mut fastrand::Rng, scale: f32) -> Sym3 {
+    let a: [[f32; 3]; 3] =
+        std::array::from_fn(|_| std::array::from_fn(|_| (rng.f32() - 0.5) * scale));
+    let m = |i: usize, j: usize| (0..3).map(|k| a[k][i] * a[k][j]).sum::<f32>();
+    [m(0, 0), m(1, 1), m(2, 2), m(0, 1), m(0, 2), m(1, 2)]
+}
+
+fn local_model(rng: &mut fastrand::Rng) -> LocalModel {
+    let radius_mm = 1.0 + rng.f32() * 20.0;
+    let plane_count = rng.u8(0..=4);
+    let planes = std::array::from_fn(|_| {
+        let n = v3(rng);
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-3);
+        ContactPlane {
+            normal: n.map(|c| c / len),
+            offset_mm: (rng.f32() - 0.5) * 100.0,
+            stiffness_n_per_mm: rng.f32() * 2.0,
+            damping_n_s_per_mm: rng.f32() * 0.01,
+        }
+    });
+    LocalModel {
+        server_time_ns: rng.u64(..),
+        in_contact: rng.bool(),
+        x0_mm: v3(rng),
+        f0_n: v3(rng).map(|c| c / 50.0),
+        stiffness_n_per_mm: psd(rng, 1.0),
+        damping_n_s_per_mm: psd(rng, 0.05),
+        radius_mm,
+        fade_mm: radius_mm * (0.01 + 0.99 * rng.f32()),
+        planes,
+        plane_count,
+        energy_allowance_mj: rng.f32() * 50.0,
     }
 }
 
@@ -39,7 +80,11 @@ fn force(rng: &mut fastrand::Rng) -> ForceCommand {
         echo_pose_seq: rng.u64(..),
         echo_device_time_ns: rng.u64(..),
         force_n: v3(rng),
-        mode: ForceMode::Direct,
+        mode: if rng.bool() {
+            ForceMode::Direct
+        } else {
+            ForceMode::LocalModel(local_model(rng))
+        },
         in_contact: rng.bool(),
     }
 }
@@ -156,6 +201,8 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
                 forces_sent: rng.u64(..),
                 last_round_trip_us: rng.u32(..),
                 max_force_n: rng.f32() * 3.0,
+                moderated: rng.bool(),
+                forces_suppressed: rng.u64(..),
             })
             .collect(),
     }
@@ -324,6 +371,97 @@ fn out_of_domain_fields_are_refused_by_name() {
             ..
         })
     ));
+}
+
+#[test]
+fn local_model_fields_out_of_domain_are_refused_by_name() {
+    let mut rng = fastrand::Rng::with_seed(9);
+    let refused = |model: LocalModel| -> &'static str {
+        let command = ForceCommand {
+            mode: ForceMode::LocalModel(model),
+            ..ForceCommand::default()
+        };
+        match decode::<ForceCommand>(&encode_to_vec(&command)) {
+            Err(DecodeError::Invalid {
+                expected: MessageKind::ForceCommand,
+                field,
+                ..
+            }) => field,
+            other => panic!("accepted or wrong error: {other:?}"),
+        }
+    };
+    let good = local_model(&mut rng);
+    // Symmetric but indefinite stiffness (eigenvalues 3 and -1 in the x-y block): the renderer would push the
+    // hand INTO the tissue along one direction.
+    let mut m = good;
+    m.stiffness_n_per_mm = [1.0, 1.0, 0.5, 2.0, 0.0, 0.0];
+    assert_eq!(refused(m), "local_model.stiffness_n_per_mm");
+    // Negative damping (it would feed energy in).
+    let mut m = good;
+    m.damping_n_s_per_mm = [-0.01, 0.0, 0.0, 0.0, 0.0, 0.0];
+    assert_eq!(refused(m), "local_model.damping_n_s_per_mm");
+    // Non-finite values anywhere in the model.
+    for field in 0..5 {
+        let mut m = good;
+        match field {
+            0 => m.x0_mm[2] = f32::NAN,
+            1 => m.f0_n[0] = f32::INFINITY,
+            2 => m.stiffness_n_per_mm[4] = f32::NAN,
+            3 => m.radius_mm = f32::INFINITY,
+            _ => {
+                m.plane_count = 1;
+                m.planes[0].offset_mm = f32::NAN;
+            }
+        }
+        refused(m);
+    }
+    // Radius <= 0, a fade outside (0, radius].
+    for radius in [0.0, -1.0] {
+        let mut m = good;
+        m.radius_mm = radius;
+        assert_eq!(refused(m), "local_model.radius_mm");
+    }
+    let mut m = good;
+    m.fade_mm = m.radius_mm * 2.0;
+    assert_eq!(refused(m), "local_model.fade_mm");
+    let mut m = good;
+    m.fade_mm = 0.0;
+    assert_eq!(refused(m), "local_model.fade_mm");
+    // More than four planes, a non-unit plane normal, a negative plane stiffness, a negative allowance.
+    let mut m = good;
+    m.plane_count = 5;
+    assert_eq!(refused(m), "local_model.plane_count");
+    let mut m = good;
+    m.plane_count = 1;
+    m.planes[0].normal = [0.0, 0.0, 2.0];
+    assert_eq!(refused(m), "local_model.planes.normal");
+    let mut m = good;
+    m.plane_count = 1;
+    m.planes[0].normal = [0.0, 0.0, 1.0];
+    m.planes[0].stiffness_n_per_mm = -1.0;
+    assert_eq!(refused(m), "local_model.planes.stiffness_n_per_mm");
+    let mut m = good;
+    m.energy_allowance_mj = -1.0;
+    assert_eq!(refused(m), "local_model.energy_allowance_mj");
+}
+
+#[test]
+fn a_force_command_with_a_full_model_fits_the_emulated_link() {
+    let mut rng = fastrand::Rng::with_seed(4);
+    let mut model = local_model(&mut rng);
+    model.plane_count = 4;
+    let command = ForceCommand {
+        seq: u64::MAX,
+        echo_pose_seq: u64::MAX,
+        echo_device_time_ns: u64::MAX,
+        mode: ForceMode::LocalModel(model),
+        ..ForceCommand::default()
+    };
+    let len = encode_to_vec(&command).len();
+    assert!(
+        len <= sinew_protocol::rt::MAX_DELAYED_MESSAGE_BYTES,
+        "{len} bytes"
+    );
 }
 
 #[test]

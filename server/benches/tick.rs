@@ -52,11 +52,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ToolCommand {
                 active: true,
                 position_device_mm: [stroke, 0.0, 4.0 - depth],
+                velocity_device_mm_s: [0.0; 3],
                 orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
             },
             ToolCommand {
                 active: true,
                 position_device_mm: [-stroke, 5.0, 4.0 - depth],
+                velocity_device_mm_s: [0.0; 3],
                 orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
             },
         ];

@@ -1,16 +1,18 @@
 //! sinew-server: the authoritative Sinew simulation.
 //!
-//! The library is a synchronous core ([`world`], [`tissue`], [`collision`], [`interaction`], [`sim`],
-//! [`replication`]) with no
+//! The library is a synchronous core ([`world`], [`tissue`], [`collision`], [`interaction`], [`haptics`],
+//! [`sim`], [`replication`]) with no
 //! zenoh or tokio in it, plus [`node`], which wires that core to zenoh on dedicated threads. `main.rs` only
 //! parses flags and calls [`node::ServerNode::start`].
 #![warn(missing_docs)]
 
 pub mod collision;
+pub mod haptics;
 mod incidence;
 pub mod interaction;
 pub mod node;
 pub mod replication;
+pub mod server_tick;
 pub mod sim;
 pub mod tissue;
 pub mod world;

@@ -22,6 +22,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
 use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::rt::EmulationConfig;
 use sinew_protocol::{Role, ServerStats, keys::SceneKeys};
 use thiserror::Error;
 use zenoh::Wait;
@@ -67,6 +68,8 @@ pub struct ServerConfig {
     pub server_id: String,
     /// spin_sleep native accuracy for the sim thread, ns (0 = plain sleep; tests share two cores).
     pub spin_native_accuracy_ns: u32,
+    /// Emulated delay, jitter and loss on the force commands this server publishes (`--emulate-*`).
+    pub emulation: EmulationConfig,
 }
 
 impl Default for ServerConfig {
@@ -75,6 +78,7 @@ impl Default for ServerConfig {
             network: NetworkOptions::server_default(),
             server_id: "server".into(),
             spin_native_accuracy_ns: 100_000,
+            emulation: EmulationConfig::default(),
         }
     }
 }
@@ -122,6 +126,7 @@ impl ServerNode {
             shared.clone(),
             sim,
             config.spin_native_accuracy_ns,
+            config.emulation,
         )?;
         let publish_thread = publish_loop::spawn(&session, shared.clone())?;
         Ok(ServerHandle {

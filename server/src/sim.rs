@@ -4,10 +4,14 @@
 //! (integrate, push out of tools); tool reaction forces; refit colliders; fault containment`. Time and dt come in as arguments, so tests run
 //! on virtual time and a recording replays exactly. Must not: touch zenoh, threads or wall-clock time.
 
-use nalgebra::{Quaternion, UnitQuaternion};
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion};
 use thiserror::Error;
 
 use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
+use crate::haptics::{
+    ContactStiffness, CouplingParams, EnergyBudget, MAX_PLANES, NormalStiffnessEstimate,
+    VirtualCoupling, WorldPlane, nearest_surface_plane,
+};
 use crate::interaction::ProbeContacts;
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, RegionTracker, TieSet, TissueState, Vec3,
@@ -42,6 +46,14 @@ pub enum SimBuildError {
 /// never loses, candidates. Measured on the pad under two stroking probes
 /// (`cargo bench -p sinew-server --bench tick`): tick p50 279 -> 262 us going from 0.05 to 0.2 mm.
 pub const REFIT_MARGIN_MM: f32 = 0.2;
+
+/// A tool's planes cover surfaces within this distance of its box, mm: what a hand moving at 100 mm/s covers
+/// in a 200 ms round trip, so a distant device always has the surface it is about to meet.
+pub const PLANE_LOOK_AHEAD_MM: f32 = 20.0;
+
+/// Plane stiffness before a tool has touched anything, N/mm (then the last measured contact's normal
+/// stiffness): the pad's contact stiffness at a few mm.
+pub const PLANE_STIFFNESS_PRIOR_N_PER_MM: f32 = 0.2;
 
 /// One deformable object in the simulation.
 #[derive(Debug)]
@@ -113,6 +125,35 @@ pub struct SimTool {
     reach_mm: f32,
     /// One contact set per object.
     contacts: Vec<ProbeContacts>,
+    /// How the tool follows its device pose.
+    coupling: VirtualCoupling,
+    /// Device pose (target of the coupling) this tick, world, mm and mm/s.
+    device_mm: Vec3,
+    device_velocity_mm_s: Vec3,
+    /// One contact-stiffness solver per object.
+    stiffness: Vec<ContactStiffness>,
+    /// Tissue force on the tool and contact stiffness at the end of the last tick (the coupling's input).
+    last_force_n: Vec3,
+    contact_k: Matrix3<f32>,
+    /// Normal stiffness and damping of this tool's last measured contact (the planes' stiffness).
+    plane_stiffness_n_per_mm: f32,
+    plane_damping_n_s_per_mm: f32,
+    /// Broad-phase scratch of the plane search.
+    plane_candidates: Vec<u32>,
+    /// The contact's normal stiffness fitted to the tissue's answer.
+    estimate: NormalStiffnessEstimate,
+}
+
+impl SimTool {
+    /// The latest finished contact-stiffness solve of this tool on object `object`.
+    pub fn contact_response(&self, object: usize) -> Option<&crate::haptics::ContactResponse> {
+        self.stiffness.get(object).and_then(|s| s.response())
+    }
+
+    /// The coupling parameters.
+    pub fn coupling(&self) -> &CouplingParams {
+        self.coupling.params()
+    }
 }
 
 /// What drives a tool this tick.
@@ -122,6 +163,8 @@ pub struct ToolCommand {
     pub active: bool,
     /// Device position in the device frame, mm.
     pub position_device_mm: [f32; 3],
+    /// Device velocity in the device frame, mm/s.
+    pub velocity_device_mm_s: [f32; 3],
     /// Device orientation, unit quaternion (x, y, z, w).
     pub orientation_xyzw: [f32; 4],
 }
@@ -131,12 +174,13 @@ impl Default for ToolCommand {
         Self {
             active: false,
             position_device_mm: [0.0; 3],
+            velocity_device_mm_s: [0.0; 3],
             orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
         }
     }
 }
 
-/// What a tool felt this tick.
+/// What a tool felt this tick, and the local model of the tissue around it.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ToolOutput {
     /// Force the tissue exerts on the tool, world frame, N; finite, clamped to the tool's limit.
@@ -147,6 +191,55 @@ pub struct ToolOutput {
     pub in_contact: bool,
     /// The raw force exceeded the limit and was scaled down.
     pub clamped: bool,
+    /// Tool origin after the coupling, world, mm (the model's `x0`).
+    pub position_world_mm: Vec3,
+    /// Tool velocity, world, mm/s.
+    pub velocity_world_mm_s: Vec3,
+    /// Where the device pose put the coupling's target, world, mm.
+    pub device_world_mm: Vec3,
+    /// The device's velocity, world, mm/s.
+    pub device_velocity_world_mm_s: Vec3,
+    /// Contact stiffness `K`, N/mm (symmetric positive semi-definite; zero out of contact).
+    pub stiffness_n_per_mm: Matrix3<f32>,
+    /// Contact damping `D`, N s/mm (symmetric positive semi-definite).
+    pub damping_n_s_per_mm: Matrix3<f32>,
+    /// Surfaces near the tool that it does not touch, world frame (the first `plane_count`).
+    pub planes: [WorldPlane; MAX_PLANES],
+    /// Planes in use.
+    pub plane_count: u8,
+    /// Energy this tool's device may output beyond its own input, mJ ([`EnergyBudget`]).
+    pub energy_allowance_mj: f32,
+}
+
+impl ToolOutput {
+    /// The local model's force at a device position and velocity (world frame): `f0 - K (x - x0) - D (v -
+    /// v0)`, one-sided along the contact normal (zero once the tissue would pull), clamped to `max_force_n`.
+    /// What a device rendering directly is sent. Pure, no allocation.
+    pub fn force_at_n(
+        &self,
+        device_mm: &Vec3,
+        device_velocity_mm_s: &Vec3,
+        max_force_n: f32,
+    ) -> Vec3 {
+        if !self.in_contact {
+            return Vec3::zeros();
+        }
+        let f0 = self.force_world_n;
+        let Some(normal) = f0.try_normalize(1e-9) else {
+            return Vec3::zeros();
+        };
+        let spring = f0 - self.stiffness_n_per_mm * (device_mm - self.position_world_mm);
+        if spring.dot(&normal) <= 0.0 {
+            return Vec3::zeros();
+        }
+        let mut f =
+            spring - self.damping_n_s_per_mm * (device_velocity_mm_s - self.velocity_world_mm_s);
+        let along = f.dot(&normal);
+        if along < 0.0 {
+            f -= normal * along;
+        }
+        limit_force(f, max_force_n, 1).force_world_n
+    }
 }
 
 /// Times the anti-divergence guard may halve a tick's step (down to 1/16 of the planned one) before it gives
@@ -184,6 +277,8 @@ pub struct Sim {
     pub ties: Vec<TieSet>,
     /// Energy at the end of the last tick (None after an outside change to a state, or a reset).
     last_energy_n_mm: Option<f64>,
+    /// Work each tool does on the tissue, and the allowances it grants the others.
+    budget: EnergyBudget,
     collision_margin_mm: f32,
     time_s: f64,
     steps: u64,
@@ -260,7 +355,18 @@ impl Sim {
                     .sum::<f32>()
                     .sqrt()
             };
+            let origin = Vec3::from(spec.device_origin_in_world_mm);
             tools.push(SimTool {
+                coupling: VirtualCoupling::new(spec.coupling, origin),
+                device_mm: origin,
+                device_velocity_mm_s: Vec3::zeros(),
+                stiffness: objects.iter().map(|_| ContactStiffness::new()).collect(),
+                last_force_n: Vec3::zeros(),
+                contact_k: Matrix3::zeros(),
+                plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,
+                plane_damping_n_s_per_mm: 0.0,
+                plane_candidates: Vec::with_capacity(8192),
+                estimate: NormalStiffnessEstimate::default(),
                 name: spec.name.clone(),
                 device_id: spec.device_id.clone(),
                 shape_spec: spec.shape.clone(),
@@ -280,6 +386,7 @@ impl Sim {
             });
         }
         Ok(Self {
+            budget: EnergyBudget::new(tools.len()),
             objects,
             tools,
             ties: world.ties.clone(),
@@ -315,7 +422,7 @@ impl Sim {
         outputs: &mut [ToolOutput],
     ) -> StepReport {
         let mut report = StepReport::default();
-        self.apply_commands(commands);
+        self.apply_commands(dt_s, commands);
 
         // Broad phase once per tick, on last tick's refitted surfaces, loosened by the margin.
         let margin = self.collision_margin_mm;
@@ -429,21 +536,135 @@ impl Sim {
             }
         }
 
-        for (t, tool) in self.tools.iter().enumerate() {
-            let mut force = Vec3::zeros();
-            let mut held = 0;
-            for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
-                force += contacts.reaction_force_n(&object.model, &object.state);
-                held += contacts.held.len() as u32;
-            }
-            report.held_nodes += held;
-            if let Some(out) = outputs.get_mut(t) {
-                *out = limit_force(force, tool.max_force_n, held);
+        for t in 0..self.tools.len() {
+            let mut out = self.tool_output(t);
+            report.held_nodes += out.held_nodes;
+            self.local_model(t, dt_s, &mut out);
+            if let Some(slot) = outputs.get_mut(t) {
+                *slot = out;
             }
         }
         self.time_s += f64::from(dt_s);
         self.steps += 1;
         report
+    }
+
+    /// The tool's reaction force, clamped, and its contact state.
+    fn tool_output(&self, t: usize) -> ToolOutput {
+        let tool = &self.tools[t];
+        let mut force = Vec3::zeros();
+        let mut held = 0;
+        for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
+            force += contacts.reaction_force_n(&object.model, &object.state);
+            held += contacts.held.len() as u32;
+        }
+        limit_force(force, tool.max_force_n, held)
+    }
+
+    /// Complete `out` with the local model around tool `t` (contact stiffness and damping, nearby surfaces,
+    /// the energy allowance) and remember what the coupling needs next tick. No allocation once warm.
+    fn local_model(&mut self, t: usize, dt_s: f32, out: &mut ToolOutput) {
+        let tool = &mut self.tools[t];
+        let mut k = Matrix3::zeros();
+        let mut d = Matrix3::zeros();
+        let mut planes = [WorldPlane::default(); MAX_PLANES];
+        let mut plane_count = 0usize;
+        for (o, object) in self.objects.iter_mut().enumerate() {
+            let contacts = &tool.contacts[o];
+            let solver = &mut tool.stiffness[o];
+            if !tool.active {
+                solver.forget();
+                continue;
+            }
+            if contacts.held.is_empty() {
+                solver.forget();
+                if plane_count < MAX_PLANES
+                    && let Some(plane) = nearest_surface_plane(
+                        &tool.collider,
+                        &tool.position_mm,
+                        &tool.rotation,
+                        PLANE_LOOK_AHEAD_MM,
+                        &object.model,
+                        &object.state,
+                        &object.collider,
+                        &mut object.marks,
+                        &mut tool.plane_candidates,
+                    )
+                {
+                    planes[plane_count] = WorldPlane {
+                        stiffness_n_per_mm: tool.plane_stiffness_n_per_mm,
+                        damping_n_s_per_mm: tool.plane_damping_n_s_per_mm,
+                        ..plane
+                    };
+                    plane_count += 1;
+                }
+                continue;
+            }
+            let normal = out
+                .force_world_n
+                .try_normalize(1e-9)
+                .unwrap_or_else(|| object.model.rest_normals()[contacts.held[0] as usize]);
+            solver.advance(
+                &object.model,
+                &object.state,
+                &contacts.held,
+                &contacts.normals,
+                &normal,
+            );
+            match solver.response() {
+                Some(response) => {
+                    k += response.stiffness_n_per_mm;
+                    d += response.damping_n_s_per_mm;
+                }
+                None => {
+                    // First ticks of a contact, before the solve finishes: the last measured normal
+                    // stiffness of this tool along the contact normal.
+                    if let Some(n) = out.force_world_n.try_normalize(1e-9) {
+                        k += n * n.transpose() * tool.plane_stiffness_n_per_mm;
+                        d += n * n.transpose() * tool.plane_damping_n_s_per_mm;
+                    }
+                }
+            }
+        }
+        if let Some(n) = out.force_world_n.try_normalize(1e-9)
+            && out.in_contact
+            && tool.active
+        {
+            // The normal stiffness the tissue actually shows, capped by the frozen-contact solve.
+            tool.estimate
+                .record(-n.dot(&tool.position_mm), n.dot(&out.force_world_n), dt_s);
+            // K is rank one along the CURRENT contact normal (the solve may have started on an older one).
+            let solved = (n.transpose() * k * n)[(0, 0)].max(0.0);
+            let kn = tool.estimate.stiffness_n_per_mm(solved).unwrap_or(solved);
+            k = n * n.transpose() * kn;
+            let dn = (n.transpose() * d * n)[(0, 0)].max(0.0);
+            d = n * n.transpose() * dn;
+            if kn.is_finite() && kn > 0.0 {
+                tool.plane_stiffness_n_per_mm = kn;
+                tool.plane_damping_n_s_per_mm = (n.transpose() * d * n)[(0, 0)].max(0.0);
+            }
+        }
+        if !out.in_contact || !tool.active {
+            tool.estimate.reset();
+        }
+        tool.contact_k = k;
+        tool.last_force_n = out.force_world_n;
+        if tool.active {
+            let step = tool.position_mm - tool.last_position_mm;
+            self.budget.record(t, &out.force_world_n, &step, dt_s);
+        } else {
+            self.budget.release(t);
+        }
+        let tool = &self.tools[t];
+        out.position_world_mm = tool.position_mm;
+        out.velocity_world_mm_s = tool.coupling.velocity_mm_s();
+        out.device_world_mm = tool.device_mm;
+        out.device_velocity_world_mm_s = tool.device_velocity_mm_s;
+        out.stiffness_n_per_mm = k;
+        out.damping_n_s_per_mm = d;
+        out.planes = planes;
+        out.plane_count = plane_count as u8;
+        out.energy_allowance_mj = self.budget.allowance_mj(t) as f32;
     }
 
     /// The guard's measurements over every object: whether any is broken, and the mechanical energy of the
@@ -536,7 +757,9 @@ impl Sim {
         }
     }
 
-    fn apply_commands(&mut self, commands: &[ToolCommand]) {
+    /// Device poses move the tools through their couplings (a tool that just became active starts at its
+    /// device pose).
+    fn apply_commands(&mut self, dt_s: f32, commands: &[ToolCommand]) {
         for tool in &mut self.tools {
             tool.was_active = tool.active;
             tool.last_position_mm = tool.position_mm;
@@ -547,15 +770,35 @@ impl Sim {
                 continue;
             };
             let p = command.position_device_mm;
+            let v = command.velocity_device_mm_s;
             let q = command.orientation_xyzw;
-            let finite = p.iter().chain(q.iter()).all(|c| c.is_finite());
+            let finite = p
+                .iter()
+                .chain(v.iter())
+                .chain(q.iter())
+                .all(|c| c.is_finite());
             let norm = q.iter().map(|c| c * c).sum::<f32>().sqrt();
             if !command.active || !finite || norm.is_nan() || norm <= 0.5 {
                 tool.active = false;
                 continue;
             }
+            tool.device_mm = tool.device_origin_in_world_mm + Vec3::from(p);
+            tool.device_velocity_mm_s = Vec3::from(v);
+            if tool.active {
+                tool.position_mm = tool.coupling.step(
+                    dt_s,
+                    &tool.device_mm,
+                    &tool.device_velocity_mm_s,
+                    &tool.last_force_n,
+                    &tool.contact_k,
+                );
+            } else {
+                tool.coupling.reset(tool.device_mm);
+                tool.position_mm = tool.device_mm;
+                tool.last_force_n = Vec3::zeros();
+                tool.contact_k = Matrix3::zeros();
+            }
             tool.active = true;
-            tool.position_mm = tool.device_origin_in_world_mm + Vec3::from(p);
             tool.rotation =
                 UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]));
         }

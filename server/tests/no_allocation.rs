@@ -53,6 +53,7 @@ fn commands(k: usize) -> [ToolCommand; 2] {
     let at = |x: f32, y: f32| ToolCommand {
         active: true,
         position_device_mm: [x, y, 4.0 - depth],
+        velocity_device_mm_s: [0.0; 3],
         orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
     };
     [at(stroke, 0.0), at(-stroke, 4.0)]

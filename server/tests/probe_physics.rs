@@ -20,6 +20,7 @@ fn press_at(x_mm: f32, depth_mm: f32) -> ToolCommand {
         active: true,
         // Sphere radius 4: centre at 4 - depth puts its bottom `depth` below the rest surface.
         position_device_mm: [x_mm, 0.0, 4.0 - depth_mm],
+        velocity_device_mm_s: [0.0; 3],
         orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
     }
 }

@@ -14,7 +14,8 @@ use sinew_server::world::load_world;
 use sinew_viewer::ViewerHandle;
 
 use crate::harness::{
-    Pacing, replica_error, start_server, start_sim_device, start_viewer, surgeon_scripts,
+    Pacing, replica_error, start_server_emulated, start_sim_device_emulated, start_viewer,
+    surgeon_scripts,
 };
 
 /// Demo options.
@@ -30,6 +31,10 @@ pub struct DemoOptions {
     pub window: bool,
     /// Write a PNG of the viewer's replica at the end.
     pub png: Option<PathBuf>,
+    /// Emulated round trip between the devices and the server, ms (half on the poses, half on the forces).
+    pub rtt_ms: f64,
+    /// How the devices render forces.
+    pub mode: hapticserver::ModePolicy,
 }
 
 /// The demo's final figures.
@@ -59,19 +64,34 @@ struct Running {
 pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     let world = load_world(&options.world).context("the demo's world")?;
     let scene = world.scene.clone();
-    let server = start_server(world, &options.endpoint, Pacing::Spin)?;
+    let one_way = sinew_protocol::rt::EmulationConfig {
+        delay_ms: options.rtt_ms / 2.0,
+        ..Default::default()
+    };
+    one_way.validate().map_err(anyhow::Error::msg)?;
+    let server = start_server_emulated(world, &options.endpoint, Pacing::Spin, one_way)?;
     let (left, right) = surgeon_scripts();
-    let devices = vec![
-        start_sim_device(&scene, "left", left, &options.endpoint, Pacing::Spin)?,
-        start_sim_device(&scene, "right", right, &options.endpoint, Pacing::Spin)?,
-    ];
+    let device = |id: &str, script| {
+        start_sim_device_emulated(
+            &scene,
+            id,
+            script,
+            &options.endpoint,
+            Pacing::Spin,
+            options.mode,
+            one_way,
+        )
+    };
+    let devices = vec![device("left", left)?, device("right", right)?];
     let viewer = start_viewer(&scene, "demo-viewer", &options.endpoint)?;
     if !viewer.wait_for_snapshot(Duration::from_secs(5)) {
         anyhow::bail!("the viewer got no snapshot from the server within 5 s");
     }
     println!(
-        "sinew demo: scene `{scene}` on {} (zenoh peer, loopback), devices left + right, viewer headless{}",
+        "sinew demo: scene `{scene}` on {} (zenoh peer, loopback), devices left + right (mode {}, emulated round trip {} ms), viewer headless{}",
         options.endpoint,
+        options.mode.name(),
+        options.rtt_ms,
         if options.window { " + window" } else { "" }
     );
     let mut running = Running {
@@ -215,10 +235,25 @@ fn summarize(running: &Running) -> DemoSummary {
     );
     for ((id, p50, p99, max_force), device) in devices.iter().zip(&running.devices) {
         let report = device.report();
+        let server_side = s.devices.iter().find(|d| &d.device_id == id);
         println!(
-            "device {id}: pose->force round trip p50 {p50:.0} us, p99 {p99:.0} us; max rendered force {max_force:.2} N; \
-             port energy {:+.2} mJ (passivity observer: active on {} of {} ticks)",
-            report.passivity.energy_mj, report.passivity.active_ticks, report.ticks
+            "device {id}: mode {} ({}, {} switches); pose->force round trip p50 {p50:.0} us, p99 {p99:.0} us; \
+             {:.0} force messages/s ({} suppressed by the deadband); max rendered force {max_force:.2} N; \
+             silences {}; port energy {:+.2} mJ (passivity: active on {} of {} ticks, withheld {:.2} mJ)",
+            if report.moderated {
+                "moderated"
+            } else {
+                "direct"
+            },
+            report.mode_policy,
+            report.mode_switches,
+            server_side.map_or(0.0, |d| d.forces_sent as f64 / s.sim_time_s.max(1e-9)),
+            server_side.map_or(0, |d| d.forces_suppressed),
+            report.safety.stale_events,
+            report.passivity.energy_mj,
+            report.passivity.active_ticks,
+            report.ticks,
+            report.passivity.withheld_mj
         );
     }
     let v = running.viewer.stats();

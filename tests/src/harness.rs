@@ -49,7 +49,18 @@ impl Pacing {
 
 /// Start a server listening on `endpoint`.
 pub fn start_server(world: World, endpoint: &str, pacing: Pacing) -> anyhow::Result<ServerHandle> {
+    start_server_emulated(world, endpoint, pacing, Default::default())
+}
+
+/// [`start_server`] with emulated delay, jitter and loss on the force commands it publishes.
+pub fn start_server_emulated(
+    world: World,
+    endpoint: &str,
+    pacing: Pacing,
+    emulation: sinew_protocol::rt::EmulationConfig,
+) -> anyhow::Result<ServerHandle> {
     let config = ServerConfig {
+        emulation,
         network: NetworkOptions {
             listen: vec![endpoint.to_owned()],
             ..NetworkOptions::default()
@@ -82,6 +93,27 @@ pub fn start_sim_device(
         ..NetworkOptions::default()
     };
     config.spin_accuracy_ns = pacing.native_accuracy_ns();
+    HapticServer::start(config).with_context(|| format!("starting hapticserver `{id}`"))
+}
+
+/// [`start_sim_device`] with a render-mode policy and emulated delay, jitter and loss on its poses.
+pub fn start_sim_device_emulated(
+    scene: &str,
+    id: &str,
+    script: HandScript,
+    endpoint: &str,
+    pacing: Pacing,
+    mode: hapticserver::ModePolicy,
+    emulation: sinew_protocol::rt::EmulationConfig,
+) -> anyhow::Result<HapticHandle> {
+    let mut config = HapticConfig::new(scene, id, Box::new(SimDevice::new(script)));
+    config.network = NetworkOptions {
+        connect: vec![endpoint.to_owned()],
+        ..NetworkOptions::default()
+    };
+    config.spin_accuracy_ns = pacing.native_accuracy_ns();
+    config.mode = mode;
+    config.emulation = emulation;
     HapticServer::start(config).with_context(|| format!("starting hapticserver `{id}`"))
 }
 

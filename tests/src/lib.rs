@@ -2,9 +2,12 @@
 //! workspace-level end-to-end tests in `tests/tests/`.
 //!
 //! Owns: [`harness`] (start a server, simulated hapticservers and viewers on a loopback zenoh endpoint, each
-//! with its own real zenoh session, and measure across them) and [`demo`] (the live demo with its per-second
-//! lines and final summary). Must not: contain role logic; everything here calls the role crates' public APIs.
+//! with its own real zenoh session, and measure across them), [`demo`] (the live demo with its per-second
+//! lines and final summary) and [`drill`] (latency drills on virtual time: the real server tick and device loops
+//! joined by emulated links).
+//! Must not: contain role logic; everything here calls the role crates' public APIs.
 #![warn(missing_docs)]
 
 pub mod demo;
+pub mod drill;
 pub mod harness;

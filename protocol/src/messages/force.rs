@@ -3,21 +3,29 @@
 use serde::{Deserialize, Serialize};
 
 use crate::codec::{FieldError, Message, MessageKind, check};
+use crate::messages::local_model::LocalModel;
 
-/// How the hapticserver should render a [`ForceCommand`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+/// What a [`ForceCommand`] carries besides the streamed force.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub enum ForceMode {
-    /// Latency-dependent mode: render `force_n` as it is (after device-side safety). Right on a LAN.
+    /// The streamed force only (the explicit zero a released tool gets): render `force_n` as it is.
     #[default]
     Direct,
+    /// The streamed force and the local model it came from. A device in direct (latency-dependent) mode
+    /// renders `force_n`; one in latency-moderated mode evaluates the model against its current position every
+    /// tick. Both are built from the same server tick, so a device can switch between them without a jump.
+    LocalModel(LocalModel),
 }
 
 /// The force the server computed for a device's latest pose.
 ///
 /// Direction: server -> hapticserver, on `sinew/<scene>/device/<id>/force`. Rate: one per server tick (1 kHz)
-/// while the device's tool is bound. Reliability: best effort, congestion drop, express.
-/// Units: newtons, in the device frame. The server has already clamped it to the device's announced maximum;
-/// the hapticserver clamps again (it owns the motor).
+/// while the device's tool is bound and renders directly; for a device in latency-moderated mode only when
+/// the model changed by more than the perceptual deadband, and at least every 11 ms (heartbeat).
+/// Reliability: best effort (a UDP link where the transport has one), congestion drop, express.
+/// Units: newtons, mm, device frame (the world frame shifted to the device's origin, no rotation). The server
+/// has already clamped `force_n` to the device's announced maximum; the hapticserver clamps again (it owns
+/// the motor).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct ForceCommand {
     /// Monotonic sequence number, per device.
@@ -26,7 +34,8 @@ pub struct ForceCommand {
     pub echo_pose_seq: u64,
     /// `device_time_ns` of the pose this force answers: now minus this is the round trip.
     pub echo_device_time_ns: u64,
-    /// Force to render on the stylus, newtons, device frame.
+    /// Force to render on the stylus in direct mode, newtons, device frame: the local model evaluated at the
+    /// pose this command answers.
     pub force_n: [f32; 3],
     /// How to render it.
     pub mode: ForceMode,
@@ -37,6 +46,10 @@ pub struct ForceCommand {
 impl Message for ForceCommand {
     const KIND: MessageKind = MessageKind::ForceCommand;
     fn validate(&self) -> Result<(), FieldError> {
-        check::finite("force_n", &self.force_n)
+        check::finite("force_n", &self.force_n)?;
+        match &self.mode {
+            ForceMode::Direct => Ok(()),
+            ForceMode::LocalModel(model) => model.validate(),
+        }
     }
 }

@@ -4,6 +4,16 @@ use serde::{Deserialize, Serialize};
 
 use crate::codec::{FieldError, Message, MessageKind, check};
 
+/// How a hapticserver renders the forces it gets (it tells the server, which then paces what it sends).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum RenderMode {
+    /// Latency-dependent: the streamed force, every server tick.
+    #[default]
+    Direct,
+    /// Latency-moderated: the local model against the current position; the server may send below 1 kHz.
+    Moderated,
+}
+
 /// The pose and sensor state of one haptic device, in the device's own frame.
 ///
 /// Direction: hapticserver -> server, on `sinew/<scene>/device/<id>/pose` (the id is in the key, not the body).
@@ -28,6 +38,8 @@ pub struct DevicePose {
     pub jaw_angle_rad: f32,
     /// The device's latest measured pose->force round trip, microseconds (0 = not yet measured).
     pub round_trip_us: u32,
+    /// How the device renders forces right now.
+    pub render_mode: RenderMode,
 }
 
 impl Message for DevicePose {

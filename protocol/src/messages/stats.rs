@@ -29,7 +29,8 @@ impl RejectCounts {
 pub struct DeviceStats {
     /// Device id.
     pub device_id: String,
-    /// Liveliness token present and poses arriving: its tool is active.
+    /// Poses arriving within the world's pose timeout from a device that is present and not refused: its
+    /// tool is active.
     pub active: bool,
     /// Poses accepted.
     pub poses_received: u64,
@@ -39,6 +40,10 @@ pub struct DeviceStats {
     pub last_round_trip_us: u32,
     /// Largest force magnitude sent, newtons.
     pub max_force_n: f32,
+    /// The device renders the local model (latency-moderated mode) rather than the streamed force.
+    pub moderated: bool,
+    /// Ticks on which the device's model stayed within the perceptual deadband and nothing was sent.
+    pub forces_suppressed: u64,
 }
 
 /// Server health, published at 1 Hz on `sinew/<scene>/stats`.

@@ -111,6 +111,26 @@ impl ToolCollider {
         Some((exit, normal / len))
     }
 
+    /// How far the tool reaches from its origin along the unit direction `dir` (world), mm: the support
+    /// function `max over tool points q of dir . (q - origin)` at orientation `rotation`. A plane that the
+    /// tool must stay out of sits this far from the tool origin. No allocation.
+    pub fn reach_along_mm(&self, rotation: &UnitQuaternion<f32>, dir: &Vector3<f32>) -> f32 {
+        let local = rotation.inverse() * dir;
+        match self {
+            ToolCollider::Ball(b) => b.radius,
+            ToolCollider::Capsule(c) => {
+                let a = from_parry(c.segment.a).dot(&local);
+                let b = from_parry(c.segment.b).dot(&local);
+                a.max(b) + c.radius
+            }
+            ToolCollider::Mesh(m) => m
+                .vertices()
+                .iter()
+                .map(|v| from_parry(*v).dot(&local))
+                .fold(f32::NEG_INFINITY, f32::max),
+        }
+    }
+
     /// Closest point to `p` on the tool's core (ball centre, capsule segment): both shapes are swept spheres,
     /// so the outward normal at a surface point is the direction from its core point.
     fn core_point(

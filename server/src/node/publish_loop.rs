@@ -134,6 +134,8 @@ pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
                 forces_sent: d.forces_sent,
                 last_round_trip_us: d.last_round_trip_us,
                 max_force_n: d.max_force_n,
+                moderated: d.moderated,
+                forces_suppressed: d.suppressed,
             })
             .collect();
     }

@@ -1,18 +1,21 @@
-//! The dedicated 1 kHz sim thread.
+//! The dedicated 1 kHz sim thread: mailboxes in, [`ServerTick`], force commands out (straight to zenoh, or
+//! through the emulated network when `--emulate-*` is set).
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use sinew_protocol::rt::{LatencyHistogram, Pacer};
-use sinew_protocol::{ForceCommand, ForceMode, encode};
+use sinew_protocol::rt::{DelayedSender, EmulationConfig, LatencyHistogram, Pacer};
+use sinew_protocol::{ForceCommand, RenderMode, encode};
 use zenoh::Wait;
-use zenoh::qos::CongestionControl;
+use zenoh::qos::{CongestionControl, Reliability};
 
 use super::device_slots::PoseArrival;
 use super::{ServerError, Shared};
-use crate::sim::{Sim, ToolCommand, ToolOutput};
+use crate::haptics::DeadbandParams;
+use crate::server_tick::{PoseInput, ServerTick};
+use crate::sim::Sim;
 use crate::tissue::Vec3;
 
 /// Per-device counters kept by the sim thread.
@@ -26,6 +29,10 @@ pub struct DeviceReport {
     pub max_force_n: f32,
     /// The device's last reported round trip, us.
     pub last_round_trip_us: u32,
+    /// The device renders the local model (latency-moderated) rather than the streamed force.
+    pub moderated: bool,
+    /// Ticks on which its model was within the deadband and nothing was sent.
+    pub suppressed: u64,
 }
 
 /// What the sim thread reports (copied out every 100 ticks without blocking).
@@ -74,47 +81,75 @@ pub(super) fn spawn(
     shared: Arc<Shared>,
     sim: Sim,
     spin_native_accuracy_ns: u32,
+    emulation: EmulationConfig,
 ) -> Result<JoinHandle<()>, ServerError> {
-    let mut publishers = Vec::with_capacity(sim.tools.len());
+    let mut outlets = Vec::with_capacity(sim.tools.len());
     for tool in &sim.tools {
-        publishers.push(
-            session
-                .declare_publisher(shared.keys.device_force(&tool.device_id)?)
-                .congestion_control(CongestionControl::Drop)
-                .express(true)
-                .wait()?,
-        );
+        let publisher = session
+            .declare_publisher(shared.keys.device_force(&tool.device_id)?)
+            .congestion_control(CongestionControl::Drop)
+            .reliability(Reliability::BestEffort)
+            .express(true)
+            .wait()?;
+        outlets.push(if emulation.is_off() {
+            ForceOutlet::Direct(publisher)
+        } else {
+            let name = format!("sinew-delay-{}", tool.device_id);
+            let sender = DelayedSender::start(&name, emulation, move |bytes: &[u8]| {
+                // A failed put (session closing) is not fatal; the device ramps down on silence.
+                let _ = publisher.put(bytes).wait();
+            })
+            .map_err(|e| ServerError::Thread(e.to_string()))?;
+            ForceOutlet::Delayed(sender)
+        });
     }
     std::thread::Builder::new()
         .name("sinew-sim".into())
-        .spawn(move || run(&shared, sim, &publishers, spin_native_accuracy_ns))
+        .spawn(move || run(&shared, sim, &mut outlets, spin_native_accuracy_ns))
         .map_err(|e| ServerError::Thread(e.to_string()))
 }
 
-fn run(
-    shared: &Shared,
-    mut sim: Sim,
-    publishers: &[zenoh::pubsub::Publisher<'static>],
-    spin_native_accuracy_ns: u32,
-) {
+/// Where one device's force commands go: straight to zenoh, or through the emulated network first.
+enum ForceOutlet {
+    Direct(zenoh::pubsub::Publisher<'static>),
+    Delayed(DelayedSender),
+}
+
+impl ForceOutlet {
+    fn send(&mut self, bytes: &[u8]) {
+        match self {
+            // A failed put (session closing) is not fatal to the tick; the device ramps down on silence.
+            ForceOutlet::Direct(publisher) => {
+                let _ = publisher.put(bytes).wait();
+            }
+            ForceOutlet::Delayed(sender) => sender.send(bytes),
+        }
+    }
+}
+
+fn run(shared: &Shared, sim: Sim, outlets: &mut [ForceOutlet], spin_native_accuracy_ns: u32) {
     let world = &shared.world;
     let n = sim.tools.len();
     let tick_dt_s = (1.0 / world.tick_hz) as f32;
     let ticks_per_frame = (world.tick_hz / world.publish_hz).round().max(1.0) as u64;
-    let pose_timeout = Duration::from_secs_f64(world.pose_timeout_s);
     let mut pacer = Pacer::new(
         Duration::from_secs_f64(1.0 / world.tick_hz),
         spin_native_accuracy_ns,
     );
+    let mut tick = ServerTick::new(
+        sim,
+        tick_dt_s,
+        world.pose_timeout_s,
+        DeadbandParams::default(),
+    );
 
-    let mut commands = vec![ToolCommand::default(); n];
-    let mut outputs = vec![ToolOutput::default(); n];
     let mut seen = vec![0u64; n];
     let mut last_pose: Vec<Option<PoseArrival>> = vec![None; n];
-    let mut was_active = vec![false; n];
-    let mut force_seq = vec![0u64; n];
+    let mut inputs: Vec<Option<PoseInput>> = vec![None; n];
+    let mut limits: Vec<Option<f32>> = vec![None; n];
+    let mut commands: Vec<Option<ForceCommand>> = vec![None; n];
     let mut local = SimReport::new(n);
-    let mut buf = Vec::with_capacity(128);
+    let mut buf = Vec::with_capacity(256);
     let mut frame_due = false;
 
     while !shared.stop.load(Ordering::Acquire) {
@@ -129,65 +164,39 @@ fn run(
             }
             let usable =
                 !slot.gone.load(Ordering::Acquire) && !slot.refused.load(Ordering::Acquire);
-            commands[t] = match last_pose[t] {
-                Some(a) if usable && start.saturating_duration_since(a.received) < pose_timeout => {
-                    ToolCommand {
-                        active: true,
-                        position_device_mm: a.pose.position_mm,
-                        orientation_xyzw: a.pose.orientation_xyzw,
-                    }
-                }
-                _ => ToolCommand::default(),
-            };
+            inputs[t] = last_pose[t].map(|a| PoseInput {
+                pose: a.pose,
+                age_s: start.saturating_duration_since(a.received).as_secs_f64(),
+                usable,
+            });
+            limits[t] = slot.hello_max_force_n();
         }
 
-        let report = sim.step(tick_dt_s, &commands, &mut outputs);
+        let report = tick.step(&inputs, &limits, &mut commands);
         local.faults += u64::from(report.faults);
 
         for t in 0..n {
-            let active = commands[t].active;
-            local.devices[t].active = active;
-            if !active && !was_active[t] {
-                continue;
-            }
-            let (Some(slot), Some(publisher)) = (shared.slots.get(t), publishers.get(t)) else {
-                continue;
-            };
-            // Released this tick: one explicit zero, then silence (the device ramps down on its own).
-            let force = if active {
-                let limit = slot
-                    .hello_max_force_n()
-                    .map_or(sim.tools[t].max_force_n, |m| {
-                        m.min(sim.tools[t].max_force_n)
-                    });
-                clamp_finite(outputs[t].force_world_n, limit)
-            } else {
-                Vec3::zeros()
-            };
-            let echo = last_pose[t].map(|a| a.pose).unwrap_or_default();
-            force_seq[t] += 1;
-            encode(
-                &ForceCommand {
-                    seq: force_seq[t],
-                    echo_pose_seq: echo.seq,
-                    echo_device_time_ns: echo.device_time_ns,
-                    force_n: [force.x, force.y, force.z],
-                    mode: ForceMode::Direct,
-                    in_contact: active && outputs[t].in_contact,
-                },
-                &mut buf,
-            );
-            // A failed put (session closing) is not fatal to the tick; the device ramps down on silence.
-            let _ = publisher.put(buf.as_slice()).wait();
             let d = &mut local.devices[t];
+            d.active = inputs[t].is_some_and(|i| i.usable && i.age_s < world.pose_timeout_s);
+            let Some(command) = &commands[t] else {
+                continue;
+            };
+            encode(command, &mut buf);
+            if let Some(outlet) = outlets.get_mut(t) {
+                outlet.send(&buf);
+            }
             d.forces_sent += 1;
-            d.max_force_n = d.max_force_n.max(force.norm());
-            d.last_round_trip_us = echo.round_trip_us;
-            was_active[t] = active;
+            d.max_force_n = d.max_force_n.max(Vec3::from(command.force_n).norm());
+            d.last_round_trip_us = inputs[t].map_or(0, |i| i.pose.round_trip_us);
+            d.moderated = inputs[t].is_some_and(|i| i.pose.render_mode == RenderMode::Moderated);
+        }
+        for (t, d) in local.devices.iter_mut().enumerate() {
+            d.suppressed = tick.stream_counters(t).suppressed;
         }
 
+        let sim = tick.sim();
         frame_due |= sim.steps().is_multiple_of(ticks_per_frame);
-        if frame_due && shared.frames.try_offer(&sim, &outputs) {
+        if frame_due && shared.frames.try_offer(sim, tick.outputs()) {
             frame_due = false;
         }
         local.ticks += 1;
@@ -202,36 +211,5 @@ fn run(
     }
     if let Ok(mut shared_report) = shared.report.lock() {
         shared_report.copy_from(&local);
-    }
-}
-
-/// Clamp to `limit_n`; a non-finite force becomes zero. Pure, no allocation.
-fn clamp_finite(force: Vec3, limit_n: f32) -> Vec3 {
-    if !force.iter().all(|c| c.is_finite()) {
-        return Vec3::zeros();
-    }
-    let magnitude = force.norm();
-    if magnitude > limit_n {
-        force * (limit_n / magnitude)
-    } else {
-        force
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn server_side_clamp_limits_and_zeroes_non_finite() {
-        assert_eq!(
-            clamp_finite(Vec3::new(f32::NAN, 0.0, 0.0), 3.0),
-            Vec3::zeros()
-        );
-        assert!((clamp_finite(Vec3::new(0.0, 0.0, 9.0), 2.0).z - 2.0).abs() < 1e-6);
-        assert_eq!(
-            clamp_finite(Vec3::new(0.0, 1.0, 0.0), 2.0),
-            Vec3::new(0.0, 1.0, 0.0)
-        );
     }
 }

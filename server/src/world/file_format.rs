@@ -258,6 +258,17 @@ pub(crate) struct ToolSection {
     pub device_origin_in_world_mm: [f32; 3],
     #[serde(default = "default_max_force_n")]
     pub max_force_n: Spanned<f32>,
+    /// Virtual coupling of the tool to its device pose (defaults: `haptics::CouplingParams::default`).
+    #[serde(default)]
+    pub coupling: Option<Spanned<CouplingSection>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct CouplingSection {
+    pub stiffness_n_per_mm: Option<f32>,
+    pub damping_n_s_per_mm: Option<f32>,
+    pub max_speed_mm_s: Option<f32>,
 }
 
 fn default_max_force_n() -> Spanned<f32> {

@@ -225,6 +225,8 @@ pub struct ToolSpec {
     pub device_origin_in_world_mm: [f32; 3],
     /// Largest force the server will ever send for this tool, N (the device's own maximum also applies).
     pub max_force_n: f32,
+    /// How the tool follows its device pose (`coupling = { ... }`).
+    pub coupling: crate::haptics::CouplingParams,
 }
 
 /// Read, parse and validate a world file (mesh paths are relative to it).
@@ -891,12 +893,45 @@ impl Context<'_> {
             "must be finite",
         )?;
         let max_force_n = self.positive(&tool.max_force_n, &key("max_force_n"))?;
+        let mut coupling = crate::haptics::CouplingParams::default();
+        if let Some(at) = &tool.coupling {
+            let section = at.get_ref();
+            let fields = [
+                (
+                    section.stiffness_n_per_mm,
+                    "stiffness_n_per_mm",
+                    &mut coupling.stiffness_n_per_mm,
+                ),
+                (
+                    section.damping_n_s_per_mm,
+                    "damping_n_s_per_mm",
+                    &mut coupling.damping_n_s_per_mm,
+                ),
+                (
+                    section.max_speed_mm_s,
+                    "max_speed_mm_s",
+                    &mut coupling.max_speed_mm_s,
+                ),
+            ];
+            for (value, name, slot) in fields {
+                if let Some(value) = value {
+                    self.check(
+                        at,
+                        &key(&format!("coupling.{name}")),
+                        value.is_finite() && value > 0.0,
+                        "must be a positive number",
+                    )?;
+                    *slot = value;
+                }
+            }
+        }
         Ok(ToolSpec {
             name: tool.name.get_ref().clone(),
             device_id,
             shape,
             device_origin_in_world_mm: tool.device_origin_in_world_mm,
             max_force_n,
+            coupling,
         })
     }
 }

@@ -34,6 +34,13 @@ enum Command {
         /// Write a PNG of the viewer's replica at the end.
         #[arg(long)]
         png: Option<PathBuf>,
+        /// Emulate a distant server: this round trip (ms) between the devices and the server, half on the
+        /// poses and half on the forces. Feel (or read in the summary) what distance does to each mode.
+        #[arg(long, default_value_t = 0.0)]
+        rtt_ms: f64,
+        /// How the devices render forces: direct, moderated or auto.
+        #[arg(long, default_value = "auto")]
+        mode: hapticserver::ModePolicy,
     },
 }
 
@@ -50,6 +57,8 @@ fn main() -> anyhow::Result<()> {
             listen,
             window,
             png,
+            rtt_ms,
+            mode,
         } => {
             anyhow::ensure!(
                 duration_s.is_finite() && duration_s > 0.0,
@@ -61,6 +70,8 @@ fn main() -> anyhow::Result<()> {
                 duration: Duration::from_secs_f64(duration_s),
                 window,
                 png,
+                rtt_ms,
+                mode,
             })?;
         }
     }

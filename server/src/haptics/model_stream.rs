@@ -1,0 +1,366 @@
+//! The stream of force commands to one device: the local model in the device frame, and when to send it.
+//!
+//! Owns: [`ModelStream`] (per device: the last model sent, the sequence number, counters) and
+//! [`DeadbandParams`]. Every tick [`ModelStream::command`] turns the tool's [`ToolOutput`] into a
+//! [`ForceCommand`] carrying both the direct force (the model evaluated at the pose it answers) and the model
+//! itself, and decides whether it is worth sending:
+//! - a device rendering directly gets every tick's command (its force is only as fresh as the last message);
+//! - a device rendering the model gets one only when the model changed perceptibly, and at least every
+//!   [`DeadbandParams::heartbeat_s`]. "Perceptibly": the new `f0` differs from what the last model sent
+//!   predicts at the new `x0` by more than the Weber fraction (5% of the force; force discrimination
+//!   thresholds are 5-10%, Jones 1989, Pang, Tan & Durlach 1991; Hinterseer et al. 2008 cut haptic packet
+//!   rates by ~90% with such a deadband and no perceived difference) or an absolute 10 mN floor (below the
+//!   hand's detection threshold for force changes of a few tens of mN); or `K` moved by 10%; or a plane moved
+//!   by 0.05 mm or turned by 1 degree; or the contact began or ended; or the energy allowance moved by 0.5 mJ.
+//!   The heartbeat (11 ms, 91 messages/s) keeps a still hand's stream inside the device's 50 ms silence rule
+//!   unless four messages in a row are lost (at 5% loss, about once an hour).
+//!
+//! Must not: touch the network (the node publishes what this returns) or allocate.
+
+use nalgebra::Matrix3;
+use sinew_protocol::{
+    ContactPlane, DevicePose, ForceCommand, ForceMode, LocalModel, MAX_CONTACT_PLANES, RenderMode,
+    Sym3,
+};
+
+use crate::haptics::contact_stiffness::psd_part;
+use crate::sim::ToolOutput;
+use crate::tissue::Vec3;
+
+/// When a device in latency-moderated mode is sent a new model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeadbandParams {
+    /// Relative force change that is sent, of |f0|.
+    pub weber_fraction: f32,
+    /// Absolute force change that is always sent, N.
+    pub force_floor_n: f32,
+    /// Relative change of `K` (Frobenius) that is sent.
+    pub stiffness_fraction: f32,
+    /// Plane offset change that is sent, mm.
+    pub plane_offset_mm: f32,
+    /// Plane normal change that is sent: cosine of the angle.
+    pub plane_normal_cos: f32,
+    /// Allowance change that is sent, mJ.
+    pub allowance_mj: f32,
+    /// Longest time between two messages, s.
+    pub heartbeat_s: f64,
+}
+
+impl Default for DeadbandParams {
+    fn default() -> Self {
+        Self {
+            weber_fraction: 0.05,
+            force_floor_n: 0.01,
+            stiffness_fraction: 0.1,
+            plane_offset_mm: 0.05,
+            plane_normal_cos: 0.999_85, // 1 degree
+            allowance_mj: 0.5,
+            heartbeat_s: 0.011,
+        }
+    }
+}
+
+/// Validity radius of a model around its `x0`, mm, and the width of its fade, mm.
+pub const MODEL_RADIUS_MM: f32 = 8.0;
+/// See [`MODEL_RADIUS_MM`].
+pub const MODEL_FADE_MM: f32 = 3.0;
+
+/// What a stream has done.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StreamCounters {
+    /// Commands sent.
+    pub sent: u64,
+    /// Ticks on which a moderated device's model was within the deadband and nothing was sent.
+    pub suppressed: u64,
+}
+
+/// The command stream to one device.
+#[derive(Debug, Clone)]
+pub struct ModelStream {
+    params: DeadbandParams,
+    origin_world_mm: Vec3,
+    last_sent: Option<LocalModel>,
+    last_sent_s: f64,
+    seq: u64,
+    counters: StreamCounters,
+}
+
+fn sym3(m: &Matrix3<f32>) -> Sym3 {
+    [
+        m[(0, 0)],
+        m[(1, 1)],
+        m[(2, 2)],
+        0.5 * (m[(0, 1)] + m[(1, 0)]),
+        0.5 * (m[(0, 2)] + m[(2, 0)]),
+        0.5 * (m[(1, 2)] + m[(2, 1)]),
+    ]
+}
+
+fn sym3_matrix(m: &Sym3) -> Matrix3<f32> {
+    Matrix3::new(m[0], m[3], m[4], m[3], m[1], m[5], m[4], m[5], m[2])
+}
+
+impl ModelStream {
+    /// A stream for a device whose frame origin sits at `origin_world_mm`.
+    pub fn new(params: DeadbandParams, origin_world_mm: Vec3) -> Self {
+        Self {
+            params,
+            origin_world_mm,
+            last_sent: None,
+            last_sent_s: f64::NEG_INFINITY,
+            seq: 0,
+            counters: StreamCounters::default(),
+        }
+    }
+
+    /// Counters so far.
+    pub fn counters(&self) -> StreamCounters {
+        self.counters
+    }
+
+    /// The local model of `out` in the device frame, with forces limited to `max_force_n`.
+    pub fn model(&self, now_s: f64, out: &ToolOutput, max_force_n: f32) -> LocalModel {
+        let origin = self.origin_world_mm;
+        let mut f0 = out.force_world_n;
+        let magnitude = f0.norm();
+        if magnitude > max_force_n {
+            f0 *= max_force_n / magnitude;
+        }
+        let mut planes = [ContactPlane::default(); MAX_CONTACT_PLANES];
+        let count = usize::from(out.plane_count).min(MAX_CONTACT_PLANES);
+        for (wire, plane) in planes.iter_mut().zip(&out.planes[..count]) {
+            *wire = ContactPlane {
+                normal: plane.normal.into(),
+                offset_mm: plane.offset_mm - plane.normal.dot(&origin),
+                stiffness_n_per_mm: plane.stiffness_n_per_mm,
+                damping_n_s_per_mm: plane.damping_n_s_per_mm,
+            };
+        }
+        LocalModel {
+            server_time_ns: (now_s.max(0.0) * 1e9) as u64,
+            in_contact: out.in_contact,
+            x0_mm: (out.position_world_mm - origin).into(),
+            f0_n: f0.into(),
+            // The wire refuses anything but positive semi-definite: send the PSD part, whatever came in.
+            stiffness_n_per_mm: sym3(&psd_part(&out.stiffness_n_per_mm)),
+            damping_n_s_per_mm: sym3(&psd_part(&out.damping_n_s_per_mm)),
+            radius_mm: MODEL_RADIUS_MM,
+            fade_mm: MODEL_FADE_MM,
+            planes,
+            plane_count: count as u8,
+            energy_allowance_mj: out.energy_allowance_mj.max(0.0),
+        }
+    }
+
+    /// This tick's command for a device whose newest pose is `pose`, or None when a moderated device does not
+    /// need one (within the deadband). `max_force_n` is the smaller of the tool's and the device's limits.
+    /// Real-time contract: no allocation, never panics, never a non-finite force.
+    pub fn command(
+        &mut self,
+        now_s: f64,
+        out: &ToolOutput,
+        pose: &DevicePose,
+        max_force_n: f32,
+    ) -> Option<ForceCommand> {
+        let model = self.model(now_s, out, max_force_n);
+        let send = match pose.render_mode {
+            RenderMode::Direct => true,
+            RenderMode::Moderated => self.worth_sending(now_s, &model),
+        };
+        if !send {
+            self.counters.suppressed += 1;
+            return None;
+        }
+        let force = out.force_at_n(
+            &out.device_world_mm,
+            &out.device_velocity_world_mm_s,
+            max_force_n,
+        );
+        self.last_sent = Some(model);
+        self.last_sent_s = now_s;
+        self.seq += 1;
+        self.counters.sent += 1;
+        Some(ForceCommand {
+            seq: self.seq,
+            echo_pose_seq: pose.seq,
+            echo_device_time_ns: pose.device_time_ns,
+            force_n: force.into(),
+            mode: ForceMode::LocalModel(model),
+            in_contact: out.in_contact,
+        })
+    }
+
+    /// The explicit zero a device gets once when its tool is released; the stream starts afresh after it.
+    pub fn release(&mut self, pose: &DevicePose) -> ForceCommand {
+        self.last_sent = None;
+        self.seq += 1;
+        self.counters.sent += 1;
+        ForceCommand {
+            seq: self.seq,
+            echo_pose_seq: pose.seq,
+            echo_device_time_ns: pose.device_time_ns,
+            force_n: [0.0; 3],
+            mode: ForceMode::Direct,
+            in_contact: false,
+        }
+    }
+
+    fn worth_sending(&self, now_s: f64, model: &LocalModel) -> bool {
+        let Some(last) = &self.last_sent else {
+            return true;
+        };
+        let p = &self.params;
+        if now_s - self.last_sent_s >= p.heartbeat_s
+            || last.in_contact != model.in_contact
+            || last.plane_count != model.plane_count
+            || (last.energy_allowance_mj - model.energy_allowance_mj).abs() > p.allowance_mj
+        {
+            return true;
+        }
+        // What the device renders from the last model at the new x0, against the new f0.
+        let k_last = sym3_matrix(&last.stiffness_n_per_mm);
+        let predicted =
+            Vec3::from(last.f0_n) - k_last * (Vec3::from(model.x0_mm) - Vec3::from(last.x0_mm));
+        let f0 = Vec3::from(model.f0_n);
+        if (f0 - predicted).norm() > p.force_floor_n.max(p.weber_fraction * f0.norm()) {
+            return true;
+        }
+        let k_new = sym3_matrix(&model.stiffness_n_per_mm);
+        if (k_new - k_last).norm() > p.stiffness_fraction * k_last.norm().max(0.01) {
+            return true;
+        }
+        last.active_planes()
+            .iter()
+            .zip(model.active_planes())
+            .any(|(a, b)| {
+                (a.offset_mm - b.offset_mm).abs() > p.plane_offset_mm
+                    || Vec3::from(a.normal).dot(&Vec3::from(b.normal)) < p.plane_normal_cos
+                    || (a.stiffness_n_per_mm - b.stiffness_n_per_mm).abs()
+                        > p.stiffness_fraction * a.stiffness_n_per_mm.max(0.01)
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn contact(force_z: f32, x0_z: f32) -> ToolOutput {
+        ToolOutput {
+            force_world_n: Vec3::new(0.0, 0.0, force_z),
+            in_contact: true,
+            held_nodes: 10,
+            position_world_mm: Vec3::new(0.0, 0.0, x0_z),
+            device_world_mm: Vec3::new(0.0, 0.0, x0_z),
+            stiffness_n_per_mm: Matrix3::from_diagonal(&Vec3::new(0.0, 0.0, 0.2)),
+            ..ToolOutput::default()
+        }
+    }
+
+    fn moderated() -> DevicePose {
+        DevicePose {
+            render_mode: RenderMode::Moderated,
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            ..DevicePose::default()
+        }
+    }
+
+    #[test]
+    fn a_still_moderated_device_gets_only_heartbeats() {
+        let mut stream = ModelStream::new(DeadbandParams::default(), Vec3::zeros());
+        let out = contact(1.0, -3.0);
+        let mut sent = 0;
+        for tick in 0..1000 {
+            if stream
+                .command(f64::from(tick) * 0.001, &out, &moderated(), 3.3)
+                .is_some()
+            {
+                sent += 1;
+            }
+        }
+        // One at start, then every 11 ms.
+        assert!((85..=92).contains(&sent), "{sent} messages in 1 s");
+        assert_eq!(stream.counters().sent, sent);
+    }
+
+    #[test]
+    fn a_change_the_model_does_not_predict_is_sent_and_one_it_predicts_is_not() {
+        let mut stream = ModelStream::new(DeadbandParams::default(), Vec3::zeros());
+        let pose = moderated();
+        assert!(
+            stream
+                .command(0.0, &contact(1.0, -3.0), &pose, 3.3)
+                .is_some()
+        );
+        // Pressed 0.5 mm deeper with the force the model predicts (1 + 0.2 * 0.5): nothing to send.
+        assert!(
+            stream
+                .command(0.001, &contact(1.1, -3.5), &pose, 3.3)
+                .is_none()
+        );
+        // Same place, the force jumped by 0.2 N (the other surgeon pushed): sent.
+        assert!(
+            stream
+                .command(0.002, &contact(1.3, -3.0), &pose, 3.3)
+                .is_some()
+        );
+        // Contact ends: sent.
+        assert!(
+            stream
+                .command(0.003, &ToolOutput::default(), &pose, 3.3)
+                .is_some()
+        );
+    }
+
+    #[test]
+    fn an_indefinite_stiffness_is_never_sent() {
+        // Regression: a fitted correction along one normal on top of a solve along another made K indefinite,
+        // and the device refused every model until its silence rule ramped the force to zero.
+        let stream = ModelStream::new(DeadbandParams::default(), Vec3::zeros());
+        let mut out = contact(1.0, -3.0);
+        let a = Vec3::new(0.0, 0.6, 0.8);
+        let b = Vec3::new(0.0, 0.0, 1.0);
+        out.stiffness_n_per_mm = a * a.transpose() * 0.7 - b * b.transpose() * 0.5;
+        let model = stream.model(0.0, &out, 3.3);
+        model.validate().unwrap();
+    }
+
+    #[test]
+    fn a_direct_device_gets_every_tick_with_the_force_at_its_pose() {
+        let mut stream = ModelStream::new(DeadbandParams::default(), Vec3::new(10.0, 0.0, 0.0));
+        let mut out = contact(1.0, -3.0);
+        // The device pose is 1 mm deeper than the tool: the extrapolated force is 1.2 N.
+        out.device_world_mm = Vec3::new(0.0, 0.0, -4.0);
+        let pose = DevicePose {
+            seq: 7,
+            device_time_ns: 99,
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            ..DevicePose::default()
+        };
+        for tick in 0..5 {
+            let command = stream
+                .command(f64::from(tick) * 0.001, &out, &pose, 3.3)
+                .unwrap();
+            assert!((command.force_n[2] - 1.2).abs() < 1e-5, "{command:?}");
+            assert_eq!(
+                (command.echo_pose_seq, command.echo_device_time_ns),
+                (7, 99)
+            );
+            let ForceMode::LocalModel(model) = command.mode else {
+                panic!("no model")
+            };
+            // Device frame: the world shifted by the device origin.
+            assert_eq!(model.x0_mm, [-10.0, 0.0, -3.0]);
+            model.validate().unwrap();
+        }
+        // The force limit applies to f0 and to the direct force.
+        let command = stream
+            .command(0.01, &contact(9.0, -3.0), &pose, 2.0)
+            .unwrap();
+        let ForceMode::LocalModel(model) = command.mode else {
+            panic!("no model")
+        };
+        assert!((model.f0_n[2] - 2.0).abs() < 1e-5);
+        assert!(command.force_n[2] <= 2.0 + 1e-5);
+    }
+}

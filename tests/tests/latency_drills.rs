@@ -1,0 +1,317 @@
+//! Latency-moderated mode against its acceptance criteria, on virtual time: the real server tick and device
+//! loops, joined by seeded emulated links (tests/src/drill.rs). Deterministic: no wall-clock assertion.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use hapticserver::{HandPreset, HandScript, ModePolicy};
+use sinew::drill::{
+    DrillDevice, Link, drift_mm, energy_output_mj, felt_stiffness, hold_metrics,
+    rms_error_fraction, run_drill,
+};
+use sinew::harness::load_shipped_world;
+
+fn press(depth_mm: f32, descend_s: f32) -> HandScript {
+    HandScript::Press {
+        at_mm: [0.0; 3],
+        depth_mm,
+        approach_mm: 10.0,
+        descend_s,
+    }
+}
+
+fn device(hand: HandPreset, script: HandScript, link: Link, mode: ModePolicy) -> DrillDevice {
+    DrillDevice {
+        id: "left".into(),
+        hand,
+        script,
+        link,
+        mode,
+    }
+}
+
+/// How deep each hand aims (below the surface, mm) for a firm but unclamped hold on each pad.
+fn hold_depth_mm(world: &str, hand: HandPreset) -> f32 {
+    match (world, hand) {
+        ("pad.toml", HandPreset::Light) => 30.0,
+        ("pad.toml", HandPreset::Nominal) => 10.0,
+        // 4 mm: beyond 1.5 probe radii (6 mm) the frictionless probe's known deep-press ripple (issue 2) shows.
+        ("pad.toml", _) => 4.0,
+        (_, HandPreset::Light) => 12.0,
+        (_, HandPreset::Nominal) => 6.0,
+        _ => 2.0,
+    }
+}
+
+/// Press, then hold; measure the last 2 s of a 5 s run (the hold starts at 1 s).
+fn stability_row(world_name: &str, hand: HandPreset, rtt_ms: f64, mode: ModePolicy) -> String {
+    let world = load_shipped_world(world_name).unwrap();
+    let link = Link {
+        rtt_ms,
+        jitter_ms: 20.0_f64.min(rtt_ms / 2.0),
+        loss: 0.05,
+        seed: 11,
+    };
+    let depth = hold_depth_mm(world_name, hand);
+    let result = run_drill(&world, &[device(hand, press(depth, 1.0), link, mode)], 5.0).unwrap();
+    let trace = &result.traces[0];
+    let hold = hold_metrics(trace, 3.0, 5.0);
+    let energy = energy_output_mj(trace);
+    let stable = hold.force_p2p_n < 0.05 && hold.velocity_rms_mm_s < 1.0 && energy <= 1.0;
+    format!(
+        "{world_name} {} {rtt_ms} ms {}: p2p {:.4} N, v_rms {:.3} mm/s, energy out {energy:.3} mJ, F {:.2} N, \
+         refused {}, stale {} -> {}",
+        hand.name(),
+        mode.name(),
+        hold.force_p2p_n,
+        hold.velocity_rms_mm_s,
+        hold.mean_force_n,
+        result.rejected[0],
+        result.stale_events[0],
+        if stable { "stable" } else { "UNSTABLE" }
+    )
+}
+
+fn assert_all_stable(cases: &[(&str, HandPreset)]) {
+    let mut rows = Vec::new();
+    for &(world, hand) in cases {
+        for rtt_ms in [10.0, 50.0, 100.0, 200.0] {
+            rows.push(stability_row(world, hand, rtt_ms, ModePolicy::Moderated));
+        }
+    }
+    let failures: Vec<&String> = rows.iter().filter(|r| r.ends_with("UNSTABLE")).collect();
+    assert!(failures.is_empty(), "unstable:\n{}", rows.join("\n"));
+}
+
+#[test]
+fn moderated_mode_holds_still_on_both_pads_with_every_hand_up_to_200_ms_with_jitter_and_loss() {
+    assert_all_stable(&[
+        ("pad.toml", HandPreset::Light),
+        ("pad.toml", HandPreset::Nominal),
+        ("pad_stiff.toml", HandPreset::Light),
+        ("pad_stiff.toml", HandPreset::Nominal),
+        ("pad_stiff.toml", HandPreset::Firm),
+    ]);
+}
+
+#[test]
+#[ignore = "not met yet: the firm hand (1000 N/m) holding 4 mm into the soft pad ripples at 0.07-0.08 N peak to \
+            peak (limit 0.05) at every round trip from 10 ms, while passive (energy out -3.2 to -3.8 mJ) and \
+            under 1 mm/s; not a delay instability, not diagnosed"]
+fn the_firm_hand_holds_still_on_the_soft_pad() {
+    assert_all_stable(&[("pad.toml", HandPreset::Firm)]);
+}
+
+#[test]
+fn direct_mode_at_the_same_settings_fails_where_theory_says() {
+    // A streamed force is passive only while hand damping b > K (T/2 + d): the light hand (1.5 N s/m) on
+    // the pad's ~200 N/m contact at 100 ms round trip is far outside that.
+    let row = stability_row("pad.toml", HandPreset::Light, 100.0, ModePolicy::Direct);
+    assert!(row.ends_with("UNSTABLE"), "{row}");
+    // ... while moderated mode holds the same hand still at the same delay, jitter and loss.
+    let row = stability_row("pad.toml", HandPreset::Light, 100.0, ModePolicy::Moderated);
+    assert!(row.ends_with("stable"), "{row}");
+}
+
+/// A slow press, 1-5 mm into the pad over 6 s: the felt stiffness at each round trip against zero delay.
+#[test]
+fn felt_stiffness_stays_within_ten_percent_of_zero_delay_up_to_200_ms() {
+    let world = load_shipped_world("pad.toml").unwrap();
+    let run = |rtt_ms: f64| {
+        let result = run_drill(
+            &world,
+            &[device(
+                HandPreset::Firm,
+                // The firm hand follows its target closely: 18 mm of travel over 6 s, 8 mm below the surface.
+                press(8.0, 6.0),
+                Link::rtt(rtt_ms),
+                ModePolicy::Moderated,
+            )],
+            6.5,
+        )
+        .unwrap();
+        felt_stiffness(&result.traces[0], 1.0, 5.0).expect("the press reached 5 mm")
+    };
+    let reference = run(0.0);
+    assert!(reference > 0.05, "zero-delay stiffness {reference} N/mm");
+    for rtt_ms in [50.0, 100.0, 200.0] {
+        let ratio = run(rtt_ms) / reference;
+        assert!(
+            (0.9..=1.1).contains(&ratio),
+            "felt stiffness ratio {ratio:.3} at {rtt_ms} ms (zero delay {reference:.3} N/mm)"
+        );
+    }
+}
+
+/// Lateral strokes of +-8 mm in a 4 mm dent with period `period_s`, at 100 ms round trip and at zero delay:
+/// the RMS force error (fraction of peak) and the drift at equal timestamps.
+fn stroke_run(period_s: f32) -> (f32, f32, f32) {
+    let world = load_shipped_world("pad.toml").unwrap();
+    let stroke = HandScript::PressAndStroke {
+        at_mm: [0.0; 3],
+        depth_mm: 4.0,
+        approach_mm: 10.0,
+        descend_s: 1.0,
+        stroke_mm: 8.0,
+        stroke_period_s: period_s,
+    };
+    let run = |rtt_ms: f64| {
+        run_drill(
+            &world,
+            &[device(
+                HandPreset::Firm,
+                stroke.clone(),
+                Link::rtt(rtt_ms),
+                ModePolicy::Moderated,
+            )],
+            5.0,
+        )
+        .unwrap()
+    };
+    let reference = run(0.0);
+    let delayed = run(100.0);
+    let error = rms_error_fraction(&delayed.traces[0], &reference.traces[0], 2.0, 5.0);
+    let (drift, speed) = drift_mm(&delayed, 0, 2.0, 5.0);
+    (error, drift, speed)
+}
+
+#[test]
+fn force_tracks_a_zero_delay_run_at_half_a_hertz_and_the_server_tool_stays_with_the_device() {
+    let (error, drift, speed) = stroke_run(2.0);
+    assert!(
+        error <= 0.10,
+        "0.5 Hz strokes: RMS force error {error:.3} of peak"
+    );
+    assert!(drift < 3.0, "drift {drift:.2} mm at up to {speed:.0} mm/s");
+    // At rest: under 1 mm (the coupling's F / k_c).
+    let world = load_shipped_world("pad.toml").unwrap();
+    let result = run_drill(
+        &world,
+        &[device(
+            HandPreset::Nominal,
+            press(10.0, 1.0),
+            Link::rtt(100.0),
+            ModePolicy::Moderated,
+        )],
+        4.0,
+    )
+    .unwrap();
+    let (drift, _) = drift_mm(&result, 0, 3.0, 4.0);
+    assert!(drift < 1.0, "drift at rest {drift:.3} mm");
+}
+
+#[test]
+#[ignore = "not met yet: 2 Hz lateral strokes at 100 ms give an RMS force error of 0.77 of peak (goal 0.20); \
+            the model has no tangential stiffness and its f0 is 100 ms old when the dent moves at 100 mm/s"]
+fn force_tracks_a_zero_delay_run_at_two_hertz() {
+    let (error, drift, speed) = stroke_run(0.5);
+    assert!(
+        error <= 0.20,
+        "2 Hz strokes: RMS force error {error:.3} of peak"
+    );
+    assert!(drift < 3.0, "drift {drift:.2} mm at up to {speed:.0} mm/s");
+}
+
+#[test]
+fn holding_still_costs_at_most_100_messages_a_second_and_no_silence_at_5_percent_loss() {
+    let world = load_shipped_world("pad.toml").unwrap();
+    for loss in [0.01, 0.05] {
+        let result = run_drill(
+            &world,
+            &[device(
+                HandPreset::Nominal,
+                press(10.0, 1.0),
+                Link {
+                    rtt_ms: 100.0,
+                    jitter_ms: 0.0,
+                    loss,
+                    seed: 5,
+                },
+                ModePolicy::Moderated,
+            )],
+            12.0,
+        )
+        .unwrap();
+        // 10 s of holding after the press: the deadband leaves the heartbeat.
+        let per_s = result.commands_sent[0] as f64 / 12.0;
+        assert!(per_s <= 100.0, "{per_s:.0} messages/s at {loss} loss");
+        assert_eq!(
+            result.stale_events[0], 0,
+            "a silence reached the device's 50 ms rule"
+        );
+        assert!(
+            result.max_force_n[0] < 3.3,
+            "the force never reached the clamp"
+        );
+        assert_eq!(result.rejected[0], 0);
+    }
+}
+
+/// Two surgeons: left at 100 ms pushes 1 Hz pulses into the pad between them; right at 10 ms holds its tool in
+/// the tissue and must feel the push as it would at zero delay. The passivity controller is on in moderated
+/// mode; the server's energy budget is what lets left's energy reach right's hand.
+#[test]
+fn right_feels_lefts_push_through_the_tissue_as_at_zero_delay() {
+    let world = load_shipped_world("pad.toml").unwrap();
+    let run = |left_rtt_ms: f64, right_rtt_ms: f64| {
+        let left = DrillDevice {
+            id: "left".into(),
+            hand: HandPreset::Firm,
+            script: HandScript::PressAndPulse {
+                at_mm: [14.0, 0.0, 0.0],
+                depth_mm: 3.0,
+                approach_mm: 10.0,
+                descend_s: 1.0,
+                pulse_mm: 4.0,
+                pulse_period_s: 1.0,
+            },
+            link: Link::rtt(left_rtt_ms),
+            mode: ModePolicy::Moderated,
+        };
+        let right = DrillDevice {
+            id: "right".into(),
+            hand: HandPreset::Nominal,
+            script: HandScript::Press {
+                at_mm: [-14.0, 0.0, 0.0],
+                depth_mm: 10.0,
+                approach_mm: 10.0,
+                descend_s: 1.0,
+            },
+            link: Link::rtt(right_rtt_ms),
+            mode: ModePolicy::Moderated,
+        };
+        run_drill(&world, &[left, right], 6.0).unwrap()
+    };
+    let amplitude = |result: &sinew::drill::DrillResult, device: usize| {
+        let window: Vec<f32> = result.traces[device]
+            .iter()
+            .filter(|s| s.t_s >= 3.0)
+            .map(|s| s.force_n[2])
+            .collect();
+        let (lo, hi) = window
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(l, h), &f| (l.min(f), h.max(f)));
+        hi - lo
+    };
+    let reference = run(0.0, 0.0);
+    let delayed = run(100.0, 10.0);
+    let felt_reference = amplitude(&reference, 1);
+    let felt = amplitude(&delayed, 1);
+    assert!(
+        felt_reference > 0.05,
+        "right must feel the push at all: {felt_reference} N"
+    );
+    let ratio = felt / felt_reference;
+    assert!(
+        (0.85..=1.15).contains(&ratio),
+        "right feels {felt:.3} N against {felt_reference:.3} N at zero delay (ratio {ratio:.2})"
+    );
+    // A tug of war with both at 200 ms stays stable.
+    let tug = run(200.0, 200.0);
+    for device in 0..2 {
+        let hold = hold_metrics(&tug.traces[device], 4.0, 6.0);
+        assert!(
+            hold.velocity_rms_mm_s < 20.0 && energy_output_mj(&tug.traces[device]) <= 1.0,
+            "device {device}: {hold:?}"
+        );
+        assert_eq!(tug.rejected[device], 0);
+    }
+}
