@@ -211,37 +211,6 @@ pub struct ToolOutput {
     pub energy_allowance_mj: f32,
 }
 
-impl ToolOutput {
-    /// The local model's force at a device position and velocity (world frame): `f0 - K (x - x0) - D (v -
-    /// v0)`, one-sided along the contact normal (zero once the tissue would pull), clamped to `max_force_n`.
-    /// What a device rendering directly is sent. Pure, no allocation.
-    pub fn force_at_n(
-        &self,
-        device_mm: &Vec3,
-        device_velocity_mm_s: &Vec3,
-        max_force_n: f32,
-    ) -> Vec3 {
-        if !self.in_contact {
-            return Vec3::zeros();
-        }
-        let f0 = self.force_world_n;
-        let Some(normal) = f0.try_normalize(1e-9) else {
-            return Vec3::zeros();
-        };
-        let spring = f0 - self.stiffness_n_per_mm * (device_mm - self.position_world_mm);
-        if spring.dot(&normal) <= 0.0 {
-            return Vec3::zeros();
-        }
-        let mut f =
-            spring - self.damping_n_s_per_mm * (device_velocity_mm_s - self.velocity_world_mm_s);
-        let along = f.dot(&normal);
-        if along < 0.0 {
-            f -= normal * along;
-        }
-        limit_force(f, max_force_n, 1).force_world_n
-    }
-}
-
 /// Times the anti-divergence guard may halve a tick's step (down to 1/16 of the planned one) before it gives
 /// up: a broken object is then reset to rest, a merely energetic one kept.
 pub const MAX_HALVINGS: u32 = 4;

@@ -3,11 +3,14 @@
 //!
 //! Owns: [`harness`] (start a server, simulated hapticservers and viewers on a loopback zenoh endpoint, each
 //! with its own real zenoh session, and measure across them), [`demo`] (the live demo with its per-second
-//! lines and final summary) and [`drill`] (latency drills on virtual time: the real server tick and device loops
-//! joined by emulated links).
+//! lines and final summary), [`drill`] (latency drills on virtual time: the real server tick and device loops
+//! joined by emulated links), [`netns`] (a lab of network namespaces joined by a real path with delay, jitter
+//! and loss) and [`netem`] (the packet bridge on that path, the `sinew-netem` binary).
 //! Must not: contain role logic; everything here calls the role crates' public APIs.
 #![warn(missing_docs)]
 
 pub mod demo;
 pub mod drill;
 pub mod harness;
+pub mod netem;
+pub mod netns;

@@ -34,8 +34,8 @@ pub struct ForceCommand {
     pub echo_pose_seq: u64,
     /// `device_time_ns` of the pose this force answers: now minus this is the round trip.
     pub echo_device_time_ns: u64,
-    /// Force to render on the stylus in direct mode, newtons, device frame: the local model evaluated at the
-    /// pose this command answers.
+    /// Force to render on the stylus in direct mode, newtons, device frame: the tissue's force on the tool
+    /// after the tick that used the pose this command answers (the local model's `f0`).
     pub force_n: [f32; 3],
     /// How to render it.
     pub mode: ForceMode,

@@ -2,7 +2,8 @@
 //!
 //! Owns: [`ModelStream`] (per device: the last model sent, the sequence number, counters) and
 //! [`DeadbandParams`]. Every tick [`ModelStream::command`] turns the tool's [`ToolOutput`] into a
-//! [`ForceCommand`] carrying both the direct force (the model evaluated at the pose it answers) and the model
+//! [`ForceCommand`] carrying both the direct force (the tissue's force on the tool, as a virtual coupling
+//! renders it) and the model
 //! itself, and decides whether it is worth sending:
 //! - a device rendering directly gets every tick's command (its force is only as fresh as the last message);
 //! - a device rendering the model gets one only when the model changed perceptibly, and at least every
@@ -171,11 +172,11 @@ impl ModelStream {
             self.counters.suppressed += 1;
             return None;
         }
-        let force = out.force_at_n(
-            &out.device_world_mm,
-            &out.device_velocity_world_mm_s,
-            max_force_n,
-        );
+        // Direct mode streams the tissue's force on the tool (its f0), as a classic virtual coupling
+        // renders its spring: extrapolating to the device pose (f0 - K (x_d - x0) - D (v_d - v0)) carried the
+        // noise of the fitted K and of the device velocity into a streamed force and kept a held probe from
+        // settling (end_to_end::both_pressing...).
+        let force = Vec3::from(model.f0_n);
         self.last_sent = Some(model);
         self.last_sent_s = now_s;
         self.seq += 1;
@@ -326,10 +327,11 @@ mod tests {
     }
 
     #[test]
-    fn a_direct_device_gets_every_tick_with_the_force_at_its_pose() {
+    fn a_direct_device_gets_every_tick_with_the_force_on_its_tool() {
         let mut stream = ModelStream::new(DeadbandParams::default(), Vec3::new(10.0, 0.0, 0.0));
         let mut out = contact(1.0, -3.0);
-        // The device pose is 1 mm deeper than the tool: the extrapolated force is 1.2 N.
+        // The device pose is 1 mm deeper than the tool (the coupling's lag): direct mode streams the tissue's
+        // force on the tool, 1.0 N, not an extrapolation to the device (1.2 N), which carried K's noise.
         out.device_world_mm = Vec3::new(0.0, 0.0, -4.0);
         let pose = DevicePose {
             seq: 7,
@@ -341,7 +343,7 @@ mod tests {
             let command = stream
                 .command(f64::from(tick) * 0.001, &out, &pose, 3.3)
                 .unwrap();
-            assert!((command.force_n[2] - 1.2).abs() < 1e-5, "{command:?}");
+            assert!((command.force_n[2] - 1.0).abs() < 1e-5, "{command:?}");
             assert_eq!(
                 (command.echo_pose_seq, command.echo_device_time_ns),
                 (7, 99)

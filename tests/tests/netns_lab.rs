@@ -1,0 +1,191 @@
+//! The namespace lab end to end: a path of 20 ms each way with 5% loss between a server namespace and a
+//! device namespace carries ping (RTT about 40 ms) and a real `sinew-server` + `hapticserver` session (forces
+//! arrive, round trip >= 40 ms), and every namespace is gone afterwards, also when a test panics.
+//!
+//! Skips (passes, printing why) unless run as root with iproute2. Needs the workspace binaries
+//! (`cargo test --workspace --release` builds them) and `ping` (iputils-ping) for the ping part.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use sinew::netns::{LabConfig, NetnsLab, role_binary, wait_output};
+
+fn skip_unless_available(test: &str) -> bool {
+    match NetnsLab::available() {
+        Ok(()) => false,
+        Err(reason) => {
+            println!("SKIP {test}: {reason}");
+            true
+        }
+    }
+}
+
+fn assert_gone(namespaces: &[String]) {
+    let left = NetnsLab::existing_lab_namespaces();
+    for ns in namespaces {
+        assert!(
+            !left.contains(ns),
+            "namespace {ns} still exists after the lab was dropped"
+        );
+    }
+}
+
+fn ping_rtts_ms(output: &str) -> Vec<f64> {
+    output
+        .lines()
+        .filter_map(|line| line.split("time=").nth(1))
+        .filter_map(|rest| rest.split_whitespace().next()?.parse().ok())
+        .collect()
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+/// `key N` in a status line, e.g. `forces_rx 5123`.
+fn number_after(line: &str, key: &str) -> Option<f64> {
+    line.split(key)
+        .nth(1)?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// (lost, forwarded) summed over both directions of the relay's report.
+fn relay_loss(report: &str) -> (u64, u64) {
+    report
+        .lines()
+        .filter(|l| l.contains("forwarded"))
+        .fold((0, 0), |(lost, forwarded), line| {
+            let n = |key| number_after(line, key).unwrap_or(0.0) as u64;
+            (lost + n(" lost "), forwarded + n(" forwarded "))
+        })
+}
+
+#[test]
+fn a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes() {
+    if skip_unless_available("a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes") {
+        return;
+    }
+    let server_bin = role_binary("sinew-server").unwrap();
+    let haptic_bin = role_binary("hapticserver").unwrap();
+    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let mut lab = NetnsLab::new(LabConfig::symmetric(20.0, 0.0, 0.05, 42)).unwrap();
+    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let server_ip = lab.server_ip().to_string();
+
+    // ping from the device side to the server side (ARP crosses the relay first).
+    let has_ping = Command::new("ping").arg("-V").output().is_ok();
+    if has_ping {
+        let mut ping = Command::new("ping");
+        ping.args(["-n", "-c", "20", "-i", "0.05", "-W", "2", &server_ip]);
+        let output = wait_output(
+            lab.spawn_in_device_ns(&ping).unwrap(),
+            Duration::from_secs(30),
+        )
+        .unwrap();
+        let text = String::from_utf8_lossy(&output.stdout);
+        let mut rtts = ping_rtts_ms(&text);
+        println!(
+            "ping: {} of 20 replies, RTT median {:.1} ms\n{text}",
+            rtts.len(),
+            if rtts.is_empty() {
+                f64::NAN
+            } else {
+                median(&mut rtts.clone())
+            }
+        );
+        assert!(rtts.len() >= 10, "too few ping replies: {text}");
+        let rtt = median(&mut rtts);
+        assert!(
+            (35.0..70.0).contains(&rtt),
+            "ping median RTT {rtt} ms, expected about 40"
+        );
+    } else {
+        println!("SKIP the ping part: no `ping` here (install iputils-ping)");
+    }
+
+    // The real roles across the path.
+    let listen = format!("tcp/{server_ip}:7447");
+    let mut server = Command::new(&server_bin);
+    server
+        .arg("--world")
+        .arg(&world)
+        .args(["--listen", &listen, "--duration-s", "9"]);
+    let server = lab.spawn_in_server_ns(&server).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let mut haptic = Command::new(&haptic_bin);
+    haptic.args([
+        "--id",
+        "left",
+        "--script",
+        "press",
+        "--connect",
+        &listen,
+        "--duration-s",
+        "6",
+    ]);
+    let haptic = lab.spawn_in_device_ns(&haptic).unwrap();
+    let haptic = wait_output(haptic, Duration::from_secs(30)).unwrap();
+    let server = wait_output(server, Duration::from_secs(30)).unwrap();
+    let haptic_out = String::from_utf8_lossy(&haptic.stdout);
+    let final_line = haptic_out
+        .lines()
+        .find(|l| l.starts_with("final:"))
+        .unwrap_or_else(|| {
+            panic!(
+                "no `final:` line from hapticserver ({}):\n{haptic_out}\n{}\nserver:\n{}",
+                haptic.status,
+                String::from_utf8_lossy(&haptic.stderr),
+                String::from_utf8_lossy(&server.stdout)
+            )
+        });
+    println!("{final_line}");
+    let forces = number_after(final_line, "forces_rx ").unwrap();
+    let rtt_p50_us = number_after(final_line, "rtt p50 ").unwrap();
+    assert!(forces > 0.0, "no force arrived: {final_line}");
+    assert!(
+        rtt_p50_us >= 40_000.0,
+        "round trip p50 {rtt_p50_us} us is below the path's 40 ms: {final_line}"
+    );
+
+    let report = lab.stop_relay().unwrap();
+    println!("{report}");
+    let (lost, forwarded) = relay_loss(&report);
+    let rate = lost as f64 / (lost + forwarded).max(1) as f64;
+    assert!(
+        forwarded > 1000 && (0.02..0.09).contains(&rate),
+        "relay lost {lost} of {} frames ({rate:.3}), expected about 5%",
+        lost + forwarded
+    );
+    drop(lab);
+    assert_gone(&namespaces);
+}
+
+#[test]
+fn namespaces_are_removed_even_when_the_test_panics() {
+    if skip_unless_available("namespaces_are_removed_even_when_the_test_panics") {
+        return;
+    }
+    let mut names = Vec::new();
+    let mut child = None;
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let mut lab = NetnsLab::new(LabConfig::symmetric(1.0, 0.0, 0.0, 1)).unwrap();
+        names = lab.namespaces().map(str::to_owned).to_vec();
+        let mut sleeper = Command::new("sleep");
+        sleeper.arg("600");
+        child = Some(lab.spawn_in_server_ns(&sleeper).unwrap());
+        panic!("on purpose, with a child running in the lab");
+    }));
+    assert!(outcome.is_err());
+    let ended = wait_output(child.unwrap(), Duration::from_secs(5))
+        .expect("the lab's drop ends the children it started");
+    assert!(!ended.status.success(), "{}", ended.status);
+    assert_eq!(names.len(), 3);
+    assert_gone(&names);
+}
