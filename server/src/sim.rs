@@ -329,7 +329,10 @@ impl Sim {
                 coupling: VirtualCoupling::new(spec.coupling, origin),
                 device_mm: origin,
                 device_velocity_mm_s: Vec3::zeros(),
-                stiffness: objects.iter().map(|_| ContactStiffness::new()).collect(),
+                stiffness: objects
+                    .iter()
+                    .map(|o| ContactStiffness::new(o.model.node_count()))
+                    .collect(),
                 last_force_n: Vec3::zeros(),
                 contact_k: Matrix3::zeros(),
                 plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,

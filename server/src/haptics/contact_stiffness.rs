@@ -120,9 +120,30 @@ impl ContactStiffness {
     /// Relative residual at which a right-hand side has converged.
     pub const TOLERANCE: f32 = 1e-3;
 
-    /// A solver with no result yet.
-    pub fn new() -> Self {
-        Self::default()
+    /// Largest local problem, nodes (8 rings around a 4 mm probe on the pad's 1 mm grid is about 600).
+    pub const MAX_NODES: usize = 4096;
+    /// Largest number of springs in the local problem.
+    pub const MAX_SPRINGS: usize = Self::MAX_NODES * 8;
+
+    /// A solver for an object of `node_count` nodes, with every buffer allocated now at its largest size, so
+    /// no tick ever grows one.
+    pub fn new(node_count: usize) -> Self {
+        let m = Self::MAX_NODES.min(node_count);
+        let vectors = || Vec::with_capacity(m);
+        Self {
+            local_of: vec![NONE; node_count],
+            nodes: Vec::with_capacity(m),
+            role: Vec::with_capacity(m),
+            anchor_n_per_mm: Vec::with_capacity(m),
+            drag_n_s_per_mm: Vec::with_capacity(m),
+            springs: Vec::with_capacity(Self::MAX_SPRINGS),
+            diag: vectors(),
+            u: [vectors(), vectors(), vectors()],
+            r: [vectors(), vectors(), vectors()],
+            p: [vectors(), vectors(), vectors()],
+            ap: [vectors(), vectors(), vectors()],
+            ..Self::default()
+        }
     }
 
     /// The latest finished result (None before the first solve, and after [`Self::forget`]).
@@ -175,7 +196,11 @@ impl ContactStiffness {
         self.nodes.clear();
     }
 
-    fn local(&mut self, g: usize, role: u8, model: &MassSpringModel) -> u32 {
+    /// Add global node `g` to the local problem (false when it is full).
+    fn local(&mut self, g: usize, role: u8, model: &MassSpringModel) -> bool {
+        if self.nodes.len() >= Self::MAX_NODES.min(self.local_of.len()) {
+            return false;
+        }
         let l = self.nodes.len() as u32;
         self.local_of[g] = l;
         self.nodes.push(g as u32);
@@ -189,7 +214,7 @@ impl ContactStiffness {
         self.anchor_n_per_mm.push(anchor);
         self.drag_n_s_per_mm
             .push(model.mass_kg()[g] * model.drag_per_s() / crate::tissue::MM_PER_M);
-        l
+        true
     }
 
     #[allow(clippy::needless_range_loop)] // several buffers indexed in step
@@ -220,10 +245,9 @@ impl ContactStiffness {
         let push_dirs = model.rest_normals();
         for (&g, normal) in held.iter().zip(tool_normals) {
             let g = g as usize;
-            if g >= n || self.local_of[g] != NONE {
+            if g >= n || self.local_of[g] != NONE || !self.local(g, HELD, model) {
                 continue;
             }
-            self.local(g, HELD, model);
             let d = -push_dirs[g];
             let along = normal.dot(&d);
             // Only the contact normal's mode is solved (see the module doc); the other two stay zero.
@@ -247,8 +271,7 @@ impl ContactStiffness {
                 let g = self.nodes[l] as usize;
                 for &s in model.node_springs(g) {
                     let other = model.other_end(s, g);
-                    if self.local_of[other] == NONE {
-                        self.local(other, FREE, model);
+                    if self.local_of[other] == NONE && self.local(other, FREE, model) {
                         for dir in 0..3 {
                             self.u[dir].push(Vec3::zeros());
                         }
@@ -269,6 +292,9 @@ impl ContactStiffness {
                 let lo = self.local_of[other];
                 // Each spring once: from its lower local index, or from its only local end.
                 if lo != NONE && (lo as usize) < l {
+                    continue;
+                }
+                if self.springs.len() >= Self::MAX_SPRINGS {
                     continue;
                 }
                 let (ia, ib, rest, k, c) = springs.get(s as usize);
