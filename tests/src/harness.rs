@@ -87,13 +87,15 @@ pub fn start_sim_device(
     endpoint: &str,
     pacing: Pacing,
 ) -> anyhow::Result<HapticHandle> {
-    let mut config = HapticConfig::new(scene, id, Box::new(SimDevice::new(script)));
-    config.network = NetworkOptions {
-        connect: vec![endpoint.to_owned()],
-        ..NetworkOptions::default()
-    };
-    config.spin_accuracy_ns = pacing.native_accuracy_ns();
-    HapticServer::start(config).with_context(|| format!("starting hapticserver `{id}`"))
+    start_sim_device_emulated(
+        scene,
+        id,
+        script,
+        endpoint,
+        pacing,
+        hapticserver::ModePolicy::default(),
+        sinew_protocol::rt::EmulationConfig::default(),
+    )
 }
 
 /// [`start_sim_device`] with a render-mode policy and emulated delay, jitter and loss on its poses.
