@@ -187,9 +187,10 @@ fn non_finite_tool_pose_releases_the_tool_instead_of_corrupting_the_tissue() {
 #[test]
 fn held_probe_force_has_no_ripple_under_a_still_tool() {
     let mut jitter = 0x9E37_79B9u32;
-    // Up to 1.5 probe radii. Deeper, the sheet engulfs the probe and a few-% cycle remains (known limitation:
-    // needs a stick-slip friction contact).
-    for depth in [2.0, 4.0, 5.0] {
+    // Past 1.5 probe radii the dent's walls close in above the probe's equator. Until side-entering nodes left
+    // radially, they were pushed along the tissue normal through the whole probe, sprang back and re-entered: a
+    // 5-tick, ~3% (30 mN of 1.1 N) chatter from about 5.8 mm deep, with a rigid or a coupled tool alike.
+    for depth in [2.0, 4.0, 5.0, 5.9, 6.166, 7.0] {
         let (lo, hi) = still_tool_force_range(pad(), depth, &mut jitter);
         assert!(lo > 0.05, "force {lo} at depth {depth}");
         // Imperceptible: under 2% of the force (the just-noticeable difference for force is about 7%).
@@ -200,21 +201,6 @@ fn held_probe_force_has_no_ripple_under_a_still_tool() {
             hi - lo
         );
     }
-}
-
-#[test]
-#[ignore = "regression (issue 7's virtual coupling): 1.5 probe radii (6.166 mm) deep, the held probe ripples \
-            2.2-2.9% (25-32 mN of 1.1 N) against the 2% bound, with the default 5 N/mm coupling and with a rigid \
-            one; 50 N/mm happened to pass but destabilises the light hand on the stiff pad; not diagnosed"]
-fn held_probe_force_has_no_ripple_under_a_still_tool_at_one_and_a_half_radii() {
-    let mut jitter = 0x9E37_79B9u32;
-    let depth = 6.166;
-    let (lo, hi) = still_tool_force_range(pad(), depth, &mut jitter);
-    assert!(
-        hi - lo < 0.02 * hi,
-        "force ripples {:.4} N under a still tool {depth} mm deep ({lo:.4}..{hi:.4})",
-        hi - lo
-    );
 }
 
 /// Regression: a pad settling after a poke decayed its velocities and z coordinates into subnormal floats,

@@ -3,7 +3,9 @@
 //! Each tissue node found inside the tool is pushed into the tissue (along minus its rest outward normal) until
 //! it reaches the tool surface, and it is held there with the tool's (quasi-static) velocity: the surface
 //! yields and stays put. Pushing along the tissue normal, not radially, keeps a sheet from sliding round a tool and
-//! wrapping over it. Held nodes act on the tool through its surface normal `n_i` there: with `f_i` the node's
+//! wrapping over it. The exception is a node in the half of a sphere or capsule that faces out of the tissue (a
+//! deep dent's wall closing in above the probe): it entered from the side and leaves radially, to the nearest
+//! surface point, instead of being pushed through the whole tool. Held nodes act on the tool through its surface normal `n_i` there: with `f_i` the node's
 //! internal force, the tool feels `(f_i . n_i) n_i` when `f_i . n_i < 0` (frictionless, push-only). The sum
 //! points out of the tissue, grows with depth, and resists lateral strokes through the dent's walls.
 
