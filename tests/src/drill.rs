@@ -389,6 +389,24 @@ pub fn rms_error_fraction(
     ((sum2 / count as f64).sqrt() as f32) / peak
 }
 
+/// Amplitude of the rendered force's z component at `frequency_hz` over `from_s..to_s`, N (a lock-in: twice
+/// the magnitude of the force's Fourier coefficient there; over a whole number of periods a steady offset and
+/// the other harmonics of the window cancel). What a hand feels of a periodic push, without the tick-level
+/// noise a peak-to-peak reading would add.
+pub fn force_amplitude_at(trace: &[TraceSample], frequency_hz: f64, from_s: f64, to_s: f64) -> f32 {
+    let (mut re, mut im, mut count) = (0.0f64, 0.0f64, 0usize);
+    for s in trace.iter().filter(|s| s.t_s >= from_s && s.t_s < to_s) {
+        let phase = std::f64::consts::TAU * frequency_hz * s.t_s;
+        re += f64::from(s.force_n[2]) * phase.cos();
+        im += f64::from(s.force_n[2]) * phase.sin();
+        count += 1;
+    }
+    if count == 0 {
+        return f32::NAN;
+    }
+    (2.0 * re.hypot(im) / count as f64) as f32
+}
+
 /// The largest change of the rendered force between two consecutive ticks over `from_s..to_s`, N.
 pub fn max_force_step(trace: &[TraceSample], from_s: f64, to_s: f64) -> f32 {
     trace

@@ -4,8 +4,8 @@
 
 use hapticserver::{HandPreset, HandScript, ModePolicy};
 use sinew::drill::{
-    DrillDevice, Link, drift_mm, energy_output_mj, felt_stiffness, hold_metrics,
-    rms_error_fraction, run_drill,
+    DrillDevice, Link, drift_mm, energy_output_mj, felt_stiffness, force_amplitude_at,
+    hold_metrics, rms_error_fraction, run_drill,
 };
 use sinew::harness::load_shipped_world;
 
@@ -93,9 +93,6 @@ fn moderated_mode_holds_still_on_both_pads_with_every_hand_up_to_200_ms_with_jit
 }
 
 #[test]
-#[ignore = "not met yet: the firm hand (1000 N/m) holding 4 mm into the soft pad ripples at 0.07-0.08 N peak to \
-            peak (limit 0.05) at every round trip from 10 ms, while passive (energy out -3.2 to -3.8 mJ) and \
-            under 1 mm/s; not a delay instability, not diagnosed"]
 fn the_firm_hand_holds_still_on_the_soft_pad() {
     assert_all_stable(&[("pad.toml", HandPreset::Firm)]);
 }
@@ -199,7 +196,7 @@ fn force_tracks_a_zero_delay_run_at_half_a_hertz_and_the_server_tool_stays_with_
 }
 
 #[test]
-#[ignore = "not met yet: 2 Hz lateral strokes at 100 ms give an RMS force error of 0.77 of peak (goal 0.20); \
+#[ignore = "not met yet: 2 Hz lateral strokes at 100 ms give an RMS force error of 0.95 of peak (goal 0.20; 0.77 before the probe's radial exit); \
             the model has no tangential stiffness and its f0 is 100 ms old when the dent moves at 100 mm/s"]
 fn force_tracks_a_zero_delay_run_at_two_hertz() {
     let (error, drift, speed) = stroke_run(0.5);
@@ -280,26 +277,24 @@ fn right_feels_lefts_push_through_the_tissue_as_at_zero_delay() {
         };
         run_drill(&world, &[left, right], 6.0).unwrap()
     };
-    let amplitude = |result: &sinew::drill::DrillResult, device: usize| {
-        let window: Vec<f32> = result.traces[device]
-            .iter()
-            .filter(|s| s.t_s >= 3.0)
-            .map(|s| s.force_n[2])
-            .collect();
-        let (lo, hi) = window
-            .iter()
-            .fold((f32::MAX, f32::MIN), |(l, h), &f| (l.min(f), h.max(f)));
-        hi - lo
+    // Three whole periods of the 1 Hz push; 4/3 and 5/3 Hz are orthogonal to it over that window and measure
+    // what is not the push (tissue noise, contact chatter).
+    let amplitude = |result: &sinew::drill::DrillResult, hz: f64| {
+        force_amplitude_at(&result.traces[1], hz, 3.0, 6.0)
     };
     let reference = run(0.0, 0.0);
     let delayed = run(100.0, 10.0);
-    let felt_reference = amplitude(&reference, 1);
-    let felt = amplitude(&delayed, 1);
+    let felt_reference = amplitude(&reference, 1.0);
+    let felt = amplitude(&delayed, 1.0);
+    let noise = amplitude(&reference, 4.0 / 3.0).max(amplitude(&reference, 5.0 / 3.0));
     assert!(
-        felt_reference > 0.05,
-        "right must feel the push at all: {felt_reference} N"
+        felt_reference > 0.01 && felt_reference > 10.0 * noise,
+        "right must feel the push at all: {felt_reference} N at 1 Hz, {noise} N beside it"
     );
     let ratio = felt / felt_reference;
+    println!(
+        "right feels {felt:.4} N at 1 Hz at 100/10 ms, {felt_reference:.4} N at zero delay (noise {noise:.5} N)"
+    );
     assert!(
         (0.85..=1.15).contains(&ratio),
         "right feels {felt:.3} N against {felt_reference:.3} N at zero delay (ratio {ratio:.2})"
