@@ -151,6 +151,7 @@ impl HapticServer {
             report: Arc::new(Mutex::new(HapticReport::new(&device_id))),
             inbox: inbox.clone(),
             trace: Arc::new(Mutex::new(Trace::default())),
+            clock,
         };
 
         let mut haptic = HapticLoop::new(device, safety, inbox, period);
@@ -327,6 +328,7 @@ pub struct HapticHandle {
     report: Arc<Mutex<HapticReport>>,
     inbox: Arc<ForceInbox>,
     trace: Arc<Mutex<Trace>>,
+    clock: MonotonicClock,
 }
 
 impl std::fmt::Debug for HapticHandle {
@@ -354,6 +356,12 @@ impl HapticHandle {
     /// The key force commands are read from.
     pub fn force_key(&self) -> &str {
         &self.force_key
+    }
+
+    /// Now on the loop's clock, s: the time base of the trace's `t_s` and of the silence rule (so a test can
+    /// say when, on that clock, something happened outside the loop).
+    pub fn clock_s(&self) -> f64 {
+        crate::clock::ns_to_s(self.clock.now_ns())
     }
 
     /// Whether the device loop thread is still running.

@@ -1,0 +1,156 @@
+//! Fault drill: the server process is killed (SIGKILL, no goodbye) while a hand holds its probe in the tissue
+//! in latency-moderated mode, 50 ms round trip. The hapticserver renders a local model every tick, so nothing
+//! in the model itself says the server is gone: only the silence rule does. Within 70 ms of the kill the force
+//! is exactly zero, and it stays zero (the model is never rendered again) while the hand keeps pressing where
+//! the tissue was.
+//!
+//! Real processes and sessions: `sinew-server` is the workspace binary (`cargo test --workspace --release`
+//! builds it), the hapticserver runs in-process with a simulated hand, both over zenoh on loopback.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use hapticserver::{HandScript, HapticConfig, HapticServer, ModePolicy, SimDevice};
+use sinew::harness::{free_loopback_endpoint, wait_until, worlds_dir};
+use sinew::netns::role_binary;
+use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::rt::EmulationConfig;
+
+/// The silence rule (50 ms) plus its ramp (20 ms): the bound from kill to zero force.
+const KILL_TO_ZERO_S: f64 = 0.070;
+
+/// A child process that is killed when the test ends, however it ends.
+struct KillOnDrop(std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and_for_good() {
+    let endpoint = free_loopback_endpoint().unwrap();
+    let one_way = EmulationConfig {
+        delay_ms: 25.0,
+        ..EmulationConfig::default()
+    };
+    let mut server = KillOnDrop(
+        Command::new(role_binary("sinew-server").unwrap())
+            .arg("--world")
+            .arg(worlds_dir().join("pad.toml"))
+            .args(["--listen", &endpoint, "--emulate-delay-ms", "25"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("starting sinew-server"),
+    );
+
+    let script = HandScript::Press {
+        at_mm: [0.0; 3],
+        depth_mm: 4.0,
+        approach_mm: 10.0,
+        descend_s: 1.0,
+    };
+    let mut config = HapticConfig::new("pad", "left", Box::new(SimDevice::new(script)));
+    config.network = NetworkOptions {
+        connect: vec![endpoint.clone()],
+        ..NetworkOptions::default()
+    };
+    config.mode = ModePolicy::Moderated;
+    config.emulation = one_way;
+    config.trace_ticks = 60_000;
+    let mut device = HapticServer::start(config).expect("starting the hapticserver");
+
+    // In contact, rendering local models, holding: at least 0.3 N for half a second.
+    let mut held_since = None;
+    let holding = wait_until(Duration::from_secs(30), || {
+        let report = device.report();
+        let pressing = report.moderated
+            && report.models_received > 100
+            && report.last_rendered_force_magnitude_n() > 0.3;
+        match (pressing, held_since) {
+            (false, _) => held_since = None,
+            (true, None) => held_since = Some(device.clock_s()),
+            (true, Some(since)) => return device.clock_s() - since > 0.5,
+        }
+        false
+    });
+    assert!(holding, "never held the probe in the tissue: {:?}", device.report());
+
+    let killed_s = device.clock_s();
+    server.0.kill().expect("SIGKILL to the server");
+    server.0.wait().expect("reaping the server");
+    std::thread::sleep(Duration::from_millis(600));
+    device.stop().expect("stopping the hapticserver");
+    let report = device.report();
+    let trace = device.take_trace();
+    let samples = trace.samples();
+    assert_eq!(trace.dropped(), 0, "the trace overflowed");
+
+    let norm = |f: [f32; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+    let before: Vec<_> = samples
+        .iter()
+        .filter(|s| s.t_s > killed_s - 0.1 && s.t_s <= killed_s)
+        .collect();
+    assert!(
+        before.iter().all(|s| s.model_weight == 1.0 && norm(s.force_n) > 0.2),
+        "not rendering a local model in contact just before the kill"
+    );
+    // Every tick computed 70 ms or more after the kill outputs exactly zero (a tick delayed by a scheduling
+    // stall is still computed against the clock, so this holds however the VM schedules the loop).
+    let after_deadline: Vec<_> = samples
+        .iter()
+        .filter(|s| s.t_s >= killed_s + KILL_TO_ZERO_S)
+        .collect();
+    assert!(
+        after_deadline.len() > 300,
+        "only {} ticks after the deadline",
+        after_deadline.len()
+    );
+    if let Some(s) = after_deadline.iter().find(|s| norm(s.force_n) != 0.0) {
+        panic!(
+            "{:.1} ms after the kill the device still renders {:?} N (model weight {}, stale {})",
+            (s.t_s - killed_s) * 1e3,
+            s.force_n,
+            s.model_weight,
+            s.stale
+        );
+    }
+    // Zero came from the silence rule, which ramps (no step from the held force to zero).
+    let first_zero = samples
+        .iter()
+        .find(|s| s.t_s > killed_s && norm(s.force_n) == 0.0)
+        .unwrap();
+    println!(
+        "force zero {:.1} ms after the kill; {} models received",
+        (first_zero.t_s - killed_s) * 1e3,
+        report.models_received
+    );
+    let window: Vec<_> = samples
+        .iter()
+        .filter(|s| s.t_s > killed_s && s.t_s <= first_zero.t_s)
+        .collect();
+    let largest_step = window
+        .windows(2)
+        .map(|w| {
+            norm([
+                w[1].force_n[0] - w[0].force_n[0],
+                w[1].force_n[1] - w[0].force_n[1],
+                w[1].force_n[2] - w[0].force_n[2],
+            ])
+        })
+        .fold(0.0f32, f32::max);
+    let held_n = norm(before.last().unwrap().force_n);
+    assert!(
+        largest_step < 0.5 * held_n,
+        "the force fell {largest_step:.3} N in one tick from {held_n:.3} N"
+    );
+    assert!(
+        window.iter().any(|s| s.stale),
+        "zero was not reached through the silence rule"
+    );
+}
