@@ -30,7 +30,7 @@ fn main() {
             rtt_ms: rtt,
             jitter_ms: jitter,
             loss,
-            seed: 3,
+            seed: args.get(8).map_or(3, |s| s.parse().unwrap()),
         },
         mode,
     };

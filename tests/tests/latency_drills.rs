@@ -5,7 +5,7 @@
 use hapticserver::{HandPreset, HandScript, ModePolicy};
 use sinew::drill::{
     DrillDevice, Link, drift_mm, energy_output_mj, felt_stiffness, force_amplitude_at,
-    hold_metrics, rms_error_fraction, run_drill,
+    hold_metrics, max_force_step, rms_error_fraction, run_drill,
 };
 use sinew::harness::load_shipped_world;
 
@@ -33,7 +33,7 @@ fn hold_depth_mm(world: &str, hand: HandPreset) -> f32 {
     match (world, hand) {
         ("pad.toml", HandPreset::Light) => 30.0,
         ("pad.toml", HandPreset::Nominal) => 10.0,
-        // 4 mm: beyond 1.5 probe radii (6 mm) the frictionless probe's known deep-press ripple (issue 2) shows.
+        // 4 mm: the firm hand follows its target closely, so this is about the depth it holds.
         ("pad.toml", _) => 4.0,
         (_, HandPreset::Light) => 12.0,
         (_, HandPreset::Nominal) => 6.0,
@@ -309,4 +309,56 @@ fn right_feels_lefts_push_through_the_tissue_as_at_zero_delay() {
         );
         assert_eq!(tug.rejected[device], 0);
     }
+}
+
+/// A hand that taps: its probe's bottom aims from 2 mm above the surface to 8 mm into it, once a second, so every
+/// second brings a contact onset, a stream of model updates while pressing, and an offset. At 100 ms round trip with jitter
+/// and loss the rendered force never steps by more than 0.1 N from one tick to the next.
+#[test]
+#[ignore = "not met yet: taps step the force by 0.2 N (the safety rate limit) for every hand. The passivity \
+            controller, on in moderated mode, pays each deficit back in one tick: at impact and where a light \
+            hand rests it cuts the whole force (a 0.1-0.2 N square wave). Bounding its cut to 0.02-0.08 N a \
+            tick removes the steps (largest 0.025-0.055 N) but lets pad_stiff + nominal hand at 200 ms swing \
+            0.1-0.27 N peak to peak; the energy the model updates inject is the thing to fix"]
+fn the_force_never_steps_more_than_a_tenth_of_a_newton_at_onset_offset_and_model_updates() {
+    let world = load_shipped_world("pad.toml").unwrap();
+    let tap = HandScript::PressAndPulse {
+        at_mm: [0.0; 3],
+        // The script places the probe's centre; its bottom is the 4 mm radius lower.
+        depth_mm: -6.0,
+        approach_mm: 10.0,
+        descend_s: 1.0,
+        pulse_mm: 10.0,
+        pulse_period_s: 1.0,
+    };
+    let link = Link {
+        rtt_ms: 100.0,
+        jitter_ms: 20.0,
+        loss: 0.05,
+        seed: 5,
+    };
+    let mut rows = Vec::new();
+    for hand in [HandPreset::Light, HandPreset::Nominal, HandPreset::Firm] {
+        let result = run_drill(
+            &world,
+            &[device(hand, tap.clone(), link, ModePolicy::Moderated)],
+            6.0,
+        )
+        .unwrap();
+        let trace = &result.traces[0];
+        let onsets = trace
+            .windows(2)
+            .filter(|w| w[0].force_n[2] <= 0.0 && w[1].force_n[2] > 0.0)
+            .count();
+        let peak = trace.iter().map(|s| s.force_n[2]).fold(0.0f32, f32::max);
+        let step = max_force_step(trace, 0.0, 6.0);
+        rows.push(format!(
+            "{}: {onsets} onsets, peak {peak:.2} N, largest step {step:.4} N",
+            hand.name()
+        ));
+        assert!(onsets >= 4, "the taps did not touch and leave: {rows:?}");
+        assert!(peak > 0.15, "the taps pressed only {peak} N: {rows:?}");
+        assert!(step <= 0.1, "force stepped: {rows:?}");
+    }
+    println!("{}", rows.join("\n"));
 }

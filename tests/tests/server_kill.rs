@@ -79,7 +79,11 @@ fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and
         }
         false
     });
-    assert!(holding, "never held the probe in the tissue: {:?}", device.report());
+    assert!(
+        holding,
+        "never held the probe in the tissue: {:?}",
+        device.report()
+    );
 
     let killed_s = device.clock_s();
     server.0.kill().expect("SIGKILL to the server");
@@ -97,7 +101,9 @@ fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and
         .filter(|s| s.t_s > killed_s - 0.1 && s.t_s <= killed_s)
         .collect();
     assert!(
-        before.iter().all(|s| s.model_weight == 1.0 && norm(s.force_n) > 0.2),
+        before
+            .iter()
+            .all(|s| s.model_weight == 1.0 && norm(s.force_n) > 0.2),
         "not rendering a local model in contact just before the kill"
     );
     // Every tick computed 70 ms or more after the kill outputs exactly zero (a tick delayed by a scheduling
