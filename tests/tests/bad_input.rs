@@ -72,8 +72,10 @@ fn bad_poses_are_dropped_and_counted_and_the_server_keeps_running() {
     let device = start_sim_device(
         "pad",
         "left",
+        // Probe centre 1 mm above the rest surface: its bottom 3 mm into the pad (about 0.45 N). A probe that
+        // appears wholly under the sheet (centre 4 mm down) only lifts it and feels almost nothing.
         HandScript::Hold {
-            position_mm: [0.0, 0.0, -4.0],
+            position_mm: [0.0, 0.0, 1.0],
         },
         &endpoint,
         Pacing::Sleep,
