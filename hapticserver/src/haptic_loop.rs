@@ -320,6 +320,9 @@ impl HapticLoop {
             force_n,
             model_weight: self.mode.weight(),
             stale: self.safety.is_stale(),
+            target_n,
+            blend_offset_n: self.renderer.blend_offset_n(now_s),
+            passivity_energy_mj: self.passivity.counters().energy_mj,
         });
         self.counters.last_rendered_force_n = force_n;
         self.counters.max_rendered_force_n =

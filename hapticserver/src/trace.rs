@@ -24,6 +24,12 @@ pub struct TraceSample {
     pub model_weight: f32,
     /// The command stream was stale (the silence rule was ramping the force down).
     pub stale: bool,
+    /// The force before the passivity controller and the safety filter, N (diagnostics).
+    pub target_n: [f32; 3],
+    /// The renderer's blend offset at this tick, N (zero in direct mode; diagnostics).
+    pub blend_offset_n: [f32; 3],
+    /// The passivity observer's energy after this tick, mJ (diagnostics).
+    pub passivity_energy_mj: f64,
 }
 
 /// A fixed-capacity trace.
@@ -61,11 +67,14 @@ impl Trace {
         self.dropped
     }
 
-    /// Write as CSV with a header: `t_s,x_mm,y_mm,z_mm,vx_mm_s,vy_mm_s,vz_mm_s,fx_n,fy_n,fz_n,model_weight,stale`.
+    /// Write as CSV with a header: `t_s,x_mm,y_mm,z_mm,vx_mm_s,vy_mm_s,vz_mm_s,fx_n,fy_n,fz_n,model_weight,stale,
+    /// target_fz_n,blend_fz_n,passivity_energy_mj` (the last three: force before passivity and safety, the
+    /// renderer's blend offset, the passivity account).
     pub fn write_csv(&self, out: &mut impl Write) -> std::io::Result<()> {
         writeln!(
             out,
-            "t_s,x_mm,y_mm,z_mm,vx_mm_s,vy_mm_s,vz_mm_s,fx_n,fy_n,fz_n,model_weight,stale"
+            "t_s,x_mm,y_mm,z_mm,vx_mm_s,vy_mm_s,vz_mm_s,fx_n,fy_n,fz_n,model_weight,stale,\
+             target_fz_n,blend_fz_n,passivity_energy_mj"
         )?;
         for s in &self.samples {
             let [x, y, z] = s.position_mm;
@@ -73,10 +82,13 @@ impl Trace {
             let [fx, fy, fz] = s.force_n;
             writeln!(
                 out,
-                "{:.6},{x},{y},{z},{vx},{vy},{vz},{fx},{fy},{fz},{},{}",
+                "{:.6},{x},{y},{z},{vx},{vy},{vz},{fx},{fy},{fz},{},{},{},{},{}",
                 s.t_s,
                 s.model_weight,
-                u8::from(s.stale)
+                u8::from(s.stale),
+                s.target_n[2],
+                s.blend_offset_n[2],
+                s.passivity_energy_mj
             )?;
         }
         Ok(())

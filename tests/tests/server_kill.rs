@@ -88,7 +88,17 @@ fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and
     let killed_s = device.clock_s();
     server.0.kill().expect("SIGKILL to the server");
     server.0.wait().expect("reaping the server");
-    std::thread::sleep(Duration::from_millis(600));
+    // 600 device ticks more: counted, not slept, so a loaded machine that starves the loop for a while only
+    // makes the test wait longer.
+    let ticks_at_kill = device.report().ticks;
+    let ticked = wait_until(Duration::from_secs(20), || {
+        device.report().ticks >= ticks_at_kill + 700
+    });
+    assert!(
+        ticked,
+        "the device loop stopped ticking: {:?}",
+        device.report()
+    );
     device.stop().expect("stopping the hapticserver");
     let report = device.report();
     let trace = device.take_trace();
