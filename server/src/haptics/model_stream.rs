@@ -61,8 +61,21 @@ impl Default for DeadbandParams {
     }
 }
 
-/// Validity radius of a model around its `x0`, mm, and the width of its fade, mm.
+/// Validity radius of a model around its `x0` for a hand at rest, mm, and the width of its fade, mm.
+///
+/// A moving hand gets a larger radius: [`ModelStream`] adds the distance the hand may travel before the next
+/// model reaches it (its recent peak speed times its round trip plus the heartbeat), up to
+/// [`MAX_MODEL_RADIUS_MM`]. A model that fades out under a hand stroking at 100 mm/s 100 ms away (10 mm from
+/// `x0` when it is rendered) renders nothing: at 2 Hz the force fell to zero for most of each stroke. The
+/// linear part is one-sided along the contact normal and its `K` has no tangential part (a frictionless tool
+/// drags its dent along: the field is translation invariant), so along the surface the model holds as far as
+/// the surface stays flat; past an edge it may render the surface on for at most one round trip.
 pub const MODEL_RADIUS_MM: f32 = 8.0;
+/// The largest validity radius, mm: a 200 ms round trip at 150 mm/s.
+pub const MAX_MODEL_RADIUS_MM: f32 = 40.0;
+/// The peak speed a stream sizes its radius from decays with this time constant, s (a stroke's turn-around,
+/// at 1-2 Hz, does not shrink it).
+pub const REACH_SPEED_MEMORY_S: f64 = 0.5;
 /// See [`MODEL_RADIUS_MM`].
 pub const MODEL_FADE_MM: f32 = 3.0;
 
@@ -84,6 +97,9 @@ pub struct ModelStream {
     last_sent_s: f64,
     seq: u64,
     counters: StreamCounters,
+    /// The device's recent peak speed (decaying), mm/s, and when it was last updated, s.
+    reach_speed_mm_s: f32,
+    reach_updated_s: f64,
 }
 
 fn sym3(m: &Matrix3<f32>) -> Sym3 {
@@ -111,6 +127,8 @@ impl ModelStream {
             last_sent_s: f64::NEG_INFINITY,
             seq: 0,
             counters: StreamCounters::default(),
+            reach_speed_mm_s: 0.0,
+            reach_updated_s: f64::NEG_INFINITY,
         }
     }
 
@@ -119,8 +137,43 @@ impl ModelStream {
         self.counters
     }
 
-    /// The local model of `out` in the device frame, with forces limited to `max_force_n`.
+    /// The validity radius for a device whose newest pose is `pose`, mm: [`MODEL_RADIUS_MM`] plus the distance
+    /// the hand may cover before the next model arrives, at most [`MAX_MODEL_RADIUS_MM`]. Updates the decaying
+    /// peak speed. Non-finite speeds or round trips count as zero.
+    fn radius_mm(&mut self, now_s: f64, pose: &DevicePose) -> f32 {
+        let v = pose.linear_velocity_mm_s;
+        let speed = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let speed = if speed.is_finite() { speed } else { 0.0 };
+        let elapsed = (now_s - self.reach_updated_s).max(0.0);
+        let keep = if elapsed.is_finite() {
+            (-elapsed / REACH_SPEED_MEMORY_S).exp() as f32
+        } else {
+            0.0
+        };
+        self.reach_speed_mm_s = (self.reach_speed_mm_s * keep).max(speed);
+        self.reach_updated_s = now_s;
+        let horizon_s = pose.round_trip_us as f32 * 1e-6 + self.params.heartbeat_s as f32;
+        let radius = MODEL_RADIUS_MM + self.reach_speed_mm_s * horizon_s;
+        if radius.is_finite() {
+            radius.clamp(MODEL_RADIUS_MM, MAX_MODEL_RADIUS_MM)
+        } else {
+            MODEL_RADIUS_MM
+        }
+    }
+
+    /// The local model of `out` in the device frame, with forces limited to `max_force_n`, valid within
+    /// [`MODEL_RADIUS_MM`] of its `x0`.
     pub fn model(&self, now_s: f64, out: &ToolOutput, max_force_n: f32) -> LocalModel {
+        self.model_within(now_s, out, max_force_n, MODEL_RADIUS_MM)
+    }
+
+    fn model_within(
+        &self,
+        now_s: f64,
+        out: &ToolOutput,
+        max_force_n: f32,
+        radius_mm: f32,
+    ) -> LocalModel {
         let origin = self.origin_world_mm;
         let mut f0 = out.force_world_n;
         let magnitude = f0.norm();
@@ -145,7 +198,7 @@ impl ModelStream {
             // The wire refuses anything but positive semi-definite: send the PSD part, whatever came in.
             stiffness_n_per_mm: sym3(&psd_part(&out.stiffness_n_per_mm)),
             damping_n_s_per_mm: sym3(&psd_part(&out.damping_n_s_per_mm)),
-            radius_mm: MODEL_RADIUS_MM,
+            radius_mm,
             fade_mm: MODEL_FADE_MM,
             planes,
             plane_count: count as u8,
@@ -163,7 +216,8 @@ impl ModelStream {
         pose: &DevicePose,
         max_force_n: f32,
     ) -> Option<ForceCommand> {
-        let model = self.model(now_s, out, max_force_n);
+        let radius_mm = self.radius_mm(now_s, pose);
+        let model = self.model_within(now_s, out, max_force_n, radius_mm);
         let send = match pose.render_mode {
             RenderMode::Direct => true,
             RenderMode::Moderated => self.worth_sending(now_s, &model),
@@ -311,6 +365,42 @@ mod tests {
                 .command(0.003, &ToolOutput::default(), &pose, 3.3)
                 .is_some()
         );
+    }
+
+    #[test]
+    fn a_moving_distant_hand_gets_a_radius_that_covers_its_reach_until_the_next_model() {
+        let mut stream = ModelStream::new(DeadbandParams::default(), Vec3::zeros());
+        let radius = |stream: &mut ModelStream, t: f64, speed: f32, rtt_us: u32| {
+            let pose = DevicePose {
+                linear_velocity_mm_s: [speed, 0.0, 0.0],
+                round_trip_us: rtt_us,
+                ..moderated()
+            };
+            match stream.command(t, &contact(1.0, -3.0), &pose, 3.3) {
+                Some(ForceCommand {
+                    mode: ForceMode::LocalModel(model),
+                    ..
+                }) => model.radius_mm,
+                other => panic!("{other:?}"),
+            }
+        };
+        // At rest, or near: the base radius.
+        assert_eq!(radius(&mut stream, 0.0, 0.0, 100_000), MODEL_RADIUS_MM);
+        // 100 mm/s at 100 ms: the hand covers 10 mm + the 11 ms heartbeat's 1.1 mm before the next model.
+        let r = radius(&mut stream, 1.0, 100.0, 100_000);
+        assert!((r - (MODEL_RADIUS_MM + 11.1)).abs() < 1e-3, "{r}");
+        // A stroke's turn-around (speed 0 for an instant) keeps most of it; a long rest lets it go.
+        let r = radius(&mut stream, 1.05, 0.0, 100_000);
+        assert!(r > MODEL_RADIUS_MM + 10.0, "{r}");
+        let r = radius(&mut stream, 5.0, 0.0, 100_000);
+        assert!(r < MODEL_RADIUS_MM + 0.01, "{r}");
+        // Bounded, and garbage counts as rest.
+        assert_eq!(
+            radius(&mut stream, 6.0, 1e6, 1_000_000),
+            MAX_MODEL_RADIUS_MM
+        );
+        let mut fresh = ModelStream::new(DeadbandParams::default(), Vec3::zeros());
+        assert_eq!(radius(&mut fresh, 0.0, f32::NAN, u32::MAX), MODEL_RADIUS_MM);
     }
 
     #[test]
