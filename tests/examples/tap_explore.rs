@@ -5,6 +5,21 @@ use hapticserver::{HandPreset, HandScript, ModePolicy};
 use sinew::drill::*;
 use sinew::harness::load_shipped_world;
 
+/// One trace sample's z components, the pre-passivity force, the blend offset and the energy account.
+fn print_sample(s: &hapticserver::TraceSample) {
+    println!(
+        "t {:.3} z {:+.3} vz {:+7.2} Fz {:+.4} target {:+.4} blend {:+.4} E {:+.4} stale {}",
+        s.t_s,
+        s.position_mm[2],
+        s.velocity_mm_s[2],
+        s.force_n[2],
+        s.target_n[2],
+        s.blend_offset_n[2],
+        s.passivity_energy_mj,
+        s.stale
+    );
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let world = load_shipped_world(args.get(6).map_or("pad.toml", |s| s.as_str())).unwrap();
@@ -125,17 +140,7 @@ fn main() {
             .filter(|s| s.t_s >= from && s.t_s < to)
             .step_by(every)
         {
-            println!(
-                "t {:.3} z {:+.3} vz {:+7.2} Fz {:+.4} target {:+.4} blend {:+.4} E {:+.4} stale {}",
-                s.t_s,
-                s.position_mm[2],
-                s.velocity_mm_s[2],
-                s.force_n[2],
-                s.target_n[2],
-                s.blend_offset_n[2],
-                s.passivity_energy_mj,
-                s.stale
-            );
+            print_sample(s);
         }
         return;
     }
@@ -153,17 +158,7 @@ fn main() {
         shown.push(i);
         println!("--- step {step:.4} N at t {:.3}", tr[i].t_s);
         for s in &tr[i.saturating_sub(6)..(i + 4).min(tr.len())] {
-            println!(
-                "t {:.3} z {:+.3} vz {:+7.2} Fz {:+.4} target {:+.4} blend {:+.4} E {:+.4} stale {}",
-                s.t_s,
-                s.position_mm[2],
-                s.velocity_mm_s[2],
-                s.force_n[2],
-                s.target_n[2],
-                s.blend_offset_n[2],
-                s.passivity_energy_mj,
-                s.stale
-            );
+            print_sample(s);
         }
         if shown.len() >= 6 {
             break;
