@@ -72,7 +72,7 @@ impl HapticConfig {
             scene: scene.to_owned(),
             device_id: device_id.to_owned(),
             tool: String::new(),
-            network: NetworkOptions::client_default(),
+            network: NetworkOptions::device_default(),
             device,
             loop_rate_hz: DEFAULT_LOOP_RATE_HZ,
             spin_accuracy_ns: DEFAULT_SPIN_ACCURACY_NS,

@@ -11,7 +11,7 @@ use hapticserver::{
     Device, HandPreset, HapticConfig, HapticServer, ModePolicy, ScriptKind, ScriptOptions,
     SimDevice, parse_vec3_mm, sim_device::sim_device_model,
 };
-use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
+use sinew_protocol::network::{DEFAULT_DEVICE_ENDPOINTS, NetworkOptions};
 
 /// Device backends this build can drive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -54,8 +54,9 @@ struct Args {
     /// Surface point to press at (or hold), device frame, mm: x,y,z.
     #[arg(long, value_parser = parse_vec3_mm, allow_hyphen_values = true)]
     at_mm: Option<[f32; 3]>,
-    /// zenoh endpoint to connect to (repeatable).
-    #[arg(long, default_value = DEFAULT_ENDPOINT)]
+    /// zenoh endpoint to connect to (repeatable). Give the server's TCP and UDP endpoints: one transport with
+    /// two links, reliable messages on TCP, poses and forces on UDP (a lost packet never holds later forces).
+    #[arg(long, default_values_t = DEFAULT_DEVICE_ENDPOINTS.map(str::to_owned))]
     connect: Vec<String>,
     /// zenoh endpoint to listen on (repeatable; default none).
     #[arg(long)]

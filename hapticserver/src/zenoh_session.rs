@@ -52,6 +52,6 @@ mod tests {
         };
         let err = zenoh_config(&network).unwrap_err().to_string();
         assert!(err.contains("/nonexistent/zenoh.json5"), "{err}");
-        assert!(zenoh_config(&NetworkOptions::client_default()).is_ok());
+        assert!(zenoh_config(&NetworkOptions::device_default()).is_ok());
     }
 }

@@ -5,8 +5,35 @@
 //! entries with [`NetworkOptions::config_entries`] (JSON5 key/value pairs for `Config::insert_json5`), so
 //! this crate needs no zenoh dependency.
 
-/// Where the server listens and the others connect by default.
+/// The server's TCP endpoint by default (viewers connect to it alone).
 pub const DEFAULT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
+
+/// Where the server listens and devices connect by default: the same port over TCP and UDP. A device holds one
+/// zenoh transport with two links: reliable messages (declarations, hellos, deltas) take TCP, best-effort poses
+/// and forces take UDP, where a lost packet never holds later ones back (BENCHMARKS.md, "Transport for poses
+/// and forces under loss": TCP alone left 400+ force gaps > 50 ms a minute at 1% loss, multilink none).
+pub const DEFAULT_DEVICE_ENDPOINTS: [&str; 2] = ["tcp/127.0.0.1:7447", "udp/127.0.0.1:7447"];
+
+/// zenoh's link open and accept timeout, ms. zenoh's 10 s default made a device whose UDP handshake packet was
+/// lost wait 10 s for its UDP link (forces on TCP meanwhile); at 1 s every trial of the lossy bench joined
+/// within 2.2 s. A handshake is a few round trips, so 1 s still leaves room for a 200 ms path.
+pub const LINK_TIMEOUT_MS: u64 = 1000;
+
+/// The UDP endpoint on the same address and port as a TCP one (`tcp/h:p` -> `udp/h:p`); `None` for any other
+/// protocol.
+pub fn udp_twin(endpoint: &str) -> Option<String> {
+    endpoint
+        .strip_prefix("tcp/")
+        .map(|rest| format!("udp/{rest}"))
+}
+
+/// `endpoint` followed by its UDP twin when it is a TCP endpoint: what a device connects to (or a server
+/// listens on) for multilink.
+pub fn with_udp_twin(endpoint: &str) -> Vec<String> {
+    std::iter::once(endpoint.to_owned())
+        .chain(udp_twin(endpoint))
+        .collect()
+}
 
 /// Endpoints and an optional zenoh config file.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -22,15 +49,23 @@ pub struct NetworkOptions {
 }
 
 impl NetworkOptions {
-    /// The server's default: listen on [`DEFAULT_ENDPOINT`].
+    /// The server's default: listen on [`DEFAULT_DEVICE_ENDPOINTS`] (TCP and UDP).
     pub fn server_default() -> Self {
         Self {
-            listen: vec![DEFAULT_ENDPOINT.to_owned()],
+            listen: DEFAULT_DEVICE_ENDPOINTS.map(str::to_owned).to_vec(),
             ..Self::default()
         }
     }
 
-    /// A client role's default: connect to [`DEFAULT_ENDPOINT`].
+    /// A device's default: connect to [`DEFAULT_DEVICE_ENDPOINTS`] (TCP and UDP, one transport with two links).
+    pub fn device_default() -> Self {
+        Self {
+            connect: DEFAULT_DEVICE_ENDPOINTS.map(str::to_owned).to_vec(),
+            ..Self::default()
+        }
+    }
+
+    /// A viewer's default: connect to [`DEFAULT_ENDPOINT`] (TCP: a viewer takes only reliable deltas).
     pub fn client_default() -> Self {
         Self {
             connect: vec![DEFAULT_ENDPOINT.to_owned()],
@@ -64,7 +99,68 @@ impl NetworkOptions {
             // A device's transport may hold a TCP and a UDP link to the server: reliable messages take TCP,
             // poses and forces (best effort) take UDP, so a lost packet never holds later forces back.
             entries.push(("transport/unicast/max_links", "2".to_owned()));
+            entries.push((
+                "transport/unicast/open_timeout",
+                LINK_TIMEOUT_MS.to_string(),
+            ));
+            entries.push((
+                "transport/unicast/accept_timeout",
+                LINK_TIMEOUT_MS.to_string(),
+            ));
         }
         entries
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tcp_endpoint_gets_its_udp_twin_and_nothing_else_does() {
+        assert_eq!(
+            with_udp_twin("tcp/10.0.0.1:7447"),
+            vec![
+                "tcp/10.0.0.1:7447".to_owned(),
+                "udp/10.0.0.1:7447".to_owned()
+            ]
+        );
+        assert_eq!(
+            with_udp_twin("udp/10.0.0.1:7447"),
+            vec!["udp/10.0.0.1:7447".to_owned()]
+        );
+        assert_eq!(udp_twin("quic/h:1"), None);
+    }
+
+    #[test]
+    fn the_defaults_are_multilink_with_short_link_timeouts() {
+        assert_eq!(
+            NetworkOptions::device_default().connect,
+            with_udp_twin(DEFAULT_ENDPOINT)
+        );
+        assert_eq!(
+            NetworkOptions::server_default().listen,
+            with_udp_twin(DEFAULT_ENDPOINT)
+        );
+        let entries = NetworkOptions::server_default().config_entries();
+        let value = |key: &str| {
+            entries
+                .iter()
+                .find(|(k, _)| *k == key)
+                .map(|(_, v)| v.clone())
+        };
+        assert_eq!(value("transport/unicast/max_links").as_deref(), Some("2"));
+        assert_eq!(
+            value("transport/unicast/open_timeout").as_deref(),
+            Some("1000")
+        );
+        assert_eq!(
+            value("transport/unicast/accept_timeout").as_deref(),
+            Some("1000")
+        );
+        assert_eq!(
+            value("listen/endpoints").as_deref(),
+            Some(r#"["tcp/127.0.0.1:7447","udp/127.0.0.1:7447"]"#)
+        );
     }
 }

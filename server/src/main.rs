@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Parser;
-use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
+use sinew_protocol::network::{DEFAULT_DEVICE_ENDPOINTS, NetworkOptions};
 use sinew_server::node::{ServerConfig, ServerNode};
 use sinew_server::world::load_world;
 
@@ -16,8 +16,9 @@ struct Args {
     /// World description (TOML).
     #[arg(long, default_value = "worlds/pad.toml")]
     world: PathBuf,
-    /// zenoh endpoint to listen on (repeatable).
-    #[arg(long, default_values_t = [DEFAULT_ENDPOINT.to_string()])]
+    /// zenoh endpoint to listen on (repeatable). Listen on TCP and UDP at one port so devices get one
+    /// transport with two links: reliable messages on TCP, poses and forces on UDP (no head-of-line blocking).
+    #[arg(long, default_values_t = DEFAULT_DEVICE_ENDPOINTS.map(str::to_owned))]
     listen: Vec<String>,
     /// zenoh endpoint to connect to, e.g. a zenohd router (repeatable).
     #[arg(long)]

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use hapticserver::{HandScript, HapticConfig, HapticHandle, HapticServer, SimDevice};
-use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerHandle, ServerNode};
 use sinew_server::world::{World, load_world};
 use sinew_viewer::{ViewerClient, ViewerConfig, ViewerHandle};
@@ -22,11 +22,17 @@ pub fn load_shipped_world(name: &str) -> anyhow::Result<World> {
     load_world(&path).with_context(|| format!("loading {}", path.display()))
 }
 
-/// A loopback TCP endpoint on a port the OS just reported free.
+/// A loopback TCP endpoint on a port the OS just reported free for TCP and for UDP (the server also listens
+/// on the UDP twin, see [`start_server_emulated`]).
 pub fn free_loopback_endpoint() -> anyhow::Result<String> {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0")?;
-    let port = listener.local_addr()?.port();
-    Ok(format!("tcp/127.0.0.1:{port}"))
+    for _ in 0..20 {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0")?;
+        let port = listener.local_addr()?.port();
+        if std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok() {
+            return Ok(format!("tcp/127.0.0.1:{port}"));
+        }
+    }
+    anyhow::bail!("no loopback port free for both TCP and UDP in 20 tries")
 }
 
 /// Pacing for the 1 kHz loops: spin-sleep for the demo, plain sleep for tests on shared cores.
@@ -52,7 +58,8 @@ pub fn start_server(world: World, endpoint: &str, pacing: Pacing) -> anyhow::Res
     start_server_emulated(world, endpoint, pacing, Default::default())
 }
 
-/// [`start_server`] with emulated delay, jitter and loss on the force commands it publishes.
+/// [`start_server`] with emulated delay, jitter and loss on the force commands it publishes. It listens on
+/// `endpoint` and, when that is TCP, on its UDP twin (the product's multilink default).
 pub fn start_server_emulated(
     world: World,
     endpoint: &str,
@@ -62,7 +69,7 @@ pub fn start_server_emulated(
     let config = ServerConfig {
         emulation,
         network: NetworkOptions {
-            listen: vec![endpoint.to_owned()],
+            listen: with_udp_twin(endpoint),
             ..NetworkOptions::default()
         },
         server_id: "server".into(),
@@ -98,7 +105,8 @@ pub fn start_sim_device(
     )
 }
 
-/// [`start_sim_device`] with a render-mode policy and emulated delay, jitter and loss on its poses.
+/// [`start_sim_device`] with a render-mode policy and emulated delay, jitter and loss on its poses. It
+/// connects to `endpoint` and its UDP twin (multilink: poses and forces on UDP).
 pub fn start_sim_device_emulated(
     scene: &str,
     id: &str,
@@ -110,7 +118,7 @@ pub fn start_sim_device_emulated(
 ) -> anyhow::Result<HapticHandle> {
     let mut config = HapticConfig::new(scene, id, Box::new(SimDevice::new(script)));
     config.network = NetworkOptions {
-        connect: vec![endpoint.to_owned()],
+        connect: with_udp_twin(endpoint),
         ..NetworkOptions::default()
     };
     config.spin_accuracy_ns = pacing.native_accuracy_ns();

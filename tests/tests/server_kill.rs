@@ -15,7 +15,7 @@ use std::time::Duration;
 use hapticserver::{HandScript, HapticConfig, HapticServer, ModePolicy, SimDevice};
 use sinew::harness::{free_loopback_endpoint, wait_until, worlds_dir};
 use sinew::netns::role_binary;
-use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::network::{NetworkOptions, udp_twin, with_udp_twin};
 use sinew_protocol::rt::EmulationConfig;
 
 /// The silence rule (50 ms) plus its ramp (20 ms): the bound from kill to zero force.
@@ -43,6 +43,7 @@ fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and
             .arg("--world")
             .arg(worlds_dir().join("pad.toml"))
             .args(["--listen", &endpoint, "--emulate-delay-ms", "25"])
+            .args(["--listen", &udp_twin(&endpoint).unwrap()])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -57,7 +58,7 @@ fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and
     };
     let mut config = HapticConfig::new("pad", "left", Box::new(SimDevice::new(script)));
     config.network = NetworkOptions {
-        connect: vec![endpoint.clone()],
+        connect: with_udp_twin(&endpoint),
         ..NetworkOptions::default()
     };
     config.mode = ModePolicy::Moderated;

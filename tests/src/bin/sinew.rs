@@ -25,7 +25,8 @@ enum Command {
         /// How long to run, seconds.
         #[arg(long, default_value_t = 10.0)]
         duration_s: f64,
-        /// Endpoint the server listens on (the others connect to it).
+        /// The server's TCP endpoint; it also listens on the same port over UDP, where the devices send poses
+        /// and get forces (multilink), and the viewer connects to TCP alone.
         #[arg(long, default_value = DEFAULT_ENDPOINT)]
         listen: String,
         /// Open the viewer window (needs a display).
