@@ -1,9 +1,10 @@
 //! Exploratory: the tap transient drill, with the largest force steps and the energy account around them.
 //! `cargo run --release -p sinew --example tap_explore -- <hand> <rtt_ms> <jitter_ms> <loss> <seed>`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use hapticserver::{HandPreset, HandScript, ModePolicy};
+use hapticserver::{HandPreset, ModePolicy};
 use sinew::drill::*;
 use sinew::harness::load_shipped_world;
+use sinew::scenarios;
 
 /// One trace sample's z components, the pre-passivity force, the blend offset and the energy account.
 fn print_sample(s: &hapticserver::TraceSample) {
@@ -35,33 +36,14 @@ fn main() {
             .ok()
             .and_then(|v| v.parse::<f32>().ok())
         {
-            HandScript::PressAndStroke {
-                at_mm: [0.0; 3],
-                depth_mm: 4.0,
-                approach_mm: 10.0,
-                descend_s: 1.0,
-                stroke_mm: 8.0,
-                stroke_period_s: period,
-            }
+            scenarios::stroke(period)
         } else if let Some(depth) = std::env::var("PRESS")
             .ok()
             .and_then(|v| v.parse::<f32>().ok())
         {
-            HandScript::Press {
-                at_mm: [0.0; 3],
-                depth_mm: depth,
-                approach_mm: 10.0,
-                descend_s: 1.0,
-            }
+            scenarios::press(depth, 1.0)
         } else {
-            HandScript::PressAndPulse {
-                at_mm: [0.0; 3],
-                depth_mm: -6.0,
-                approach_mm: 10.0,
-                descend_s: 1.0,
-                pulse_mm: 10.0,
-                pulse_period_s: 1.0,
-            }
+            scenarios::taps()
         },
         link: Link {
             rtt_ms: rtt,

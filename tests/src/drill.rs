@@ -92,6 +92,8 @@ pub struct DrillResult {
     pub tool_vs_device_mm: Vec<Vec<DriftPair>>,
     /// Per device: force commands the server sent.
     pub commands_sent: Vec<u64>,
+    /// Per device: force commands the server sent in each whole second of the run (index = second).
+    pub commands_per_second: Vec<Vec<u64>>,
     /// Per device: times the silence rule started a ramp to zero.
     pub stale_events: Vec<u64>,
     /// Per device: the passivity controller's active ticks and withheld energy, mJ.
@@ -102,6 +104,15 @@ pub struct DrillResult {
     pub rejected: Vec<u64>,
     /// Deepest point of object 0 below its rest plane at the end, mm.
     pub final_positions_mm: Vec<[f32; 3]>,
+}
+
+impl DrillResult {
+    /// Force commands the server sent `device` per second from whole second `from_s` to the end of the run.
+    pub fn messages_per_s_from(&self, device: usize, from_s: usize) -> f64 {
+        let seconds = &self.commands_per_second[device];
+        let window = seconds.get(from_s..).unwrap_or_default();
+        window.iter().sum::<u64>() as f64 / window.len().max(1) as f64
+    }
 }
 
 struct DeviceRig {
@@ -115,6 +126,7 @@ struct DeviceRig {
     latest_pose: Option<(DevicePose, u64)>,
     positions_by_seq: VecDeque<(u64, [f32; 3])>,
     sent: u64,
+    sent_per_s: Vec<u64>,
 }
 
 /// Run `devices` against `world` for `duration_s` of virtual time. Deterministic.
@@ -158,6 +170,7 @@ pub fn run_drill(
             latest_pose: None,
             positions_by_seq: VecDeque::new(),
             sent: 0,
+            sent_per_s: vec![0; ticks.div_ceil(1000)],
         });
     }
     let n_tools = tools.len();
@@ -219,6 +232,7 @@ pub fn run_drill(
         for (r, rig) in rigs.iter_mut().enumerate() {
             if let Some(command) = &commands[rig.tool] {
                 rig.sent += 1;
+                rig.sent_per_s[(tick - 1) / 1000] += 1;
                 encode(command, &mut bytes);
                 if let Some(due) = rig.down.schedule(now_ns) {
                     rig.forces_in_flight.push_back((due, bytes.clone()));
@@ -254,6 +268,7 @@ pub fn run_drill(
         traces: Vec::new(),
         tool_vs_device_mm: drift,
         commands_sent: Vec::new(),
+        commands_per_second: Vec::new(),
         stale_events: Vec::new(),
         passivity_withheld_mj: Vec::new(),
         max_force_n: Vec::new(),
@@ -267,6 +282,7 @@ pub fn run_drill(
         let mut report = hapticserver::HapticReport::new("drill");
         rig.haptic.write_report(&mut report);
         result.commands_sent.push(rig.sent);
+        result.commands_per_second.push(rig.sent_per_s);
         result.stale_events.push(report.safety.stale_events);
         result
             .passivity_withheld_mj

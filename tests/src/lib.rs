@@ -4,8 +4,9 @@
 //! Owns: [`harness`] (start a server, simulated hapticservers and viewers on a loopback zenoh endpoint, each
 //! with its own real zenoh session, and measure across them), [`demo`] (the live demo with its per-second
 //! lines and final summary), [`drill`] (latency drills on virtual time: the real server tick and device loops
-//! joined by emulated links), [`netns`] (a lab of network namespaces joined by a real path with delay, jitter
-//! and loss) and [`netem`] (the packet bridge on that path, the `sinew-netem` binary).
+//! joined by emulated links), [`scenarios`] (the latency-moderated mode's acceptance runs on the drill,
+//! shared by the tests and the `latency_table` bench), [`netns`] (a lab of network namespaces joined by a real
+//! path with delay, jitter and loss) and [`netem`] (the packet bridge on that path, the `sinew-netem` binary).
 //! Must not: contain role logic; everything here calls the role crates' public APIs.
 #![warn(missing_docs)]
 
@@ -14,3 +15,4 @@ pub mod drill;
 pub mod harness;
 pub mod netem;
 pub mod netns;
+pub mod scenarios;

@@ -4,70 +4,20 @@
 
 use hapticserver::{HandPreset, HandScript, ModePolicy};
 use sinew::drill::{
-    DrillDevice, Link, drift_mm, energy_output_mj, felt_stiffness, force_amplitude_at,
-    hold_metrics, max_force_step, rms_error_fraction, run_drill,
+    DrillDevice, Link, drift_mm, energy_output_mj, force_amplitude_at, hold_metrics,
+    max_force_step, run_drill,
 };
 use sinew::harness::load_shipped_world;
+use sinew::scenarios::{
+    felt_stiffness_n_per_mm, hold, lossy_link, one_device, press, stroke_error, taps,
+};
 
-fn press(depth_mm: f32, descend_s: f32) -> HandScript {
-    HandScript::Press {
-        at_mm: [0.0; 3],
-        depth_mm,
-        approach_mm: 10.0,
-        descend_s,
-    }
-}
-
-fn device(hand: HandPreset, script: HandScript, link: Link, mode: ModePolicy) -> DrillDevice {
-    DrillDevice {
-        id: "left".into(),
-        hand,
-        script,
-        link,
-        mode,
-    }
-}
-
-/// How deep each hand aims (below the surface, mm) for a firm but unclamped hold on each pad.
-fn hold_depth_mm(world: &str, hand: HandPreset) -> f32 {
-    match (world, hand) {
-        ("pad.toml", HandPreset::Light) => 30.0,
-        ("pad.toml", HandPreset::Nominal) => 10.0,
-        // 4 mm: the firm hand follows its target closely, so this is about the depth it holds.
-        ("pad.toml", _) => 4.0,
-        (_, HandPreset::Light) => 12.0,
-        (_, HandPreset::Nominal) => 6.0,
-        _ => 2.0,
-    }
-}
-
-/// Press, then hold; measure the last 2 s of a 5 s run (the hold starts at 1 s).
-fn stability_row(world_name: &str, hand: HandPreset, rtt_ms: f64, mode: ModePolicy) -> String {
-    let world = load_shipped_world(world_name).unwrap();
-    let link = Link {
-        rtt_ms,
-        jitter_ms: 20.0_f64.min(rtt_ms / 2.0),
-        loss: 0.05,
-        seed: 11,
-    };
-    let depth = hold_depth_mm(world_name, hand);
-    let result = run_drill(&world, &[device(hand, press(depth, 1.0), link, mode)], 5.0).unwrap();
-    let trace = &result.traces[0];
-    let hold = hold_metrics(trace, 3.0, 5.0);
-    let energy = energy_output_mj(trace);
-    let stable = hold.force_p2p_n < 0.05 && hold.velocity_rms_mm_s < 1.0 && energy <= 1.0;
-    format!(
-        "{world_name} {} {rtt_ms} ms {}: p2p {:.4} N, v_rms {:.3} mm/s, energy out {energy:.3} mJ, F {:.2} N, \
-         refused {}, stale {} -> {}",
-        hand.name(),
-        mode.name(),
-        hold.force_p2p_n,
-        hold.velocity_rms_mm_s,
-        hold.mean_force_n,
-        result.rejected[0],
-        result.stale_events[0],
-        if stable { "stable" } else { "UNSTABLE" }
-    )
+/// Press, then hold; measure the last 2 s of a 5 s run (the hold starts at 1 s), at +-20 ms jitter and 5% loss.
+fn stability_row(world: &str, hand: HandPreset, rtt_ms: f64, mode: ModePolicy) -> String {
+    let link = lossy_link(rtt_ms);
+    hold(world, hand, link, mode)
+        .unwrap()
+        .row(world, hand, &link, mode)
 }
 
 fn assert_all_stable(cases: &[(&str, HandPreset)]) {
@@ -111,21 +61,11 @@ fn direct_mode_at_the_same_settings_fails_where_theory_says() {
 /// A slow press, 1-5 mm into the pad over 6 s: the felt stiffness at each round trip against zero delay.
 #[test]
 fn felt_stiffness_stays_within_ten_percent_of_zero_delay_up_to_200_ms() {
-    let world = load_shipped_world("pad.toml").unwrap();
     let run = |rtt_ms: f64| {
-        let result = run_drill(
-            &world,
-            &[device(
-                HandPreset::Firm,
-                // The firm hand follows its target closely: 18 mm of travel over 6 s, 8 mm below the surface.
-                press(8.0, 6.0),
-                Link::rtt(rtt_ms),
-                ModePolicy::Moderated,
-            )],
-            6.5,
-        )
-        .unwrap();
-        felt_stiffness(&result.traces[0], 1.0, 5.0).expect("the press reached 5 mm")
+        // The firm hand follows its target closely: 18 mm of travel over 6 s, 8 mm below the surface.
+        felt_stiffness_n_per_mm(HandPreset::Firm, Link::rtt(rtt_ms), ModePolicy::Moderated)
+            .unwrap()
+            .expect("the press reached 5 mm")
     };
     let reference = run(0.0);
     assert!(reference > 0.05, "zero-delay stiffness {reference} N/mm");
@@ -138,36 +78,16 @@ fn felt_stiffness_stays_within_ten_percent_of_zero_delay_up_to_200_ms() {
     }
 }
 
-/// Lateral strokes of +-8 mm in a 4 mm dent with period `period_s`, at 100 ms round trip and at zero delay:
-/// the RMS force error (fraction of peak) and the drift at equal timestamps.
+/// Lateral strokes of +-8 mm in a 4 mm dent with period `period_s`, firm hand, at 100 ms round trip against
+/// zero delay: the RMS force error (fraction of peak) and the drift at equal timestamps.
 fn stroke_run(period_s: f32) -> (f32, f32, f32) {
-    let world = load_shipped_world("pad.toml").unwrap();
-    let stroke = HandScript::PressAndStroke {
-        at_mm: [0.0; 3],
-        depth_mm: 4.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-        stroke_mm: 8.0,
-        stroke_period_s: period_s,
-    };
-    let run = |rtt_ms: f64| {
-        run_drill(
-            &world,
-            &[device(
-                HandPreset::Firm,
-                stroke.clone(),
-                Link::rtt(rtt_ms),
-                ModePolicy::Moderated,
-            )],
-            5.0,
-        )
-        .unwrap()
-    };
-    let reference = run(0.0);
-    let delayed = run(100.0);
-    let error = rms_error_fraction(&delayed.traces[0], &reference.traces[0], 2.0, 5.0);
-    let (drift, speed) = drift_mm(&delayed, 0, 2.0, 5.0);
-    (error, drift, speed)
+    stroke_error(
+        HandPreset::Firm,
+        period_s,
+        Link::rtt(100.0),
+        ModePolicy::Moderated,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -182,7 +102,7 @@ fn force_tracks_a_zero_delay_run_at_half_a_hertz_and_the_server_tool_stays_with_
     let world = load_shipped_world("pad.toml").unwrap();
     let result = run_drill(
         &world,
-        &[device(
+        &[one_device(
             HandPreset::Nominal,
             press(10.0, 1.0),
             Link::rtt(100.0),
@@ -211,7 +131,7 @@ fn holding_still_costs_at_most_100_messages_a_second_and_no_silence_at_5_percent
     for loss in [0.01, 0.05] {
         let result = run_drill(
             &world,
-            &[device(
+            &[one_device(
                 HandPreset::Nominal,
                 press(10.0, 1.0),
                 Link {
@@ -315,15 +235,7 @@ fn right_feels_lefts_push_through_the_tissue_as_at_zero_delay() {
 #[test]
 fn the_force_never_steps_more_than_a_tenth_of_a_newton_at_onset_offset_and_model_updates() {
     let world = load_shipped_world("pad.toml").unwrap();
-    let tap = HandScript::PressAndPulse {
-        at_mm: [0.0; 3],
-        // The script places the probe's centre; its bottom is the 4 mm radius lower.
-        depth_mm: -6.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-        pulse_mm: 10.0,
-        pulse_period_s: 1.0,
-    };
+    let tap = taps();
     let link = Link {
         rtt_ms: 100.0,
         jitter_ms: 20.0,
@@ -334,7 +246,7 @@ fn the_force_never_steps_more_than_a_tenth_of_a_newton_at_onset_offset_and_model
     for hand in [HandPreset::Light, HandPreset::Nominal, HandPreset::Firm] {
         let result = run_drill(
             &world,
-            &[device(hand, tap.clone(), link, ModePolicy::Moderated)],
+            &[one_device(hand, tap.clone(), link, ModePolicy::Moderated)],
             6.0,
         )
         .unwrap();
