@@ -27,6 +27,7 @@ use crate::render::{ModelRenderer, RenderConfig};
 use crate::render_mode::{ModePolicy, ModeSwitch};
 use crate::report::HapticReport;
 use crate::safety::ForceSafety;
+use crate::stillness::Stillness;
 use crate::trace::{Trace, TraceSample};
 
 /// Scalar loop counters (`Copy`, copied into the report).
@@ -56,6 +57,7 @@ pub struct HapticLoop {
     allowance_mj: f64,
     trace: Trace,
     last_velocity_mm_s: [f32; 3],
+    stillness: Stillness,
     inbox: Arc<ForceInbox>,
     period: Duration,
     dt_s: f32,
@@ -105,6 +107,7 @@ impl HapticLoop {
             allowance_mj: 0.0,
             trace: Trace::default(),
             last_velocity_mm_s: [0.0; 3],
+            stillness: Stillness::default(),
             inbox,
             period,
             dt_s: period.as_secs_f32(),
@@ -324,6 +327,7 @@ impl HapticLoop {
             blend_offset_n: self.renderer.blend_offset_n(now_s),
             passivity_energy_mj: self.passivity.counters().energy_mj,
         });
+        self.stillness.push(now_s, force_n, velocity_mm_s);
         self.counters.last_rendered_force_n = force_n;
         self.counters.max_rendered_force_n =
             self.counters.max_rendered_force_n.max(norm3(&force_n));
@@ -367,6 +371,7 @@ impl HapticLoop {
         report.mode_switches = self.mode.switches();
         report.smoothed_rtt_ms = self.mode.smoothed_rtt_ms().unwrap_or(0.0);
         report.energy_allowance_mj = self.allowance_mj;
+        report.last_second = self.stillness.last();
     }
 
     /// Publish into the shared report if nobody holds it right now. Never blocks; returns whether it published.

@@ -31,7 +31,7 @@ use crate::haptic_loop::HapticLoop;
 use crate::report::HapticReport;
 use crate::safety::{ForceSafety, SafetyConfig};
 use crate::trace::Trace;
-use crate::zenoh_session::open_session;
+use crate::zenoh_session::{UDP_LINK_WAIT, open_session, wait_for_udp_link, wants_udp_link};
 
 /// How often the hello is repeated.
 pub const HELLO_PERIOD: Duration = Duration::from_secs(1);
@@ -136,6 +136,22 @@ impl HapticServer {
                 "declaring the force subscriber on {force_key}"
             )))?;
 
+        // Multilink: start the loop once poses and forces can take UDP (or after UDP_LINK_WAIT, on TCP alone).
+        let udp_link_wait = wants_udp_link(&network).then(|| {
+            let waited = wait_for_udp_link(&session, UDP_LINK_WAIT);
+            match waited {
+                Some(d) => tracing::info!(device = %device_id, waited_ms = d.as_millis(), "UDP link up"),
+                None => tracing::warn!(
+                    device = %device_id,
+                    "no UDP link to the server after {} s: poses and forces ride TCP (head-of-line blocking under loss)",
+                    UDP_LINK_WAIT.as_secs()
+                ),
+            }
+            waited
+        });
+        let mut report = HapticReport::new(&device_id);
+        report.udp_link_wait_ms = udp_link_wait.map(|waited| waited.map(|d| d.as_secs_f32() * 1e3));
+
         let period = Duration::from_nanos(1_000_000_000 / u64::from(loop_rate_hz));
         let mut handle = HapticHandle {
             device_id: device_id.clone(),
@@ -148,7 +164,7 @@ impl HapticServer {
             hello_thread: None,
             stop: Arc::new(AtomicBool::new(false)),
             abrupt: Arc::new(AtomicBool::new(false)),
-            report: Arc::new(Mutex::new(HapticReport::new(&device_id))),
+            report: Arc::new(Mutex::new(report)),
             inbox: inbox.clone(),
             trace: Arc::new(Mutex::new(Trace::default())),
             clock,

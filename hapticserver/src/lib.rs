@@ -3,7 +3,8 @@
 //! Owns: the device abstraction ([`device`]) and its backends (the simulated hand: [`sim_device`],
 //! [`hand_model`], [`hand_script`]), device-side force safety ([`safety`]), the 1 kHz loop body
 //! ([`haptic_loop`]) and the process around it ([`haptic_server`]: zenoh declarations, threads, handle,
-//! [`report`]), and the latency-moderated renderer of the server's local models ([`render`]).
+//! [`report`], with the last second's [`stillness`]), and the latency-moderated renderer of the server's
+//! local models ([`render`]).
 //!
 //! Data flow: device --read--> [`haptic_loop::HapticLoop::tick`] --DevicePose, 1 kHz--> server;
 //! server --ForceCommand--> zenoh callback --> [`force_inbox::ForceInbox`] (latest-value mailbox) -->
@@ -28,6 +29,7 @@ pub mod render_mode;
 pub mod report;
 pub mod safety;
 pub mod sim_device;
+pub mod stillness;
 pub mod trace;
 pub mod zenoh_session;
 
@@ -43,4 +45,5 @@ pub use render_mode::{ModePolicy, ModeSwitch};
 pub use report::HapticReport;
 pub use safety::{ForceSafety, SafetyConfig, SafetyCounters};
 pub use sim_device::SimDevice;
+pub use stillness::{Stillness, StillnessFigures};
 pub use trace::{Trace, TraceSample};

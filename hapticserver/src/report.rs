@@ -68,6 +68,11 @@ pub struct HapticReport {
     pub smoothed_rtt_ms: f32,
     /// The energy allowance of the latest model, mJ.
     pub energy_allowance_mj: f64,
+    /// Multilink: how long the start waited for the UDP link, ms (`Some(None)`: it never came, the device runs
+    /// on TCP alone; `None`: no UDP endpoint was asked for).
+    pub udp_link_wait_ms: Option<Option<f32>>,
+    /// Stillness of the rendered force and the stylus over the last whole second.
+    pub last_second: crate::stillness::StillnessFigures,
 }
 
 impl HapticReport {
@@ -100,6 +105,8 @@ impl HapticReport {
             mode_switches: 0,
             smoothed_rtt_ms: 0.0,
             energy_allowance_mj: 0.0,
+            last_second: Default::default(),
+            udp_link_wait_ms: None,
         }
     }
 
@@ -117,7 +124,7 @@ impl fmt::Display for HapticReport {
         write!(
             f,
             "{id}: {mode} ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
-             forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej}",
+             forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej} udp {udp}",
             id = self.device_id,
             mode = if self.moderated {
                 "moderated"
@@ -137,6 +144,11 @@ impl fmt::Display for HapticReport {
             stale = self.safety.stale_events,
             clamped = self.safety.clamped,
             rej = self.decode_rejects.total(),
+            udp = match self.udp_link_wait_ms {
+                None => "not asked".to_owned(),
+                Some(None) => "none (TCP alone)".to_owned(),
+                Some(Some(ms)) => format!("up after {ms:.0} ms"),
+            },
         )
     }
 }

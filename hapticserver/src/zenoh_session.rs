@@ -1,8 +1,10 @@
 //! Opening a zenoh session from the shared [`NetworkOptions`].
 //!
 //! Owns: the translation of [`NetworkOptions`] (config file, endpoints, mode, scouting off) into a
-//! `zenoh::Config` and the session open. Must not: declare anything on the session (that is
-//! [`crate::haptic_server`]).
+//! `zenoh::Config`, the session open, and the wait for the multilink transport's UDP link. Must not: declare
+//! anything on the session (that is [`crate::haptic_server`]).
+
+use std::time::{Duration, Instant};
 
 use sinew_protocol::network::NetworkOptions;
 use zenoh::Wait;
@@ -32,6 +34,37 @@ pub fn open_session(network: &NetworkOptions) -> Result<zenoh::Session, HapticEr
     zenoh::open(config)
         .wait()
         .map_err(HapticError::zenoh("opening the session"))
+}
+
+/// How long a starting device waits for the UDP link of its multilink transport before it runs on TCP alone.
+/// zenoh opens the TCP link first and the UDP one a few round trips later (or, when a handshake packet is lost,
+/// after the 1 s link timeout); until then poses and forces ride TCP, where one lost segment holds later forces
+/// past the 50 ms silence rule (seen as silences at contact onset through a lossy 100 ms path).
+pub const UDP_LINK_WAIT: Duration = Duration::from_secs(3);
+
+/// Whether `network` asks for a UDP link (a `udp/...` connect endpoint).
+pub fn wants_udp_link(network: &NetworkOptions) -> bool {
+    network.connect.iter().any(|e| e.starts_with("udp/"))
+}
+
+/// Wait until `session` holds a UDP link, polling every 5 ms, for at most `timeout`: how long it took, or
+/// `None` if none came.
+pub fn wait_for_udp_link(session: &zenoh::Session, timeout: Duration) -> Option<Duration> {
+    let start = Instant::now();
+    loop {
+        let has_udp = session
+            .info()
+            .links()
+            .wait()
+            .any(|link| link.dst().protocol().as_str() == "udp");
+        if has_udp {
+            return Some(start.elapsed());
+        }
+        if start.elapsed() >= timeout {
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
 }
 
 #[cfg(test)]

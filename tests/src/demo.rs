@@ -14,8 +14,8 @@ use sinew_server::world::load_world;
 use sinew_viewer::ViewerHandle;
 
 use crate::harness::{
-    Pacing, replica_error, start_server_emulated, start_sim_device_emulated, start_viewer,
-    surgeon_scripts,
+    Pacing, SimDeviceSetup, replica_error, start_server_emulated, start_sim_device_emulated,
+    start_viewer, surgeon_scripts,
 };
 
 /// Demo options.
@@ -35,6 +35,8 @@ pub struct DemoOptions {
     pub rtt_ms: f64,
     /// How the devices render forces.
     pub mode: hapticserver::ModePolicy,
+    /// The simulated operators' hand.
+    pub hand: hapticserver::HandPreset,
 }
 
 /// The demo's final figures.
@@ -78,8 +80,11 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
             script,
             &options.endpoint,
             Pacing::Spin,
-            options.mode,
-            one_way,
+            SimDeviceSetup {
+                mode: options.mode,
+                emulation: one_way,
+                hand: options.hand,
+            },
         )
     };
     let devices = vec![device("left", left)?, device("right", right)?];
@@ -88,9 +93,10 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
         anyhow::bail!("the viewer got no snapshot from the server within 5 s");
     }
     println!(
-        "sinew demo: scene `{scene}` on {} (zenoh peer, loopback), devices left + right (mode {}, emulated round trip {} ms), viewer headless{}",
+        "sinew demo: scene `{scene}` on {} (zenoh peer, loopback), devices left + right (mode {}, hand {}, emulated round trip {} ms), viewer headless{}",
         options.endpoint,
         options.mode.name(),
+        options.hand.name(),
         options.rtt_ms,
         if options.window { " + window" } else { "" }
     );
@@ -239,7 +245,8 @@ fn summarize(running: &Running) -> DemoSummary {
         println!(
             "device {id}: mode {} ({}, {} switches); pose->force round trip p50 {p50:.0} us, p99 {p99:.0} us; \
              {:.0} force messages/s ({} suppressed by the deadband); max rendered force {max_force:.2} N; \
-             silences {}; port energy {:+.2} mJ (passivity: active on {} of {} ticks, withheld {:.2} mJ)",
+             silences {}; port energy {:+.2} mJ (passivity: active on {} of {} ticks, withheld {:.2} mJ); \
+             last second: F {:.2} N, peak-to-peak {:.4} N, stylus speed RMS {:.2} mm/s -> {}",
             if report.moderated {
                 "moderated"
             } else {
@@ -253,7 +260,15 @@ fn summarize(running: &Running) -> DemoSummary {
             report.passivity.energy_mj,
             report.passivity.active_ticks,
             report.ticks,
-            report.passivity.withheld_mj
+            report.passivity.withheld_mj,
+            report.last_second.mean_force_n,
+            report.last_second.force_p2p_n,
+            report.last_second.speed_rms_mm_s,
+            if report.last_second.still() {
+                "still (p2p < 0.05 N, speed < 1 mm/s)"
+            } else {
+                "moving or unstable"
+            }
         );
     }
     let v = running.viewer.stats();

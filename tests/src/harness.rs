@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use hapticserver::{HandScript, HapticConfig, HapticHandle, HapticServer, SimDevice};
+use hapticserver::sim_device::sim_device_model;
+use hapticserver::{HandPreset, HandScript, HapticConfig, HapticHandle, HapticServer, SimDevice};
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerHandle, ServerNode};
 use sinew_server::world::{World, load_world};
@@ -100,12 +101,32 @@ pub fn start_sim_device(
         script,
         endpoint,
         pacing,
-        hapticserver::ModePolicy::default(),
-        sinew_protocol::rt::EmulationConfig::default(),
+        SimDeviceSetup::default(),
     )
 }
 
-/// [`start_sim_device`] with a render-mode policy and emulated delay, jitter and loss on its poses. It
+/// How a simulated hapticserver runs beyond its script: render mode, emulated network on its poses, hand.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimDeviceSetup {
+    /// Direct, moderated or auto.
+    pub mode: hapticserver::ModePolicy,
+    /// Delay, jitter and loss on the poses it publishes.
+    pub emulation: sinew_protocol::rt::EmulationConfig,
+    /// The simulated operator.
+    pub hand: HandPreset,
+}
+
+impl Default for SimDeviceSetup {
+    fn default() -> Self {
+        Self {
+            mode: hapticserver::ModePolicy::default(),
+            emulation: sinew_protocol::rt::EmulationConfig::default(),
+            hand: HandPreset::Grip,
+        }
+    }
+}
+
+/// [`start_sim_device`] with a [`SimDeviceSetup`]. It
 /// connects to `endpoint` and its UDP twin (multilink: poses and forces on UDP).
 pub fn start_sim_device_emulated(
     scene: &str,
@@ -113,17 +134,17 @@ pub fn start_sim_device_emulated(
     script: HandScript,
     endpoint: &str,
     pacing: Pacing,
-    mode: hapticserver::ModePolicy,
-    emulation: sinew_protocol::rt::EmulationConfig,
+    setup: SimDeviceSetup,
 ) -> anyhow::Result<HapticHandle> {
-    let mut config = HapticConfig::new(scene, id, Box::new(SimDevice::new(script)));
+    let device = SimDevice::with_params(script, setup.hand.params(), sim_device_model());
+    let mut config = HapticConfig::new(scene, id, Box::new(device));
     config.network = NetworkOptions {
         connect: with_udp_twin(endpoint),
         ..NetworkOptions::default()
     };
     config.spin_accuracy_ns = pacing.native_accuracy_ns();
-    config.mode = mode;
-    config.emulation = emulation;
+    config.mode = setup.mode;
+    config.emulation = setup.emulation;
     HapticServer::start(config).with_context(|| format!("starting hapticserver `{id}`"))
 }
 

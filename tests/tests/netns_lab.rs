@@ -189,3 +189,161 @@ fn namespaces_are_removed_even_when_the_test_panics() {
     assert_eq!(names.len(), 3);
     assert_gone(&names);
 }
+
+/// One tick of a hapticserver's `--trace-csv`: (t_s, force N, stale).
+fn trace_rows(csv: &str) -> Vec<(f64, [f32; 3], bool)> {
+    csv.lines()
+        .skip(1)
+        .filter_map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            let t = fields.first()?.parse().ok()?;
+            let f = |i: usize| fields.get(i)?.parse::<f32>().ok();
+            Some((t, [f(7)?, f(8)?, f(9)?], fields.get(11)? == &"1"))
+        })
+        .collect()
+}
+
+fn magnitude(f: [f32; 3]) -> f32 {
+    (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
+}
+
+/// Latency-moderated mode through the real network stack: the server in one namespace, a hapticserver in
+/// another, 50 ms +-10 ms each way with 5% loss on the bridge between them, the devices on their default
+/// multilink (poses and forces over UDP). The nominal hand presses and holds: it holds still, no silence
+/// reaches the device's 50 ms rule while the server lives, and after a kill -9 of the server the force ramps to
+/// zero through the silence rule and stays there (no stale model is rendered).
+#[test]
+fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_when_the_server_dies()
+{
+    if skip_unless_available(
+        "moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_when_the_server_dies",
+    ) {
+        return;
+    }
+    let server_bin = role_binary("sinew-server").unwrap();
+    let haptic_bin = role_binary("hapticserver").unwrap();
+    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let mut lab = NetnsLab::new(LabConfig::symmetric(50.0, 10.0, 0.05, 7)).unwrap();
+    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let ip = lab.server_ip().to_string();
+    let tcp = format!("tcp/{ip}:7447");
+    let udp = format!("udp/{ip}:7447");
+    let csv_path =
+        std::env::temp_dir().join(format!("sinew-netns-moderated-{}.csv", std::process::id()));
+
+    let mut server = Command::new(&server_bin);
+    server
+        .arg("--world")
+        .arg(&world)
+        .args(["--listen", &tcp, "--listen", &udp]);
+    let mut server = lab.spawn_in_server_ns(&server).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let mut haptic = Command::new(&haptic_bin);
+    haptic
+        .args(["--id", "left", "--script", "press", "--depth-mm", "10"])
+        .args(["--hand", "nominal", "--mode", "moderated"])
+        .args(["--connect", &tcp, "--connect", &udp, "--duration-s", "10"])
+        .arg("--trace-csv")
+        .arg(&csv_path);
+    let haptic = lab.spawn_in_device_ns(&haptic).unwrap();
+    // Joined, pressed (1 s) and held for a while, then the server dies mid-contact.
+    std::thread::sleep(Duration::from_millis(7000));
+    server.kill().unwrap();
+    let _ = server.wait();
+    let haptic = wait_output(haptic, Duration::from_secs(40)).unwrap();
+    let out = String::from_utf8_lossy(&haptic.stdout);
+    // Kept when an assertion fails, for a look at the ticks.
+    let csv = std::fs::read_to_string(&csv_path).unwrap_or_default();
+    println!("device trace: {}", csv_path.display());
+    let final_line = out
+        .lines()
+        .find(|l| l.starts_with("final:"))
+        .unwrap_or_else(|| {
+            panic!(
+                "no `final:` line ({}):\n{out}\n{}",
+                haptic.status,
+                String::from_utf8_lossy(&haptic.stderr)
+            )
+        });
+    println!("{final_line}");
+    let report = lab.stop_relay().unwrap();
+    println!("{report}");
+    drop(lab);
+    assert_gone(&namespaces);
+
+    assert!(
+        final_line.contains(": moderated "),
+        "not in moderated mode: {final_line}"
+    );
+    assert_eq!(
+        number_after(final_line, "rejects "),
+        Some(0.0),
+        "{final_line}"
+    );
+    assert!(
+        number_after(final_line, "rtt p50 ").unwrap() >= 100_000.0,
+        "round trip below the path's 100 ms: {final_line}"
+    );
+    // One silence, the kill's: none while the server lived, through 5% loss.
+    assert_eq!(
+        number_after(final_line, "stale "),
+        Some(1.0),
+        "silences other than the kill's reached the device: {final_line}"
+    );
+    let rows = trace_rows(&csv);
+    assert!(rows.len() > 5000, "trace has {} ticks", rows.len());
+    let first_contact = rows
+        .iter()
+        .position(|r| magnitude(r.1) > 0.3)
+        .unwrap_or_else(|| panic!("never pressed: {final_line}"));
+    let silence = first_contact
+        + rows[first_contact..]
+            .iter()
+            .position(|r| r.2)
+            .expect("the kill never made the stream stale");
+    let silence_t = rows[silence].0;
+    // The hold: the 2 s that end 100 ms before the silence started.
+    let hold: Vec<_> = rows
+        .iter()
+        .filter(|r| r.0 >= silence_t - 2.15 && r.0 < silence_t - 0.15)
+        .collect();
+    assert!(hold.len() > 1500, "only {} ticks of hold", hold.len());
+    let p2p = (0..3)
+        .map(|axis| {
+            let (lo, hi) = hold.iter().fold((f32::MAX, f32::MIN), |(lo, hi), r| {
+                (lo.min(r.1[axis]), hi.max(r.1[axis]))
+            });
+            hi - lo
+        })
+        .fold(0.0f32, f32::max);
+    let mean = hold.iter().map(|r| magnitude(r.1)).sum::<f32>() / hold.len() as f32;
+    println!("hold: {mean:.2} N, peak-to-peak {p2p:.4} N");
+    assert!(mean > 0.3, "not pressing while holding: {mean:.3} N");
+    assert!(p2p < 0.1, "force peak-to-peak {p2p:.4} N while holding");
+    // After the silence: zero within the rule's 20 ms ramp (70 ms allowed), and zero for good.
+    let zero = silence
+        + rows[silence..]
+            .iter()
+            .position(|r| magnitude(r.1) == 0.0)
+            .expect("the force never reached zero after the kill");
+    let ramp_ms = (rows[zero].0 - silence_t) * 1e3;
+    assert!(
+        ramp_ms <= 70.0,
+        "zero {ramp_ms:.1} ms after the silence began"
+    );
+    if let Some(r) = rows[zero..].iter().find(|r| magnitude(r.1) != 0.0) {
+        panic!(
+            "{:.3} s: {:?} N rendered after the force had reached zero",
+            r.0, r.1
+        );
+    }
+    assert!(rows.len() - zero > 1000, "too little trace after the kill");
+    let (lost, forwarded) = relay_loss(&report);
+    let rate = lost as f64 / (lost + forwarded).max(1) as f64;
+    assert!(
+        forwarded > 5000 && (0.02..0.09).contains(&rate),
+        "relay lost {lost} of {} frames ({rate:.3}), expected about 5%",
+        lost + forwarded
+    );
+    let _ = std::fs::remove_file(&csv_path);
+}

@@ -42,6 +42,10 @@ enum Command {
         /// How the devices render forces: direct, moderated or auto.
         #[arg(long, default_value = "auto")]
         mode: hapticserver::ModePolicy,
+        /// The simulated surgeons' hand: grip (default), light, nominal or firm. The light hand is the
+        /// hardest for stability: try `--rtt-ms 100 --hand light` with `--mode direct`, then `moderated`.
+        #[arg(long, default_value = "grip")]
+        hand: hapticserver::HandPreset,
     },
 }
 
@@ -60,6 +64,7 @@ fn main() -> anyhow::Result<()> {
             png,
             rtt_ms,
             mode,
+            hand,
         } => {
             anyhow::ensure!(
                 duration_s.is_finite() && duration_s > 0.0,
@@ -73,6 +78,7 @@ fn main() -> anyhow::Result<()> {
                 png,
                 rtt_ms,
                 mode,
+                hand,
             })?;
         }
     }
