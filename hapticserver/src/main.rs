@@ -88,18 +88,9 @@ struct Args {
     /// Simulated operator: grip (default), light, nominal or firm.
     #[arg(long, default_value = "grip")]
     hand: HandPreset,
-    /// Emulate a distant site: delay every pose this hapticserver publishes by this much, ms.
-    #[arg(long, default_value_t = 0.0)]
-    emulate_delay_ms: f64,
-    /// Vary each emulated delay uniformly by up to this much either way, ms (order is kept).
-    #[arg(long, default_value_t = 0.0)]
-    emulate_jitter_ms: f64,
-    /// Lose this fraction of the poses (0..1), seeded by --emulate-seed.
-    #[arg(long, default_value_t = 0.0)]
-    emulate_loss: f64,
-    /// Seed of the emulated loss and jitter.
-    #[arg(long, default_value_t = 1)]
-    emulate_seed: u64,
+    /// Emulated distance on what this role publishes.
+    #[command(flatten)]
+    emulation: sinew_protocol::cli::EmulationArgs,
     /// Write every tick (time, position, velocity, force, mode) to this CSV file when the server stops.
     #[arg(long)]
     trace_csv: Option<std::path::PathBuf>,
@@ -147,12 +138,7 @@ fn main() -> Result<()> {
     config.loop_rate_hz = args.rate_hz;
     config.spin_accuracy_ns = args.spin_ns;
     config.mode = args.mode;
-    config.emulation = sinew_protocol::rt::EmulationConfig {
-        delay_ms: args.emulate_delay_ms,
-        jitter_ms: args.emulate_jitter_ms,
-        loss: args.emulate_loss,
-        seed: args.emulate_seed,
-    };
+    config.emulation = args.emulation.config().map_err(anyhow::Error::msg)?;
     if args.trace_csv.is_some() {
         // Up to an hour at 1 kHz would be 3.6 M samples; cap at the run's length (or 10 minutes).
         let seconds = args.duration_s.unwrap_or(600.0).min(3600.0);

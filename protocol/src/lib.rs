@@ -4,11 +4,13 @@
 //! the versioned envelope and its typed decode errors ([`codec`]), mesh-position quantization ([`quantize`]),
 //! and the zenoh endpoint options every role shares ([`network`]). It also holds the three tiny real-time
 //! primitives every role uses ([`rt`]: latest-value mailbox, latency histogram, loop pacer) so the roles need
-//! not depend on each other.
+//! not depend on each other. With the `cli` feature, the command-line flags every role shares ([`cli`]).
 //!
 //! Must not: open a zenoh session, touch parry, or know about the simulation. Plain data only.
 #![warn(missing_docs)]
 
+#[cfg(feature = "cli")]
+pub mod cli;
 pub mod codec;
 pub mod keys;
 pub mod messages;

@@ -35,18 +35,9 @@ struct Args {
     /// Participant id of this server.
     #[arg(long, default_value = "server")]
     id: String,
-    /// Emulate a distant site: delay every force command this server publishes by this much, ms.
-    #[arg(long, default_value_t = 0.0)]
-    emulate_delay_ms: f64,
-    /// Vary each emulated delay uniformly by up to this much either way, ms (order is kept).
-    #[arg(long, default_value_t = 0.0)]
-    emulate_jitter_ms: f64,
-    /// Lose this fraction of the force commands (0..1), seeded by --emulate-seed.
-    #[arg(long, default_value_t = 0.0)]
-    emulate_loss: f64,
-    /// Seed of the emulated loss and jitter.
-    #[arg(long, default_value_t = 1)]
-    emulate_seed: u64,
+    /// Emulated distance on what this role publishes.
+    #[command(flatten)]
+    emulation: sinew_protocol::cli::EmulationArgs,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -56,13 +47,7 @@ fn main() -> anyhow::Result<()> {
         )
         .init();
     let args = Args::parse();
-    let emulation = sinew_protocol::rt::EmulationConfig {
-        delay_ms: args.emulate_delay_ms,
-        jitter_ms: args.emulate_jitter_ms,
-        loss: args.emulate_loss,
-        seed: args.emulate_seed,
-    };
-    emulation.validate().map_err(anyhow::Error::msg)?;
+    let emulation = args.emulation.config().map_err(anyhow::Error::msg)?;
     let world = load_world(&args.world).context("the server refuses to start with this world")?;
     println!(
         "world {}: scene `{}`, {} object(s), {} tool(s), tick {} Hz",
