@@ -34,6 +34,7 @@
 
 use nalgebra::Matrix3;
 
+use crate::tissue::springs::{spring_tangent, sym_block, sym_block_mul};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 const NONE: u32 = u32::MAX;
@@ -52,14 +53,6 @@ struct LocalSpring {
     /// Damping along the spring, N s/mm, and its unit direction.
     c: f32,
     dir: Vec3,
-}
-
-fn block_mul(m: &[f32; 6], r: &Vec3) -> Vec3 {
-    Vec3::new(
-        m[0] * r.x + m[3] * r.y + m[4] * r.z,
-        m[3] * r.x + m[1] * r.y + m[5] * r.z,
-        m[4] * r.x + m[5] * r.y + m[2] * r.z,
-    )
 }
 
 /// What a finished solve found.
@@ -298,29 +291,15 @@ impl ContactStiffness {
                     continue;
                 }
                 let (ia, ib, rest, k, c) = springs.get(s as usize);
-                let d = x[ib] - x[ia];
-                let len = d.norm();
-                if len.is_nan() || len <= 1e-9 {
+                let Some(t) = spring_tangent(law, x[ia], x[ib], rest, k) else {
                     continue;
-                }
-                let u = d / len;
-                let stretch = len - rest;
-                let kt = law.tangent_n_per_mm(stretch, rest, k);
-                let geometric = (law.tension_n(stretch, rest, k) / len).max(0.0);
-                let along = kt - geometric;
+                };
                 self.springs.push(LocalSpring {
                     a: l as u32,
                     b: lo,
-                    k: [
-                        along * u.x * u.x + geometric,
-                        along * u.y * u.y + geometric,
-                        along * u.z * u.z + geometric,
-                        along * u.x * u.y,
-                        along * u.x * u.z,
-                        along * u.y * u.z,
-                    ],
+                    k: sym_block(t.along_n_per_mm, t.iso_n_per_mm, &t.dir),
                     c,
-                    dir: u,
+                    dir: t.dir,
                 });
             }
         }
@@ -400,7 +379,7 @@ impl ContactStiffness {
             } else {
                 v[s.b as usize]
             };
-            let y = block_mul(&s.k, &(va - vb));
+            let y = sym_block_mul(&s.k, &(va - vb));
             out[s.a as usize] += y;
             if s.b != NONE {
                 out[s.b as usize] -= y;

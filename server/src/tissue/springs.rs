@@ -54,6 +54,63 @@ pub struct SpringSet {
     pub damping_n_s_per_mm: Vec<f32>,
 }
 
+/// The tangent stiffness of one spring, `J = kt uu^T + g (I - uu^T)` (N/mm), split into its parts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpringTangent {
+    /// Unit direction from end a to end b.
+    pub dir: Vec3,
+    /// `kt - g`: the stiffness along `dir` beyond the isotropic part, N/mm.
+    pub along_n_per_mm: f32,
+    /// `g = max(T, 0) / len`: the geometric (tension) stiffness, the same in every direction, N/mm.
+    pub iso_n_per_mm: f32,
+}
+
+/// The tangent of the spring from `xa` to `xb` with rest length `rest` and stiffness `k` under `law`; `None`
+/// for a degenerate (zero or non-finite length) spring. The geometric term is clamped at zero in compression,
+/// so the block stays positive semi-definite. Shared by the implicit integrators and the contact solve.
+pub fn spring_tangent(
+    law: SpringLaw,
+    xa: Vec3,
+    xb: Vec3,
+    rest: f32,
+    k: f32,
+) -> Option<SpringTangent> {
+    let d = xb - xa;
+    let len = d.norm();
+    if !len.is_finite() || len <= 1e-9 {
+        return None;
+    }
+    let stretch = len - rest;
+    let kt = law.tangent_n_per_mm(stretch, rest, k);
+    let geometric = (law.tension_n(stretch, rest, k) / len).max(0.0);
+    Some(SpringTangent {
+        dir: d / len,
+        along_n_per_mm: kt - geometric,
+        iso_n_per_mm: geometric,
+    })
+}
+
+/// The symmetric block `along uu^T + iso I`, stored xx, yy, zz, xy, xz, yz.
+pub fn sym_block(along: f32, iso: f32, u: &Vec3) -> [f32; 6] {
+    [
+        along * u.x * u.x + iso,
+        along * u.y * u.y + iso,
+        along * u.z * u.z + iso,
+        along * u.x * u.y,
+        along * u.x * u.z,
+        along * u.y * u.z,
+    ]
+}
+
+/// `m r` for a symmetric block stored xx, yy, zz, xy, xz, yz.
+pub fn sym_block_mul(m: &[f32; 6], r: &Vec3) -> Vec3 {
+    Vec3::new(
+        m[0] * r.x + m[3] * r.y + m[4] * r.z,
+        m[3] * r.x + m[1] * r.y + m[5] * r.z,
+        m[4] * r.x + m[5] * r.y + m[2] * r.z,
+    )
+}
+
 /// The state of one spring at the current positions, for the implicit integrator's Jacobian.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct SpringJacobian {
@@ -250,27 +307,15 @@ impl SpringSet {
     pub fn implicit_blocks(&self, law: SpringLaw, x: &[Vec3], h: f32, out: &mut [SpringJacobian]) {
         for (s, out) in out.iter_mut().enumerate().take(self.len()) {
             let (ia, ib, rest, k, c) = self.get(s);
-            let d = x[ib] - x[ia];
-            let len = d.norm();
-            if len <= 1e-9 {
-                *out = SpringJacobian::default();
-                continue;
-            }
-            let u = d / len;
-            let stretch = len - rest;
-            let kt = law.tangent_n_per_mm(stretch, rest, k);
-            let geometric = (law.tension_n(stretch, rest, k) / len).max(0.0);
-            // J = kt uu^T + geometric (I - uu^T); block = h c uu^T + h^2 J.
-            let along = h * c + h * h * (kt - geometric);
-            let iso = h * h * geometric;
-            out.block = [
-                along * u.x * u.x + iso,
-                along * u.y * u.y + iso,
-                along * u.z * u.z + iso,
-                along * u.x * u.y,
-                along * u.x * u.z,
-                along * u.y * u.z,
-            ];
+            // block = h c uu^T + h^2 J.
+            out.block = match spring_tangent(law, x[ia], x[ib], rest, k) {
+                Some(t) => sym_block(
+                    h * c + h * h * t.along_n_per_mm,
+                    h * h * t.iso_n_per_mm,
+                    &t.dir,
+                ),
+                None => SpringJacobian::default().block,
+            };
         }
     }
 
@@ -279,13 +324,7 @@ impl SpringSet {
     pub fn add_block_products(&self, blocks: &[SpringJacobian], p: &[Vec3], out: &mut [Vec3]) {
         for (s, jac) in blocks.iter().enumerate().take(self.len()) {
             let (ia, ib) = (self.a[s] as usize, self.b[s] as usize);
-            let r = p[ib] - p[ia];
-            let m = &jac.block;
-            let y = Vec3::new(
-                m[0] * r.x + m[3] * r.y + m[4] * r.z,
-                m[3] * r.x + m[1] * r.y + m[5] * r.z,
-                m[4] * r.x + m[5] * r.y + m[2] * r.z,
-            );
+            let y = sym_block_mul(&jac.block, &(p[ib] - p[ia]));
             out[ia] -= y;
             out[ib] += y;
         }
