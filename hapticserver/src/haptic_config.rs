@@ -44,6 +44,9 @@ pub struct HapticConfig {
     pub emulation: EmulationConfig,
     /// Record this many ticks of trace (0 = none); [`crate::HapticHandle::take_trace`] returns it after stop.
     pub trace_ticks: usize,
+    /// Fault drill: the device loop panics at this tick, as a bug in it would (`--fault-panic-at-tick`,
+    /// hidden). `None` in every normal run.
+    pub panic_at_tick: Option<u64>,
 }
 
 impl std::fmt::Debug for HapticConfig {
@@ -61,6 +64,7 @@ impl std::fmt::Debug for HapticConfig {
             .field("mode", &self.mode)
             .field("emulation", &self.emulation)
             .field("trace_ticks", &self.trace_ticks)
+            .field("panic_at_tick", &self.panic_at_tick)
             .finish()
     }
 }
@@ -81,6 +85,7 @@ impl HapticConfig {
             mode: crate::render_mode::ModePolicy::default(),
             emulation: EmulationConfig::default(),
             trace_ticks: 0,
+            panic_at_tick: None,
         }
     }
 }

@@ -334,6 +334,31 @@ impl HapticLoop {
         force_n
     }
 
+    /// After the loop itself failed: ramp the motor's last force linearly to zero over `steps` periods,
+    /// written straight to the device (no tick runs; a non-finite last force is replaced by zero), then zero.
+    /// `wait` paces the steps (the loop's pacer).
+    pub fn ramp_out(&mut self, steps: u64, mut wait: impl FnMut()) {
+        let last = self.counters.last_rendered_force_n;
+        let from = if last.iter().all(|f| f.is_finite()) {
+            last
+        } else {
+            [0.0; 3]
+        };
+        let steps = steps.max(1);
+        for k in (1..steps).rev() {
+            let scale = k as f32 / steps as f32;
+            if self
+                .device
+                .write_force([from[0] * scale, from[1] * scale, from[2] * scale])
+                .is_err()
+            {
+                self.counters.device_write_errors += 1;
+            }
+            wait();
+        }
+        self.write_zero_force();
+    }
+
     /// Command exactly zero force, outside the safety filter (zero is always safe). Used when the loop ends.
     pub fn write_zero_force(&mut self) {
         if self.device.write_force([0.0; 3]).is_err() {

@@ -66,6 +66,7 @@ impl HapticServer {
             mode,
             emulation,
             trace_ticks,
+            panic_at_tick,
         } = config;
         emulation
             .validate()
@@ -204,6 +205,7 @@ impl HapticServer {
             report: handle.report.clone(),
             stop: handle.stop.clone(),
             abrupt: handle.abrupt.clone(),
+            panic_at_tick,
         };
         let loop_name = format!("hapticserver-{device_id}");
         handle.loop_thread = Some(
@@ -270,24 +272,44 @@ struct DeviceLoop {
     report: Arc<Mutex<HapticReport>>,
     stop: Arc<AtomicBool>,
     abrupt: Arc<AtomicBool>,
+    panic_at_tick: Option<u64>,
 }
 
 impl DeviceLoop {
     /// The thread body: paced ticks until stopped, then a ramp to zero (unless killed) and a final zero force.
+    ///
+    /// A panic in a tick is caught here: the motor's last force is ramped to zero over the safety ramp time,
+    /// written straight to the device (nothing else of the loop runs again), the failure goes into the report
+    /// (`loop_failure`), and the thread ends; the process must then exit non-zero.
     fn run(mut self) {
         lock_report(&self.report).running = true;
+        let mut pacer = Pacer::new(self.period, self.spin_accuracy_ns);
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            self.tick_until_stopped(&mut pacer);
+        }));
+        if let Err(payload) = outcome {
+            let message = payload
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a panic without a message".to_owned());
+            self.haptic.ramp_out(self.wind_down_ticks, || {
+                pacer.wait();
+            });
+            if let Ok(mut trace) = self.trace.lock() {
+                *trace = self.haptic.take_trace();
+            }
+            let mut report = lock_report(&self.report);
+            self.haptic.write_report(&mut report);
+            report.loop_failure = Some(format!(
+                "the device loop panicked: {message} (force ramped to zero over {} ticks)",
+                self.wind_down_ticks
+            ));
+            report.running = false;
+            return;
+        }
         let outlet = &mut self.outlet;
         let mut publish = |bytes: &[u8]| outlet.send(bytes);
-        let mut pacer = Pacer::new(self.period, self.spin_accuracy_ns);
-        while !self.stop.load(Ordering::Acquire) {
-            let interval = pacer.wait();
-            self.haptic.set_overruns(pacer.overruns());
-            self.haptic
-                .tick(self.clock.now_ns(), interval, &mut publish);
-            if self.haptic.ticks().is_multiple_of(self.report_every_ticks) {
-                self.haptic.try_publish_report(&self.report);
-            }
-        }
         if !self.abrupt.load(Ordering::Acquire) {
             self.haptic.begin_shutdown();
             for _ in 0..self.wind_down_ticks {
@@ -306,6 +328,27 @@ impl DeviceLoop {
         let mut report = lock_report(&self.report);
         self.haptic.write_report(&mut report);
         report.running = false;
+    }
+}
+
+impl DeviceLoop {
+    fn tick_until_stopped(&mut self, pacer: &mut Pacer) {
+        let outlet = &mut self.outlet;
+        let mut publish = |bytes: &[u8]| outlet.send(bytes);
+        while !self.stop.load(Ordering::Acquire) {
+            let interval = pacer.wait();
+            self.haptic.set_overruns(pacer.overruns());
+            assert!(
+                self.panic_at_tick != Some(self.haptic.ticks()),
+                "fault drill: panic at tick {} (--fault-panic-at-tick)",
+                self.haptic.ticks()
+            );
+            self.haptic
+                .tick(self.clock.now_ns(), interval, &mut publish);
+            if self.haptic.ticks().is_multiple_of(self.report_every_ticks) {
+                self.haptic.try_publish_report(&self.report);
+            }
+        }
     }
 }
 

@@ -91,6 +91,9 @@ struct Args {
     /// Emulated distance on what this role publishes.
     #[command(flatten)]
     emulation: sinew_protocol::cli::EmulationArgs,
+    /// Fault drill: make the device loop panic at this tick, as a bug in it would.
+    #[arg(long, hide = true)]
+    fault_panic_at_tick: Option<u64>,
     /// Write every tick (time, position, velocity, force, mode) to this CSV file when the server stops.
     #[arg(long)]
     trace_csv: Option<std::path::PathBuf>,
@@ -126,11 +129,12 @@ fn main() -> Result<()> {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .init();
+    sinew_protocol::rt::panic_report::install_deferred_backtrace_hook();
     let args = Args::parse();
     if let Some(duration_s) = args.duration_s
-        && !(duration_s.is_finite() && duration_s >= 0.0)
+        && !(0.0..=1e7).contains(&duration_s)
     {
-        bail!("--duration-s {duration_s} must be a finite number of seconds >= 0");
+        bail!("--duration-s {duration_s} must be a number of seconds in [0, 1e7]");
     }
 
     let mut config = HapticConfig::new(&args.scene, &args.id, build_device(&args)?);
@@ -139,6 +143,7 @@ fn main() -> Result<()> {
     config.spin_accuracy_ns = args.spin_ns;
     config.mode = args.mode;
     config.emulation = args.emulation.config().map_err(anyhow::Error::msg)?;
+    config.panic_at_tick = args.fault_panic_at_tick;
     if args.trace_csv.is_some() {
         // Up to an hour at 1 kHz would be 3.6 M samples; cap at the run's length (or 10 minutes).
         let seconds = args.duration_s.unwrap_or(600.0).min(3600.0);
@@ -180,7 +185,17 @@ fn main() -> Result<()> {
             break;
         }
         if !handle.is_running() {
-            bail!("the device loop of `{}` ended unexpectedly", args.id);
+            let why = handle
+                .report()
+                .loop_failure
+                .unwrap_or_else(|| "no reason recorded".to_owned());
+            let _ = handle.stop();
+            if let Some(backtrace) = sinew_protocol::rt::panic_report::take_deferred_backtrace()
+                .filter(|b| b.status() == std::backtrace::BacktraceStatus::Captured)
+            {
+                eprintln!("stack backtrace of the panic:\n{backtrace}");
+            }
+            bail!("the device loop of `{}` ended unexpectedly: {why}", args.id);
         }
         if now >= next_status {
             println!("{}", handle.report());

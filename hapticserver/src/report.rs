@@ -71,6 +71,8 @@ pub struct HapticReport {
     /// Multilink: how long the start waited for the UDP link, ms (`Some(None)`: it never came, the device runs
     /// on TCP alone; `None`: no UDP endpoint was asked for).
     pub udp_link_wait_ms: Option<Option<f32>>,
+    /// Why the device loop stopped by itself (it panicked; the force was ramped to zero first), if it did.
+    pub loop_failure: Option<String>,
     /// Stillness of the rendered force and the stylus over the last whole second.
     pub last_second: crate::stillness::StillnessFigures,
 }
@@ -107,6 +109,7 @@ impl HapticReport {
             energy_allowance_mj: 0.0,
             last_second: Default::default(),
             udp_link_wait_ms: None,
+            loop_failure: None,
         }
     }
 

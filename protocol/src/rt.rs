@@ -4,6 +4,8 @@
 //! - [`LatencyHistogram`]: fixed-size, allocation-free percentile recorder.
 //! - [`Pacer`]: fixed-rate loop pacing with spin_sleep, counting overruns instead of bursting to catch up.
 //! - [`DelayLine`], [`DelayedSender`]: in-process network emulation (delay, jitter, seeded loss).
+//! - [`panic_report`]: the role binaries' panic hook, which defers the backtrace so the 1 kHz threads'
+//!   supervisors zero the force first.
 
 mod delay_line;
 mod latency_histogram;
@@ -16,3 +18,4 @@ pub use delay_line::{
 pub use latency_histogram::LatencyHistogram;
 pub use latest_value::LatestValue;
 pub use pacer::Pacer;
+pub mod panic_report;

@@ -38,6 +38,9 @@ struct Args {
     /// Emulated distance on what this role publishes.
     #[command(flatten)]
     emulation: sinew_protocol::cli::EmulationArgs,
+    /// Fault drill: make the sim thread panic at this tick, as a simulation bug would.
+    #[arg(long, hide = true)]
+    fault_panic_at_tick: Option<u64>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -46,6 +49,7 @@ fn main() -> anyhow::Result<()> {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
         )
         .init();
+    sinew_protocol::rt::panic_report::install_deferred_backtrace_hook();
     let args = Args::parse();
     let emulation = args.emulation.config().map_err(anyhow::Error::msg)?;
     let world = load_world(&args.world).context("the server refuses to start with this world")?;
@@ -66,6 +70,7 @@ fn main() -> anyhow::Result<()> {
         },
         server_id: args.id,
         emulation,
+        panic_at_tick: args.fault_panic_at_tick,
         ..ServerConfig::default()
     };
     let mut server = ServerNode::start(world, config).context("starting the server")?;
@@ -80,6 +85,15 @@ fn main() -> anyhow::Result<()> {
         std::thread::sleep(Duration::from_millis(50));
         if interrupted.load(std::sync::atomic::Ordering::Acquire) {
             break;
+        }
+        if let Some(failure) = server.failure().map(str::to_owned) {
+            server.stop();
+            if let Some(backtrace) = sinew_protocol::rt::panic_report::take_deferred_backtrace()
+                .filter(|b| b.status() == std::backtrace::BacktraceStatus::Captured)
+            {
+                eprintln!("stack backtrace of the panic:\n{backtrace}");
+            }
+            anyhow::bail!("sinew-server stopped: {failure}");
         }
         if Instant::now() < next_line {
             continue;

@@ -70,6 +70,9 @@ pub struct ServerConfig {
     pub spin_native_accuracy_ns: u32,
     /// Emulated delay, jitter and loss on the force commands this server publishes (`--emulate-*`).
     pub emulation: EmulationConfig,
+    /// Fault drill: the sim thread panics at this tick, as a bug in the simulation would (`--fault-panic-at-tick`,
+    /// hidden). `None` in every normal run.
+    pub panic_at_tick: Option<u64>,
 }
 
 impl Default for ServerConfig {
@@ -79,6 +82,7 @@ impl Default for ServerConfig {
             server_id: "server".into(),
             spin_native_accuracy_ns: 100_000,
             emulation: EmulationConfig::default(),
+            panic_at_tick: None,
         }
     }
 }
@@ -94,6 +98,8 @@ pub(crate) struct Shared {
     pub(crate) report: std::sync::Mutex<SimReport>,
     pub(crate) rejects: inbound::RejectCounters,
     pub(crate) stop: AtomicBool,
+    /// Set once when a server thread failed (a panic in the sim thread): what happened. The process must stop.
+    pub(crate) failure: std::sync::OnceLock<String>,
 }
 
 /// Starts a server.
@@ -114,6 +120,7 @@ impl ServerNode {
             report: std::sync::Mutex::new(SimReport::new(sim.tools.len())),
             rejects: inbound::RejectCounters::default(),
             stop: AtomicBool::new(false),
+            failure: std::sync::OnceLock::new(),
             world,
         });
         let token = session
@@ -127,6 +134,7 @@ impl ServerNode {
             sim,
             config.spin_native_accuracy_ns,
             config.emulation,
+            config.panic_at_tick,
         )?;
         let publish_thread = publish_loop::spawn(&session, shared.clone())?;
         Ok(ServerHandle {
@@ -187,6 +195,12 @@ impl ServerHandle {
     /// The latest sim positions handed to the publisher, mm (for tests and diagnostics).
     pub fn latest_positions(&self, object: usize) -> Option<Vec<[f32; 3]>> {
         self.shared.frames.latest_positions(object)
+    }
+
+    /// Why the server can no longer run, once a thread of it failed (the sim thread panicked; its devices were
+    /// sent an explicit zero force first). A process embedding the server must stop when this is `Some`.
+    pub fn failure(&self) -> Option<&str> {
+        self.shared.failure.get().map(String::as_str)
     }
 
     /// Stop the threads, then close the session. Idempotent.

@@ -355,3 +355,41 @@ fn a_degenerate_tetrahedron_names_its_element_and_the_mesh_key() {
     );
     assert!(message.contains("tetrahedron 7 is degenerate"), "{message}");
 }
+
+/// Every duration and rate is checked for its real range, not only its sign: `pose_timeout_s = 1e30` once
+/// loaded and then panicked the sim thread (`cannot convert float seconds to Duration`), leaving a zombie.
+#[test]
+fn durations_and_rates_out_of_their_real_range_name_the_key_and_line() {
+    let with_sim = |sim: &str| {
+        GOOD_WORLD.replace(
+            "scene = \"test\"\n",
+            &format!("scene = \"test\"\n\n[sim]\n{sim}\n"),
+        )
+    };
+    let cases = [
+        ("pose_timeout_s = 1e30", "sim.pose_timeout_s"),
+        ("pose_timeout_s = 1e-9", "sim.pose_timeout_s"),
+        ("tick_hz = 1e-300", "sim.tick_hz"),
+        ("tick_hz = 50.0", "sim.tick_hz"),
+        ("publish_hz = 1e-300", "sim.publish_hz"),
+    ];
+    for (line, expected_key) in cases {
+        let world = with_sim(line);
+        let (error, message, _) = refused(&world, None);
+        match error {
+            WorldError::Invalid { key, line: at, .. } => {
+                assert_eq!(key, expected_key, "{message}");
+                assert_eq!(at, line_of(&world, line), "{message}");
+            }
+            other => panic!("`{line}`: wrong error {other:?}"),
+        }
+    }
+    // A step so small that one tick would take a billion substeps.
+    let world = GOOD_WORLD.replace("dt_s = 0.001", "dt_s = 1e-12");
+    let (error, message, _) = refused(&world, None);
+    assert!(
+        matches!(&error, WorldError::Invalid { key, .. } if key == "objects[0].dt_s"),
+        "{message}"
+    );
+    assert!(message.contains("substeps"), "{message}");
+}

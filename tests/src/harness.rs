@@ -75,6 +75,7 @@ pub fn start_server_emulated(
         },
         server_id: "server".into(),
         spin_native_accuracy_ns: pacing.native_accuracy_ns(),
+        ..ServerConfig::default()
     };
     ServerNode::start(world, config).context("starting the server")
 }

@@ -1,5 +1,10 @@
 //! The dedicated 1 kHz sim thread: mailboxes in, [`ServerTick`], force commands out (straight to zenoh, or
 //! through the emulated network when `--emulate-*` is set).
+//!
+//! A panic in the tick is caught at the thread's top: every device that got a force is sent an explicit zero
+//! (three times, against loss; the device's rate limit turns it into a ramp), the failure is recorded in
+//! `Shared::failure` for the process to exit non-zero, and every other thread is told to stop. A server whose
+//! simulation died never keeps running with devices waiting on it.
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -7,7 +12,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use sinew_protocol::rt::{DelayedSender, EmulationConfig, LatencyHistogram, Pacer};
-use sinew_protocol::{ForceCommand, RenderMode, encode};
+use sinew_protocol::{ForceCommand, ForceMode, RenderMode, encode};
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Reliability};
 
@@ -82,6 +87,7 @@ pub(super) fn spawn(
     sim: Sim,
     spin_native_accuracy_ns: u32,
     emulation: EmulationConfig,
+    panic_at_tick: Option<u64>,
 ) -> Result<JoinHandle<()>, ServerError> {
     let mut outlets = Vec::with_capacity(sim.tools.len());
     for tool in &sim.tools {
@@ -105,7 +111,15 @@ pub(super) fn spawn(
     }
     std::thread::Builder::new()
         .name("sinew-sim".into())
-        .spawn(move || run(&shared, sim, &mut outlets, spin_native_accuracy_ns))
+        .spawn(move || {
+            supervise(
+                &shared,
+                sim,
+                &mut outlets,
+                spin_native_accuracy_ns,
+                panic_at_tick,
+            )
+        })
         .map_err(|e| ServerError::Thread(e.to_string()))
 }
 
@@ -127,7 +141,72 @@ impl ForceOutlet {
     }
 }
 
-fn run(shared: &Shared, sim: Sim, outlets: &mut [ForceOutlet], spin_native_accuracy_ns: u32) {
+/// The last command sent to each device: what its farewell zero follows (sequence and echoed pose).
+type LastSent = Vec<Option<(u64, u64, u64)>>;
+
+/// Run the ticks; if they panic, zero every device, record the failure and stop the server.
+fn supervise(
+    shared: &Shared,
+    sim: Sim,
+    outlets: &mut [ForceOutlet],
+    spin_native_accuracy_ns: u32,
+    panic_at_tick: Option<u64>,
+) {
+    let mut last_sent: LastSent = vec![None; sim.tools.len()];
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        run(
+            shared,
+            sim,
+            outlets,
+            &mut last_sent,
+            spin_native_accuracy_ns,
+            panic_at_tick,
+        );
+    }));
+    let Err(payload) = outcome else {
+        return;
+    };
+    let message = payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".to_owned());
+    let mut buf = Vec::with_capacity(64);
+    let mut told = 0;
+    for (outlet, last) in outlets.iter_mut().zip(&last_sent) {
+        let Some((seq, echo_pose_seq, echo_device_time_ns)) = *last else {
+            continue;
+        };
+        for k in 1..=3 {
+            encode(
+                &ForceCommand {
+                    seq: seq + k,
+                    echo_pose_seq,
+                    echo_device_time_ns,
+                    force_n: [0.0; 3],
+                    mode: ForceMode::Direct,
+                    in_contact: false,
+                },
+                &mut buf,
+            );
+            outlet.send(&buf);
+        }
+        told += 1;
+    }
+    let _ = shared.failure.set(format!(
+        "the simulation thread panicked: {message} ({told} device(s) sent an explicit zero force)"
+    ));
+    shared.stop.store(true, Ordering::Release);
+}
+
+fn run(
+    shared: &Shared,
+    sim: Sim,
+    outlets: &mut [ForceOutlet],
+    last_sent: &mut LastSent,
+    spin_native_accuracy_ns: u32,
+    panic_at_tick: Option<u64>,
+) {
     let world = &shared.world;
     let n = sim.tools.len();
     let tick_dt_s = (1.0 / world.tick_hz) as f32;
@@ -172,6 +251,11 @@ fn run(shared: &Shared, sim: Sim, outlets: &mut [ForceOutlet], spin_native_accur
             limits[t] = slot.hello_max_force_n();
         }
 
+        assert!(
+            panic_at_tick != Some(local.ticks),
+            "fault drill: panic at tick {} (--fault-panic-at-tick)",
+            local.ticks
+        );
         let report = tick.step(&inputs, &limits, &mut commands);
         local.faults += u64::from(report.faults);
 
@@ -185,6 +269,11 @@ fn run(shared: &Shared, sim: Sim, outlets: &mut [ForceOutlet], spin_native_accur
             if let Some(outlet) = outlets.get_mut(t) {
                 outlet.send(&buf);
             }
+            last_sent[t] = Some((
+                command.seq,
+                command.echo_pose_seq,
+                command.echo_device_time_ns,
+            ));
             d.forces_sent += 1;
             d.max_force_n = d.max_force_n.max(Vec3::from(command.force_n).norm());
             d.last_round_trip_us = inputs[t].map_or(0, |i| i.pose.round_trip_us);

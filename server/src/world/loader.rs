@@ -238,6 +238,9 @@ pub fn load_world(path: &Path) -> Result<World, WorldError> {
     parse_world(path, &text)
 }
 
+/// The most substeps an object may take in one tick: a smaller `dt_s` would only hang the tick.
+const MAX_SUBSTEPS: f32 = 1000.0;
+
 /// Parse and validate world text; `path` names it in errors and anchors relative mesh paths.
 pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
     let file: WorldFile = toml::from_str(text).map_err(|e| WorldError::Syntax {
@@ -256,22 +259,22 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
     cx.check(
         &file.sim.tick_hz,
         "sim.tick_hz",
-        tick_hz > 0.0 && tick_hz <= 10_000.0,
-        "must be in (0, 10000] Hz",
+        (100.0..=10_000.0).contains(&tick_hz),
+        "must be in [100, 10000] Hz (haptic contact needs at least 100 Hz)",
     )?;
     let publish_hz = *file.sim.publish_hz.get_ref();
     cx.check(
         &file.sim.publish_hz,
         "sim.publish_hz",
-        publish_hz > 0.0 && publish_hz <= tick_hz,
-        "must be in (0, sim.tick_hz] Hz",
+        publish_hz >= 1.0 && publish_hz <= tick_hz,
+        "must be in [1, sim.tick_hz] Hz",
     )?;
     let pose_timeout_s = *file.sim.pose_timeout_s.get_ref();
     cx.check(
         &file.sim.pose_timeout_s,
         "sim.pose_timeout_s",
-        pose_timeout_s > 0.0 && pose_timeout_s.is_finite(),
-        "must be positive",
+        pose_timeout_s >= 1.0 / tick_hz && pose_timeout_s <= 10.0,
+        "must be in [one tick, 10] s (a device silent this long has its tool released)",
     )?;
     let gravity_mm_per_s2 = *file.sim.gravity_mm_per_s2.get_ref();
     cx.check(
@@ -436,8 +439,11 @@ impl Context<'_> {
         self.check(
             &object.dt_s,
             &key("dt_s"),
-            dt_s <= tick_dt_s,
-            &format!("must not exceed the tick period {tick_dt_s} s"),
+            dt_s <= tick_dt_s && dt_s >= tick_dt_s / MAX_SUBSTEPS,
+            &format!(
+                "must be within the tick period {tick_dt_s} s and at least 1/{MAX_SUBSTEPS} of it \
+                 (at most {MAX_SUBSTEPS} substeps a tick)"
+            ),
         )?;
         let quant_margin_mm = self.positive(&object.quant_margin_mm, &key("quant_margin_mm"))?;
         let is_volume = object.extrude.is_some() || is_msh_path(object.mesh.get_ref());
