@@ -48,8 +48,8 @@ struct Args {
     /// Simulated hand script: hold, press or press-stroke.
     #[arg(long, default_value = "press")]
     script: ScriptKind,
-    /// Press depth below the surface point, mm.
-    #[arg(long)]
+    /// Press depth below the surface point, mm (negative: above it).
+    #[arg(long, allow_negative_numbers = true)]
     depth_mm: Option<f32>,
     /// Surface point to press at (or hold), device frame, mm: x,y,z.
     #[arg(long, value_parser = parse_vec3_mm, allow_hyphen_values = true)]

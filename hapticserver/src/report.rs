@@ -127,7 +127,8 @@ impl fmt::Display for HapticReport {
         write!(
             f,
             "{id}: {mode} ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
-             forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej} udp {udp}",
+             forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ \
+             udp {udp}",
             id = self.device_id,
             mode = if self.moderated {
                 "moderated"
@@ -147,6 +148,7 @@ impl fmt::Display for HapticReport {
             stale = self.safety.stale_events,
             clamped = self.safety.clamped,
             rej = self.decode_rejects.total(),
+            energy = self.passivity.energy_mj,
             udp = match self.udp_link_wait_ms {
                 None => "not asked".to_owned(),
                 Some(None) => "none (TCP alone)".to_owned(),

@@ -123,6 +123,11 @@ pub struct SimTool {
     last_position_mm: Vec3,
     /// Largest distance from the tool origin to its surface, mm.
     reach_mm: f32,
+    /// Where the tool enters the scene each time a device (re)takes it, world, mm: the device origin lifted
+    /// along the nearby tissue's outward rest normal until the tool clears every node ([`entry_point_mm`]).
+    /// From there the coupling brings it to the device pose at its speed limit, so it meets every surface
+    /// from outside: a device that (re)joins pressing into a thin sheet never finds its tool under it.
+    entry_mm: Vec3,
     /// One contact set per object.
     contacts: Vec<ProbeContacts>,
     /// How the tool follows its device pose.
@@ -325,6 +330,7 @@ impl Sim {
                     .sqrt()
             };
             let origin = Vec3::from(spec.device_origin_in_world_mm);
+            let entry_mm = entry_point_mm(&origin, reach_mm, &objects);
             tools.push(SimTool {
                 coupling: VirtualCoupling::new(spec.coupling, origin),
                 device_mm: origin,
@@ -351,6 +357,7 @@ impl Sim {
                 was_active: false,
                 last_position_mm: Vec3::from(spec.device_origin_in_world_mm),
                 reach_mm,
+                entry_mm,
                 contacts: objects
                     .iter()
                     .map(|_| ProbeContacts::with_capacity(4096))
@@ -765,8 +772,12 @@ impl Sim {
                     &tool.contact_k,
                 );
             } else {
-                tool.coupling.reset(tool.device_mm);
-                tool.position_mm = tool.device_mm;
+                // (Re)taken: enter from outside the tissue, never at the device pose, which may lie in or beyond
+                // a surface (a device that rejoins while pressing, or a pose that jumped while nobody drove
+                // the tool). The coupling brings it to the pose at its speed limit.
+                tool.coupling.reset(tool.entry_mm);
+                tool.position_mm = tool.entry_mm;
+                tool.last_position_mm = tool.entry_mm;
                 tool.last_force_n = Vec3::zeros();
                 tool.contact_k = Matrix3::zeros();
             }
@@ -775,6 +786,44 @@ impl Sim {
                 UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]));
         }
     }
+}
+
+/// Where a tool with origin `origin` and reach `reach_mm` enters the scene: `origin` if no rest node lies within
+/// its reach plus a 2 mm margin, else `origin` moved along the mean outward rest normal of those nodes, 1 mm at a
+/// time (at most 200 mm), until none does. Pure; runs once per tool when the simulation is built.
+fn entry_point_mm(origin: &Vec3, reach_mm: f32, objects: &[SimObject]) -> Vec3 {
+    let clearance = reach_mm + 2.0;
+    let near = |p: &Vec3| {
+        objects.iter().any(|o| {
+            o.model
+                .rest_positions_mm()
+                .iter()
+                .any(|x| (x - p).norm() < clearance)
+        })
+    };
+    if !near(origin) {
+        return *origin;
+    }
+    let mut outward = Vec3::zeros();
+    for o in objects {
+        for (x, n) in o
+            .model
+            .rest_positions_mm()
+            .iter()
+            .zip(o.model.rest_normals())
+        {
+            if (x - origin).norm() < clearance {
+                outward += n;
+            }
+        }
+    }
+    let Some(up) = outward.try_normalize(1e-6) else {
+        return *origin;
+    };
+    (1..=200)
+        .map(|mm| origin + up * mm as f32)
+        .find(|p| !near(p))
+        .unwrap_or(*origin)
 }
 
 /// Clamp to `max_force_n`, and never pass a non-finite force. Pure.
