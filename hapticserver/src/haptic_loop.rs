@@ -426,7 +426,12 @@ mod tests {
         let device = SimDevice::new(HandScript::Hold {
             position_mm: [0.0; 3],
         });
-        let safety = ForceSafety::new(SafetyConfig::new(3.3)).unwrap();
+        // No ramp-in: these tests check the first commanded forces against the rate limit directly.
+        let safety = ForceSafety::new(SafetyConfig {
+            ramp_in_s: 0.0,
+            ..SafetyConfig::new(3.3)
+        })
+        .unwrap();
         HapticLoop::new(Box::new(device), safety, inbox.clone(), PERIOD)
     }
 

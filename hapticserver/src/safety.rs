@@ -36,6 +36,11 @@ pub struct SafetyConfig {
     pub stale_after_s: f64,
     /// Once stale, the force falls linearly to exactly zero within this time, s (0 = at once).
     pub ramp_to_zero_s: f64,
+    /// When commands arrive again after a silence (or for the first time), the force is scaled by a gain that
+    /// rises linearly from 0 to 1 over this time, s (0 = at once). While a device was silent its hand kept
+    /// pressing where the tissue no longer pushed back; a returning force at full gain would throw it back out
+    /// (a 30% overshoot and 125 mm/s after a server restart); ramped in, the hand settles on the way.
+    pub ramp_in_s: f64,
 }
 
 impl SafetyConfig {
@@ -45,6 +50,9 @@ impl SafetyConfig {
     pub const DEFAULT_STALE_AFTER_S: f64 = 0.050;
     /// Default ramp-to-zero time, s.
     pub const DEFAULT_RAMP_TO_ZERO_S: f64 = 0.020;
+    /// Default ramp-in time after a silence, s: several periods of a hand's contact resonance (5-15 Hz), short
+    /// enough that a surgeon who rejoins feels the tissue within a third of a second.
+    pub const DEFAULT_RAMP_IN_S: f64 = 0.300;
 
     /// Defaults with the given maximum force.
     pub fn new(max_force_n: f32) -> Self {
@@ -53,6 +61,7 @@ impl SafetyConfig {
             max_force_rate_n_per_s: Self::DEFAULT_MAX_FORCE_RATE_N_PER_S,
             stale_after_s: Self::DEFAULT_STALE_AFTER_S,
             ramp_to_zero_s: Self::DEFAULT_RAMP_TO_ZERO_S,
+            ramp_in_s: Self::DEFAULT_RAMP_IN_S,
         }
     }
 
@@ -103,6 +112,12 @@ impl SafetyConfig {
                 self.ramp_to_zero_s,
                 self.ramp_to_zero_s >= 0.0,
                 "must be >= 0",
+            ),
+            (
+                "ramp_in_s",
+                self.ramp_in_s,
+                (0.0..=5.0).contains(&self.ramp_in_s),
+                "must be in [0, 5] s",
             ),
         ];
         for (field, value, ok, reason) in checks {
@@ -155,6 +170,7 @@ pub struct ForceSafety {
     ramp_from_n: [f32; 3],
     ramp_started_s: f64,
     ramp_fraction: f64,
+    ramp_in_started_s: f64,
     last_command_at_bits: u64,
     counters: SafetyCounters,
 }
@@ -170,6 +186,7 @@ impl ForceSafety {
             ramp_from_n: [0.0; 3],
             ramp_started_s: 0.0,
             ramp_fraction: 0.0,
+            ramp_in_started_s: f64::NAN,
             last_command_at_bits: f64::NAN.to_bits(),
             counters: SafetyCounters::default(),
         })
@@ -212,7 +229,7 @@ impl ForceSafety {
             (now_s - received_at_s) <= self.config.stale_after_s
         });
         let mut out = match fresh {
-            Some((received_at_s, force_n)) => self.track(received_at_s, force_n, dt_s),
+            Some((received_at_s, force_n)) => self.track(now_s, received_at_s, force_n, dt_s),
             None => self.ramp_down(now_s),
         };
         if !is_finite3(&out) {
@@ -226,8 +243,11 @@ impl ForceSafety {
         out
     }
 
-    /// Fresh command: zero non-finite, clamp, rate-limit.
-    fn track(&mut self, received_at_s: f64, force_n: [f32; 3], dt_s: f32) -> [f32; 3] {
+    /// Fresh command: zero non-finite, clamp, ramp in after a silence, rate-limit.
+    fn track(&mut self, now_s: f64, received_at_s: f64, force_n: [f32; 3], dt_s: f32) -> [f32; 3] {
+        if self.stale {
+            self.ramp_in_started_s = now_s;
+        }
         self.stale = false;
         let new_command = received_at_s.to_bits() != self.last_command_at_bits;
         self.last_command_at_bits = received_at_s.to_bits();
@@ -245,6 +265,18 @@ impl ForceSafety {
                 self.counters.clamped += 1;
             }
             target_n = scale3(&target_n, self.config.max_force_n / magnitude_n);
+        }
+        // Written so that a NaN clock gives gain 0 (and the target stays finite).
+        let since_s = now_s - self.ramp_in_started_s;
+        let gain = if self.config.ramp_in_s <= 0.0 || since_s >= self.config.ramp_in_s {
+            1.0
+        } else if since_s > 0.0 {
+            (since_s / self.config.ramp_in_s) as f32
+        } else {
+            0.0
+        };
+        if gain < 1.0 {
+            target_n = scale3(&target_n, gain);
         }
 
         let max_step_n = if dt_s.is_finite() && dt_s > 0.0 {
@@ -301,8 +333,14 @@ mod tests {
     const DT_S: f32 = 0.001;
     const MAX_N: f32 = 3.3;
 
+    /// The filter with every rule but the ramp-in, which has its own test: these tests feed a first command and
+    /// check the clamp, the rate limit, NaN and the silence rule against it directly.
     fn safety() -> ForceSafety {
-        ForceSafety::new(SafetyConfig::new(MAX_N)).unwrap()
+        ForceSafety::new(SafetyConfig {
+            ramp_in_s: 0.0,
+            ..SafetyConfig::new(MAX_N)
+        })
+        .unwrap()
     }
 
     fn now(tick: u32) -> f64 {
@@ -511,8 +549,48 @@ mod tests {
                 max_force_rate_n_per_s: f32::INFINITY,
                 ..SafetyConfig::new(1.0)
             },
+            SafetyConfig {
+                ramp_in_s: -0.1,
+                ..SafetyConfig::new(1.0)
+            },
+            SafetyConfig {
+                ramp_in_s: f64::NAN,
+                ..SafetyConfig::new(1.0)
+            },
         ] {
             assert!(ForceSafety::new(config).is_err(), "{config:?} accepted");
         }
+    }
+
+    #[test]
+    fn after_a_silence_the_force_ramps_back_in_linearly_over_ramp_in_s() {
+        let config = SafetyConfig::new(3.3);
+        let mut s = ForceSafety::new(config).unwrap();
+        let dt = 0.001f32;
+        let at = |tick: u32| f64::from(tick) * 1e-3;
+        // A steady 1 N stream from t = 0: the gain rises from 0 to 1 over 300 ms, never faster.
+        let mut forces = Vec::new();
+        for tick in 0..400 {
+            forces.push(s.filter(at(tick), dt, Some((at(tick), [0.0, 0.0, 1.0])))[2]);
+        }
+        assert_eq!(forces[0], 0.0);
+        assert!((forces[150] - 0.5).abs() < 0.01, "{}", forces[150]);
+        assert!(forces[299] < 1.0 && (forces[300] - 1.0).abs() < 1e-6);
+        assert!(
+            forces
+                .windows(2)
+                .all(|w| w[1] >= w[0] && w[1] - w[0] <= 1.0 / 300.0 + 1e-5)
+        );
+        // Silence: down to zero by the rule; then the stream returns and ramps in again from zero.
+        let last = at(399);
+        let mut tick = 400;
+        while !s.is_stale() || s.output_n() != [0.0; 3] {
+            s.filter(at(tick), dt, Some((last, [0.0, 0.0, 1.0])));
+            tick += 1;
+        }
+        let back = s.filter(at(tick), dt, Some((at(tick), [0.0, 0.0, 1.0])))[2];
+        assert_eq!(back, 0.0, "the returning force must start from zero");
+        let later = s.filter(at(tick + 30), dt, Some((at(tick + 30), [0.0, 0.0, 1.0])))[2];
+        assert!((later - 0.1).abs() < 0.01, "30 ms into the ramp: {later}");
     }
 }
