@@ -36,11 +36,16 @@ pub struct SafetyConfig {
     pub stale_after_s: f64,
     /// Once stale, the force falls linearly to exactly zero within this time, s (0 = at once).
     pub ramp_to_zero_s: f64,
-    /// When commands arrive again after a silence (or for the first time), the force is scaled by a gain that
-    /// rises linearly from 0 to 1 over this time, s (0 = at once). While a device was silent its hand kept
-    /// pressing where the tissue no longer pushed back; a returning force at full gain would throw it back out
-    /// (a 30% overshoot and 125 mm/s after a server restart); ramped in, the hand settles on the way.
+    /// When commands arrive again after a silence of at least `ramp_in_after_s` (a rejoin: the server was
+    /// restarted, or a partition outlasted the pose timeout) or for the first time, the force is scaled by a gain
+    /// that rises linearly from 0 to 1 over this time, s (0 = at once). While the device was silent its hand
+    /// kept pressing where the tissue no longer pushed back; a returning force at full gain would throw it back
+    /// out (a 30% overshoot and 125 mm/s after a server restart); ramped in, the hand settles on the way.
     pub ramp_in_s: f64,
+    /// The shortest silence after which the force ramps in, s. A shorter one (a few lost or late messages) ends
+    /// with the force back through the rate limit alone: a hand resting on the tissue must not lose its support
+    /// for `ramp_in_s` because a network hiccup passed the silence rule.
+    pub ramp_in_after_s: f64,
 }
 
 impl SafetyConfig {
@@ -53,6 +58,9 @@ impl SafetyConfig {
     /// Default ramp-in time after a silence, s: several periods of a hand's contact resonance (5-15 Hz), short
     /// enough that a surgeon who rejoins feels the tissue within a third of a second.
     pub const DEFAULT_RAMP_IN_S: f64 = 0.300;
+    /// Default shortest silence that ramps in, s: longer than the server's default pose timeout (0.1 s), after
+    /// which its tool was released and re-enters from outside the tissue.
+    pub const DEFAULT_RAMP_IN_AFTER_S: f64 = 0.250;
 
     /// Defaults with the given maximum force.
     pub fn new(max_force_n: f32) -> Self {
@@ -62,6 +70,7 @@ impl SafetyConfig {
             stale_after_s: Self::DEFAULT_STALE_AFTER_S,
             ramp_to_zero_s: Self::DEFAULT_RAMP_TO_ZERO_S,
             ramp_in_s: Self::DEFAULT_RAMP_IN_S,
+            ramp_in_after_s: Self::DEFAULT_RAMP_IN_AFTER_S,
         }
     }
 
@@ -119,6 +128,12 @@ impl SafetyConfig {
                 (0.0..=5.0).contains(&self.ramp_in_s),
                 "must be in [0, 5] s",
             ),
+            (
+                "ramp_in_after_s",
+                self.ramp_in_after_s,
+                self.ramp_in_after_s >= 0.0,
+                "must be >= 0",
+            ),
         ];
         for (field, value, ok, reason) in checks {
             if !(ok && value.is_finite()) {
@@ -171,6 +186,8 @@ pub struct ForceSafety {
     ramp_started_s: f64,
     ramp_fraction: f64,
     ramp_in_started_s: f64,
+    /// When the last command arrived (loop clock), s; NaN before the first.
+    last_fresh_s: f64,
     last_command_at_bits: u64,
     counters: SafetyCounters,
 }
@@ -187,6 +204,7 @@ impl ForceSafety {
             ramp_started_s: 0.0,
             ramp_fraction: 0.0,
             ramp_in_started_s: f64::NAN,
+            last_fresh_s: f64::NAN,
             last_command_at_bits: f64::NAN.to_bits(),
             counters: SafetyCounters::default(),
         })
@@ -245,9 +263,13 @@ impl ForceSafety {
 
     /// Fresh command: zero non-finite, clamp, ramp in after a silence, rate-limit.
     fn track(&mut self, now_s: f64, received_at_s: f64, force_n: [f32; 3], dt_s: f32) -> [f32; 3] {
-        if self.stale {
+        // A rejoin (the first command, or one after a long silence) ramps in; a hiccup does not. Written so that
+        // a NaN clock counts as a rejoin.
+        let brief = now_s - self.last_fresh_s < self.config.ramp_in_after_s;
+        if self.stale && !brief {
             self.ramp_in_started_s = now_s;
         }
+        self.last_fresh_s = now_s;
         self.stale = false;
         let new_command = received_at_s.to_bits() != self.last_command_at_bits;
         self.last_command_at_bits = received_at_s.to_bits();
@@ -581,16 +603,38 @@ mod tests {
                 .windows(2)
                 .all(|w| w[1] >= w[0] && w[1] - w[0] <= 1.0 / 300.0 + 1e-5)
         );
-        // Silence: down to zero by the rule; then the stream returns and ramps in again from zero.
+        // A silence as long as a rejoin's (300 ms: the force goes to zero by the rule); then the stream returns
+        // and ramps in again from zero.
         let last = at(399);
         let mut tick = 400;
-        while !s.is_stale() || s.output_n() != [0.0; 3] {
+        while tick < 700 {
             s.filter(at(tick), dt, Some((last, [0.0, 0.0, 1.0])));
             tick += 1;
         }
+        assert!(s.is_stale() && s.output_n() == [0.0; 3]);
         let back = s.filter(at(tick), dt, Some((at(tick), [0.0, 0.0, 1.0])))[2];
         assert_eq!(back, 0.0, "the returning force must start from zero");
         let later = s.filter(at(tick + 30), dt, Some((at(tick + 30), [0.0, 0.0, 1.0])))[2];
         assert!((later - 0.1).abs() < 0.01, "30 ms into the ramp: {later}");
+    }
+
+    #[test]
+    fn a_brief_silence_ends_through_the_rate_limit_alone() {
+        let mut s = ForceSafety::new(SafetyConfig::new(3.3)).unwrap();
+        let dt = 0.001f32;
+        let at = |tick: u32| f64::from(tick) * 1e-3;
+        for tick in 0..400 {
+            s.filter(at(tick), dt, Some((at(tick), [0.0, 0.0, 1.0])));
+        }
+        // 80 ms without a command (past the 50 ms rule, so the force ramps to zero), then the stream is back.
+        for tick in 400..480 {
+            s.filter(at(tick), dt, Some((at(399), [0.0, 0.0, 1.0])));
+        }
+        assert!(s.is_stale() && s.counters().stale_events == 1);
+        let back: Vec<f32> = (480..490)
+            .map(|tick| s.filter(at(tick), dt, Some((at(tick), [0.0, 0.0, 1.0])))[2])
+            .collect();
+        // 200 N/s: 0.2 N a tick, so 1 N again within 5 ticks (a ramp-in would take 300 ms).
+        assert!((back[4] - 1.0).abs() < 1e-6, "{back:?}");
     }
 }
