@@ -240,3 +240,57 @@ pub fn replica_error(
     }
     None
 }
+
+/// A role process that is killed when dropped, however the test ends.
+#[derive(Debug)]
+pub struct KillOnDrop(pub std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The `sinew-server` binary on `worlds/pad.toml`, listening on `endpoint` and its UDP twin, with `extra`
+/// arguments; its output discarded unless `piped`.
+pub fn spawn_pad_server_process(
+    endpoint: &str,
+    extra: &[&str],
+    piped: bool,
+) -> anyhow::Result<std::process::Child> {
+    let binary = crate::netns::role_binary("sinew-server")?;
+    let output = || {
+        if piped {
+            std::process::Stdio::piped()
+        } else {
+            std::process::Stdio::null()
+        }
+    };
+    let mut command = std::process::Command::new(binary);
+    command.arg("--world").arg(worlds_dir().join("pad.toml"));
+    for listen in with_udp_twin(endpoint) {
+        command.args(["--listen", &listen]);
+    }
+    command
+        .args(extra)
+        .stdout(output())
+        .stderr(output())
+        .spawn()
+        .context("starting sinew-server")
+}
+
+/// A hapticserver config for device `id` in scene `pad`, driving `device` and connecting to `endpoint` and its
+/// UDP twin (the multilink default).
+pub fn pad_device_config(
+    id: &str,
+    device: Box<dyn hapticserver::Device>,
+    endpoint: &str,
+) -> HapticConfig {
+    let mut config = HapticConfig::new("pad", id, device);
+    config.network = NetworkOptions {
+        connect: with_udp_twin(endpoint),
+        ..NetworkOptions::default()
+    };
+    config
+}

@@ -9,27 +9,18 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use hapticserver::{HandScript, HapticConfig, HapticServer, ModePolicy, SimDevice};
-use sinew::harness::{free_loopback_endpoint, wait_until, worlds_dir};
-use sinew::netns::role_binary;
-use sinew_protocol::network::{NetworkOptions, udp_twin, with_udp_twin};
+use hapticserver::{HapticServer, ModePolicy, SimDevice};
+use sinew::drill::max_force_step;
+use sinew::harness::{
+    KillOnDrop, free_loopback_endpoint, pad_device_config, spawn_pad_server_process, wait_until,
+};
+use sinew::scenarios::press;
 use sinew_protocol::rt::EmulationConfig;
 
 /// The silence rule (50 ms) plus its ramp (20 ms): the bound from kill to zero force.
 const KILL_TO_ZERO_S: f64 = 0.070;
-
-/// A child process that is killed when the test ends, however it ends.
-struct KillOnDrop(std::process::Child);
-
-impl Drop for KillOnDrop {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 #[test]
 fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and_for_good() {
@@ -39,28 +30,10 @@ fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and
         ..EmulationConfig::default()
     };
     let mut server = KillOnDrop(
-        Command::new(role_binary("sinew-server").unwrap())
-            .arg("--world")
-            .arg(worlds_dir().join("pad.toml"))
-            .args(["--listen", &endpoint, "--emulate-delay-ms", "25"])
-            .args(["--listen", &udp_twin(&endpoint).unwrap()])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("starting sinew-server"),
+        spawn_pad_server_process(&endpoint, &["--emulate-delay-ms", "25"], false).unwrap(),
     );
-
-    let script = HandScript::Press {
-        at_mm: [0.0; 3],
-        depth_mm: 4.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-    };
-    let mut config = HapticConfig::new("pad", "left", Box::new(SimDevice::new(script)));
-    config.network = NetworkOptions {
-        connect: with_udp_twin(&endpoint),
-        ..NetworkOptions::default()
-    };
+    let device = SimDevice::new(press(4.0, 1.0));
+    let mut config = pad_device_config("left", Box::new(device), &endpoint);
     config.mode = ModePolicy::Moderated;
     config.emulation = one_way;
     config.trace_ticks = 60_000;
@@ -151,16 +124,7 @@ fn killing_the_server_during_moderated_contact_zeroes_the_force_within_70_ms_and
         .iter()
         .filter(|s| s.t_s > killed_s && s.t_s <= first_zero.t_s)
         .collect();
-    let largest_step = window
-        .windows(2)
-        .map(|w| {
-            norm([
-                w[1].force_n[0] - w[0].force_n[0],
-                w[1].force_n[1] - w[0].force_n[1],
-                w[1].force_n[2] - w[0].force_n[2],
-            ])
-        })
-        .fold(0.0f32, f32::max);
+    let largest_step = max_force_step(samples, killed_s, first_zero.t_s + 1e-6);
     let held_n = norm(before.last().unwrap().force_n);
     assert!(
         largest_step < 0.5 * held_n,

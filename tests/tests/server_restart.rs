@@ -8,40 +8,16 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use hapticserver::{HandScript, HapticConfig, HapticServer, SimDevice};
-use sinew::harness::{free_loopback_endpoint, wait_until, worlds_dir};
-use sinew::netns::role_binary;
-use sinew_protocol::network::{NetworkOptions, udp_twin, with_udp_twin};
-
-/// A child process that is killed when the test ends, however it ends.
-struct KillOnDrop(Child);
-
-impl Drop for KillOnDrop {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
+use hapticserver::{HapticServer, SimDevice};
+use sinew::harness::{
+    KillOnDrop, free_loopback_endpoint, pad_device_config, spawn_pad_server_process, wait_until,
+};
+use sinew::scenarios::press;
 
 fn start_server(endpoint: &str) -> KillOnDrop {
-    KillOnDrop(
-        Command::new(role_binary("sinew-server").unwrap())
-            .arg("--world")
-            .arg(worlds_dir().join("pad.toml"))
-            .args([
-                "--listen",
-                endpoint,
-                "--listen",
-                &udp_twin(endpoint).unwrap(),
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("starting sinew-server"),
-    )
+    KillOnDrop(spawn_pad_server_process(endpoint, &[], false).unwrap())
 }
 
 fn norm(f: [f32; 3]) -> f32 {
@@ -52,17 +28,8 @@ fn norm(f: [f32; 3]) -> f32 {
 fn after_a_server_restart_the_pressing_hand_feels_the_pad_again_without_a_kick() {
     let endpoint = free_loopback_endpoint().unwrap();
     let mut first = start_server(&endpoint);
-    let script = HandScript::Press {
-        at_mm: [0.0; 3],
-        depth_mm: 6.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-    };
-    let mut config = HapticConfig::new("pad", "left", Box::new(SimDevice::new(script)));
-    config.network = NetworkOptions {
-        connect: with_udp_twin(&endpoint),
-        ..NetworkOptions::default()
-    };
+    let device = SimDevice::new(press(6.0, 1.0));
+    let mut config = pad_device_config("left", Box::new(device), &endpoint);
     config.trace_ticks = 120_000;
     let mut device = HapticServer::start(config).expect("starting the hapticserver");
 

@@ -11,17 +11,18 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
 use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use std::sync::{Arc, Mutex};
-
-use hapticserver::{
-    Device, DeviceError, DeviceModel, DeviceReading, HandScript, HapticConfig, HapticServer,
-    SimDevice,
+use hapticserver::{Device, DeviceError, DeviceModel, DeviceReading, HapticServer, SimDevice};
+use sinew::drill::max_force_step;
+use sinew::harness::{
+    Pacing, free_loopback_endpoint, pad_device_config, spawn_pad_server_process, start_pad_server,
+    wait_until,
 };
-use sinew::harness::{Pacing, free_loopback_endpoint, start_pad_server, wait_until, worlds_dir};
 use sinew::netns::{role_binary, wait_output};
-use sinew_protocol::network::{NetworkOptions, udp_twin, with_udp_twin};
+use sinew::scenarios::press;
+use sinew_protocol::network::udp_twin;
 
 fn norm(f: [f32; 3]) -> f32 {
     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
@@ -30,33 +31,11 @@ fn norm(f: [f32; 3]) -> f32 {
 #[test]
 fn a_panicking_sim_thread_zeroes_its_devices_and_the_server_exits_non_zero() {
     let endpoint = free_loopback_endpoint().unwrap();
-    let server = Command::new(role_binary("sinew-server").unwrap())
-        .arg("--world")
-        .arg(worlds_dir().join("pad.toml"))
-        .args([
-            "--listen",
-            &endpoint,
-            "--listen",
-            &udp_twin(&endpoint).unwrap(),
-        ])
-        // 4 s of ticks: the device joins, presses (1 s) and holds before the panic.
-        .args(["--fault-panic-at-tick", "4000"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting sinew-server");
-
-    let script = HandScript::Press {
-        at_mm: [0.0; 3],
-        depth_mm: 4.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-    };
-    let mut config = HapticConfig::new("pad", "left", Box::new(SimDevice::new(script)));
-    config.network = NetworkOptions {
-        connect: with_udp_twin(&endpoint),
-        ..NetworkOptions::default()
-    };
+    // 4 s of ticks: the device joins, presses (1 s) and holds before the panic.
+    let server =
+        spawn_pad_server_process(&endpoint, &["--fault-panic-at-tick", "4000"], true).unwrap();
+    let device = SimDevice::new(press(4.0, 1.0));
+    let mut config = pad_device_config("left", Box::new(device), &endpoint);
     config.trace_ticks = 60_000;
     let mut device = HapticServer::start(config).expect("starting the hapticserver");
 
@@ -101,16 +80,7 @@ fn a_panicking_sim_thread_zeroes_its_devices_and_the_server_exits_non_zero() {
         "zero came from the silence rule, not from the server's explicit zero ({:.3} s)",
         samples[zero].t_s
     );
-    let steps = samples[held..=zero]
-        .windows(2)
-        .map(|w| {
-            norm([
-                w[1].force_n[0] - w[0].force_n[0],
-                w[1].force_n[1] - w[0].force_n[1],
-                w[1].force_n[2] - w[0].force_n[2],
-            ])
-        })
-        .fold(0.0f32, f32::max);
+    let steps = max_force_step(samples, samples[held].t_s + 1e-6, samples[zero].t_s + 1e-6);
     // 200 N/s at 1 kHz, with room for a tick that came late.
     assert!(steps <= 0.45, "the force fell {steps:.3} N in one tick");
     if let Some(s) = samples[zero..].iter().find(|s| norm(s.force_n) != 0.0) {
@@ -159,28 +129,15 @@ impl Device for RecordingDevice {
     }
 }
 
-fn press() -> HandScript {
-    HandScript::Press {
-        at_mm: [0.0; 3],
-        depth_mm: 4.0,
-        approach_mm: 10.0,
-        descend_s: 1.0,
-    }
-}
-
 #[test]
 fn a_panicking_device_loop_ramps_its_motor_to_zero_and_says_why() {
     let (endpoint, mut server) = start_pad_server(Pacing::Sleep).unwrap();
     let writes = Arc::new(Mutex::new(Vec::with_capacity(10_000)));
     let device = RecordingDevice {
-        inner: SimDevice::new(press()),
+        inner: SimDevice::new(press(4.0, 1.0)),
         writes: writes.clone(),
     };
-    let mut config = HapticConfig::new("pad", "left", Box::new(device));
-    config.network = NetworkOptions {
-        connect: with_udp_twin(&endpoint),
-        ..NetworkOptions::default()
-    };
+    let mut config = pad_device_config("left", Box::new(device), &endpoint);
     config.panic_at_tick = Some(3000);
     let mut handle = HapticServer::start(config).unwrap();
     assert!(
