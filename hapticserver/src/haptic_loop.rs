@@ -220,7 +220,7 @@ impl HapticLoop {
                         RenderMode::Direct
                     },
                 };
-                encode(&pose, &mut self.pose_bytes);
+                encode(self.inbox.own_instance(), &pose, &mut self.pose_bytes);
                 if publish(&self.pose_bytes) {
                     self.counters.poses_published += 1;
                 } else {
@@ -417,10 +417,20 @@ mod tests {
     use crate::hand_script::HandScript;
     use crate::safety::SafetyConfig;
     use crate::sim_device::SimDevice;
-    use sinew_protocol::codec::encode_to_vec;
-    use sinew_protocol::{ForceCommand, decode};
+    use sinew_protocol::codec::encode_to_vec as encode_from;
+    use sinew_protocol::{ForceCommand, InstanceId, decode};
 
     const PERIOD: Duration = Duration::from_millis(1);
+    const ME: InstanceId = InstanceId(0x1e);
+
+    /// A command for this device from the one server of these tests.
+    fn encode_to_vec(command: &ForceCommand) -> Vec<u8> {
+        let command = ForceCommand {
+            device_instance: ME.0,
+            ..*command
+        };
+        encode_from(InstanceId(0x5e), &command)
+    }
 
     fn make_loop(inbox: &Arc<ForceInbox>) -> HapticLoop {
         let device = SimDevice::new(HandScript::Hold {
@@ -437,7 +447,7 @@ mod tests {
 
     #[test]
     fn poses_carry_sequence_time_and_round_trip() {
-        let inbox = Arc::new(ForceInbox::new());
+        let inbox = Arc::new(ForceInbox::new(ME));
         let mut haptic = make_loop(&inbox);
         let mut sent: Vec<DevicePose> = Vec::new();
         let mut sink = |bytes: &[u8]| {
@@ -482,7 +492,7 @@ mod tests {
 
     #[test]
     fn foreign_echoes_are_not_round_trips_and_shutdown_ramps_to_zero() {
-        let inbox = Arc::new(ForceInbox::new());
+        let inbox = Arc::new(ForceInbox::new(ME));
         let mut haptic = make_loop(&inbox);
         let mut sink = |_: &[u8]| true;
         let ms = 1_000_000u64;

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::keys::SceneKeys;
 use sinew_protocol::rt::{DelayedSender, Pacer};
-use sinew_protocol::{ParticipantHello, Role};
+use sinew_protocol::{InstanceId, ParticipantHello, Role, ServerStats, decode_from};
 use zenoh::Wait;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -30,6 +30,7 @@ use crate::haptic_config::HapticConfig;
 use crate::haptic_loop::HapticLoop;
 use crate::report::HapticReport;
 use crate::safety::{ForceSafety, SafetyConfig};
+use crate::server_watch::{Say, ServerWatch, WATCH_PERIOD};
 use crate::trace::Trace;
 use crate::zenoh_session::{UDP_LINK_WAIT, open_session, wait_for_udp_link, wants_udp_link};
 
@@ -88,13 +89,17 @@ impl HapticServer {
             None => SafetyConfig::for_device(&model),
         };
         let safety = ForceSafety::new(safety_config)?;
-        let hello_bytes = encode_to_vec(&ParticipantHello {
-            participant_id: device_id.clone(),
-            role: Role::Haptic,
-            device_model: model.name.clone(),
-            max_force_n: safety_config.max_force_n,
-            tool,
-        });
+        let instance = InstanceId::random();
+        let hello_bytes = encode_to_vec(
+            instance,
+            &ParticipantHello {
+                participant_id: device_id.clone(),
+                role: Role::Haptic,
+                device_model: model.name.clone(),
+                max_force_n: safety_config.max_force_n,
+                tool,
+            },
+        );
 
         let session = open_session(&network)?;
         let token = session
@@ -122,7 +127,7 @@ impl HapticServer {
             )))?;
 
         let clock = MonotonicClock::start();
-        let inbox = Arc::new(ForceInbox::new());
+        let inbox = Arc::new(ForceInbox::new(instance));
         let callback_inbox = inbox.clone();
         let subscriber = session
             .declare_subscriber(force_key.clone())
@@ -136,6 +141,40 @@ impl HapticServer {
             .map_err(HapticError::zenoh(format!(
                 "declaring the force subscriber on {force_key}"
             )))?;
+
+        // The joined server's latest stats, for the supervision thread's watch.
+        let latest_stats: Arc<Mutex<Option<ServerStats>>> = Arc::new(Mutex::new(None));
+        let stats_inbox = inbox.clone();
+        let stats_slot = latest_stats.clone();
+        let stats_subscriber = session
+            .declare_subscriber(keys.stats())
+            .callback(move |sample: zenoh::sample::Sample| {
+                let Ok((from, stats)) = decode_from::<ServerStats>(&sample.payload().to_bytes())
+                else {
+                    return;
+                };
+                if stats_inbox.server().admit(from, clock.now_ns()).admitted()
+                    && let Ok(mut slot) = stats_slot.lock()
+                {
+                    *slot = Some(stats);
+                }
+            })
+            .wait()
+            .map_err(HapticError::zenoh("declaring the stats subscriber"))?;
+        // A server whose presence token goes away has left: the next server heard is followed at once.
+        let presence_inbox = inbox.clone();
+        let server_presence = session
+            .liveliness()
+            .declare_subscriber(keys.all_presence(Role::Server))
+            .callback(move |sample: zenoh::sample::Sample| {
+                if sample.kind() == zenoh::sample::SampleKind::Delete {
+                    presence_inbox.server().release();
+                }
+            })
+            .wait()
+            .map_err(HapticError::zenoh(
+                "declaring the server presence subscriber",
+            ))?;
 
         // Multilink: start the loop once poses and forces can take UDP (or after UDP_LINK_WAIT, on TCP alone).
         let udp_link_wait = wants_udp_link(&network).then(|| {
@@ -151,6 +190,7 @@ impl HapticServer {
             waited
         });
         let mut report = HapticReport::new(&device_id);
+        report.instance = instance;
         report.udp_link_wait_ms = udp_link_wait.map(|waited| waited.map(|d| d.as_secs_f32() * 1e3));
 
         let period = Duration::from_nanos(1_000_000_000 / u64::from(loop_rate_hz));
@@ -161,6 +201,7 @@ impl HapticServer {
             session: Some(session),
             token: Some(token),
             subscriber: Some(subscriber),
+            watch_subscribers: vec![stats_subscriber, server_presence],
             loop_thread: None,
             hello_thread: None,
             stop: Arc::new(AtomicBool::new(false)),
@@ -171,7 +212,7 @@ impl HapticServer {
             clock,
         };
 
-        let mut haptic = HapticLoop::new(device, safety, inbox, period);
+        let mut haptic = HapticLoop::new(device, safety, inbox.clone(), period);
         haptic.set_passivity_mode(passivity);
         haptic.set_mode_policy(mode);
         haptic.record_trace(trace_ticks);
@@ -217,12 +258,21 @@ impl HapticServer {
                     source,
                 })?,
         );
-        let hello_name = format!("hapticserver-{device_id}-hello");
-        let stop = handle.stop.clone();
+        let hello_name = format!("hapticserver-{device_id}-watch");
+        let supervision = Supervision {
+            hello_publisher,
+            hello_bytes,
+            stop: handle.stop.clone(),
+            watch: ServerWatch::new(&device_id, instance),
+            inbox,
+            latest_stats,
+            report: handle.report.clone(),
+            clock,
+        };
         handle.hello_thread = Some(
             std::thread::Builder::new()
                 .name(hello_name.clone())
-                .spawn(move || run_hello(&hello_publisher, &hello_bytes, &stop))
+                .spawn(move || supervision.run())
                 .map_err(|source| HapticError::Thread {
                     name: hello_name,
                     source,
@@ -352,22 +402,50 @@ impl DeviceLoop {
     }
 }
 
-/// The hello thread body: announce now, then every [`HELLO_PERIOD`] until stopped (woken by `unpark`).
-fn run_hello(publisher: &Publisher<'static>, hello_bytes: &[u8], stop: &AtomicBool) {
-    while !stop.load(Ordering::Acquire) {
-        if let Err(err) = publisher.put(hello_bytes).wait() {
-            tracing::debug!(%err, "hello not published");
-        }
-        let deadline = Instant::now() + HELLO_PERIOD;
-        loop {
-            if stop.load(Ordering::Acquire) {
-                return;
-            }
+/// The supervision thread: the hello every [`HELLO_PERIOD`], and the server watch every [`WATCH_PERIOD`]
+/// (its log lines and the report's link and standing).
+struct Supervision {
+    hello_publisher: Publisher<'static>,
+    hello_bytes: Vec<u8>,
+    stop: Arc<AtomicBool>,
+    watch: ServerWatch,
+    inbox: Arc<ForceInbox>,
+    latest_stats: Arc<Mutex<Option<ServerStats>>>,
+    report: Arc<Mutex<HapticReport>>,
+    clock: MonotonicClock,
+}
+
+impl Supervision {
+    /// Until stopped (woken by `unpark`).
+    fn run(mut self) {
+        let mut next_hello = Instant::now();
+        while !self.stop.load(Ordering::Acquire) {
             let now = Instant::now();
-            if now >= deadline {
-                break;
+            if now >= next_hello {
+                if let Err(err) = self.hello_publisher.put(self.hello_bytes.as_slice()).wait() {
+                    tracing::debug!(%err, "hello not published");
+                }
+                next_hello = now + HELLO_PERIOD;
             }
-            std::thread::park_timeout(deadline - now);
+            let stats = self.latest_stats.lock().ok().and_then(|mut s| s.take());
+            for say in self
+                .watch
+                .step(self.clock.now_ns(), self.inbox.server(), stats.as_ref())
+            {
+                match say {
+                    Say::Info(line) => tracing::info!("{line}"),
+                    Say::Warn(line) => tracing::warn!("{line}"),
+                    Say::Error(line) => tracing::error!("{line}"),
+                }
+            }
+            {
+                let mut report = lock_report(&self.report);
+                report.server_link = self.watch.link();
+                if report.standing != *self.watch.standing() {
+                    report.standing = self.watch.standing().clone();
+                }
+            }
+            std::thread::park_timeout(WATCH_PERIOD);
         }
     }
 }
@@ -380,6 +458,7 @@ pub struct HapticHandle {
     session: Option<zenoh::Session>,
     token: Option<LivelinessToken>,
     subscriber: Option<Subscriber<()>>,
+    watch_subscribers: Vec<Subscriber<()>>,
     loop_thread: Option<JoinHandle<()>>,
     hello_thread: Option<JoinHandle<()>>,
     stop: Arc<AtomicBool>,
@@ -436,6 +515,8 @@ impl HapticHandle {
         let mut report = lock_report(&self.report).clone();
         report.forces_received = self.inbox.received();
         report.decode_rejects = self.inbox.rejects();
+        report.forces_from_other_server = self.inbox.server().foreign();
+        report.forces_for_other_instance = self.inbox.for_other_instance();
         report
     }
 
@@ -472,6 +553,7 @@ impl HapticHandle {
         {
             first_error.get_or_insert(HapticError::zenoh("undeclaring the force subscriber")(err));
         }
+        self.watch_subscribers.clear();
         if let Some(token) = self.token.take()
             && let Err(err) = token.undeclare().wait()
         {
@@ -499,6 +581,7 @@ impl HapticHandle {
             let _ = thread.join();
         }
         drop(self.subscriber.take());
+        self.watch_subscribers.clear();
         drop(self.token.take());
         drop(self.session.take());
     }

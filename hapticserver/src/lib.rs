@@ -28,6 +28,7 @@ pub mod render;
 pub mod render_mode;
 pub mod report;
 pub mod safety;
+pub mod server_watch;
 pub mod sim_device;
 pub mod stillness;
 pub mod trace;

@@ -75,6 +75,16 @@ pub struct HapticReport {
     pub loop_failure: Option<String>,
     /// Stillness of the rendered force and the stylus over the last whole second.
     pub last_second: crate::stillness::StillnessFigures,
+    /// This run's instance id (the sender of its poses and hellos).
+    pub instance: sinew_protocol::InstanceId,
+    /// The link to the server, as the supervision thread last saw it.
+    pub server_link: crate::server_watch::Link,
+    /// This device's standing with the server (from its stats).
+    pub standing: crate::server_watch::Standing,
+    /// Valid force commands refused because another live server for the scene sent them.
+    pub forces_from_other_server: u64,
+    /// Valid force commands refused because they answered another instance using this device id.
+    pub forces_for_other_instance: u64,
 }
 
 impl HapticReport {
@@ -110,6 +120,11 @@ impl HapticReport {
             last_second: Default::default(),
             udp_link_wait_ms: None,
             loop_failure: None,
+            instance: sinew_protocol::InstanceId::NONE,
+            server_link: crate::server_watch::Link::NotFound,
+            standing: crate::server_watch::Standing::Unknown,
+            forces_from_other_server: 0,
+            forces_for_other_instance: 0,
         }
     }
 
@@ -128,7 +143,7 @@ impl fmt::Display for HapticReport {
             f,
             "{id}: {mode} ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
              forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ \
-             udp {udp}",
+             udp {udp} server {server} ({standing})",
             id = self.device_id,
             mode = if self.moderated {
                 "moderated"
@@ -154,6 +169,12 @@ impl fmt::Display for HapticReport {
                 Some(None) => "none (TCP alone)".to_owned(),
                 Some(Some(ms)) => format!("up after {ms:.0} ms"),
             },
+            server = match self.server_link {
+                crate::server_watch::Link::NotFound => "none yet".to_owned(),
+                crate::server_watch::Link::Joined(instance) => format!("{instance}"),
+                crate::server_watch::Link::Lost { .. } => "LOST".to_owned(),
+            },
+            standing = self.standing,
         )
     }
 }

@@ -149,9 +149,13 @@ fn hapticserver_streams_poses_renders_echoed_forces_and_ramps_down_on_silence() 
                 echo_device_time_ns: pose.device_time_ns,
                 force_n: commanded,
                 in_contact: true,
+                device_instance: handle.report().instance.0,
                 ..ForceCommand::default()
             };
-            force_publisher.put(encode_to_vec(&command)).wait().unwrap();
+            force_publisher
+                .put(encode_to_vec(sinew_protocol::InstanceId(1), &command))
+                .wait()
+                .unwrap();
             last_sent.set(Instant::now());
         }
     };

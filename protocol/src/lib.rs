@@ -18,5 +18,7 @@ pub mod network;
 pub mod quantize;
 pub mod rt;
 
-pub use codec::{DecodeError, Message, MessageKind, PROTOCOL_VERSION, decode, encode};
+pub use codec::{
+    DecodeError, InstanceId, Message, MessageKind, PROTOCOL_VERSION, decode, decode_from, encode,
+};
 pub use messages::*;

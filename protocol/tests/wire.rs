@@ -86,6 +86,7 @@ fn force(rng: &mut fastrand::Rng) -> ForceCommand {
             ForceMode::LocalModel(local_model(rng))
         },
         in_contact: rng.bool(),
+        device_instance: rng.u64(..),
     }
 }
 
@@ -192,6 +193,8 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
             wrong_version: rng.u64(..),
             invalid: rng.u64(..),
             unknown_device: rng.u64(..),
+            duplicate_device: rng.u64(..),
+            wrong_tool: rng.u64(..),
         },
         devices: (0..rng.usize(0..3))
             .map(|_| DeviceStats {
@@ -203,8 +206,17 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
                 max_force_n: rng.f32() * 3.0,
                 moderated: rng.bool(),
                 forces_suppressed: rng.u64(..),
+                tool: text(rng),
+                holder_instance: rng.u64(..),
+                duplicates_refused: rng.u64(..),
+                last_refused_instance: rng.u64(..),
+                wrong_tool_instance: rng.u64(..),
+                wrong_tool_asked: text(rng),
             })
             .collect(),
+        server_id: text(rng),
+        foreign_server_messages: rng.u64(..),
+        foreign_server_instance: rng.u64(..),
     }
 }
 
@@ -223,7 +235,7 @@ fn exercise<M: Message + PartialEq + std::fmt::Debug>(make: fn(&mut fastrand::Rn
     let mut rng = fastrand::Rng::with_seed(0x5EED ^ M::KIND as u64);
     for _ in 0..300 {
         let msg = make(&mut rng);
-        let bytes = encode_to_vec(&msg);
+        let bytes = encode_to_vec(sinew_protocol::InstanceId(1), &msg);
         assert_eq!(u16::from_le_bytes([bytes[0], bytes[1]]), PROTOCOL_VERSION);
         let back: M = decode(&bytes).unwrap_or_else(|e| panic!("{msg:?}: {e}"));
         assert_eq!(back, msg);
@@ -311,7 +323,7 @@ fn out_of_domain_fields_are_refused_by_name() {
     let mut rng = fastrand::Rng::with_seed(1);
     let mut p = pose(&mut rng);
     p.position_mm[1] = f32::NAN;
-    let err = decode::<DevicePose>(&encode_to_vec(&p)).unwrap_err();
+    let err = decode::<DevicePose>(&encode_to_vec(sinew_protocol::InstanceId(1), &p)).unwrap_err();
     assert_eq!(
         err,
         DecodeError::Invalid {
@@ -325,7 +337,7 @@ fn out_of_domain_fields_are_refused_by_name() {
     let mut p = pose(&mut rng);
     p.orientation_xyzw = [0.0, 0.0, 0.0, 2.0];
     assert!(matches!(
-        decode::<DevicePose>(&encode_to_vec(&p)),
+        decode::<DevicePose>(&encode_to_vec(sinew_protocol::InstanceId(1), &p)),
         Err(DecodeError::Invalid {
             field: "orientation_xyzw",
             ..
@@ -335,7 +347,7 @@ fn out_of_domain_fields_are_refused_by_name() {
     let mut f = force(&mut rng);
     f.force_n[0] = f32::INFINITY;
     assert!(matches!(
-        decode::<ForceCommand>(&encode_to_vec(&f)),
+        decode::<ForceCommand>(&encode_to_vec(sinew_protocol::InstanceId(1), &f)),
         Err(DecodeError::Invalid {
             field: "force_n",
             ..
@@ -345,7 +357,7 @@ fn out_of_domain_fields_are_refused_by_name() {
     let mut d = delta(&mut rng);
     d.positions_q.push([0; 3]);
     assert!(matches!(
-        decode::<MeshDelta>(&encode_to_vec(&d)),
+        decode::<MeshDelta>(&encode_to_vec(sinew_protocol::InstanceId(1), &d)),
         Err(DecodeError::Invalid {
             field: "positions_q",
             ..
@@ -365,7 +377,7 @@ fn out_of_domain_fields_are_refused_by_name() {
         frame: 0,
     });
     assert!(matches!(
-        decode::<SceneSnapshot>(&encode_to_vec(&s)),
+        decode::<SceneSnapshot>(&encode_to_vec(sinew_protocol::InstanceId(1), &s)),
         Err(DecodeError::Invalid {
             field: "objects.triangles",
             ..
@@ -381,7 +393,7 @@ fn local_model_fields_out_of_domain_are_refused_by_name() {
             mode: ForceMode::LocalModel(model),
             ..ForceCommand::default()
         };
-        match decode::<ForceCommand>(&encode_to_vec(&command)) {
+        match decode::<ForceCommand>(&encode_to_vec(sinew_protocol::InstanceId(1), &command)) {
             Err(DecodeError::Invalid {
                 expected: MessageKind::ForceCommand,
                 field,
@@ -457,7 +469,7 @@ fn a_force_command_with_a_full_model_fits_the_emulated_link() {
         mode: ForceMode::LocalModel(model),
         ..ForceCommand::default()
     };
-    let len = encode_to_vec(&command).len();
+    let len = encode_to_vec(sinew_protocol::InstanceId(1), &command).len();
     assert!(
         len <= sinew_protocol::rt::MAX_DELAYED_MESSAGE_BYTES,
         "{len} bytes"
@@ -467,6 +479,36 @@ fn a_force_command_with_a_full_model_fits_the_emulated_link() {
 #[test]
 fn pose_payload_is_small() {
     let mut rng = fastrand::Rng::with_seed(3);
-    let bytes = encode_to_vec(&pose(&mut rng));
+    let bytes = encode_to_vec(sinew_protocol::InstanceId(1), &pose(&mut rng));
     assert!(bytes.len() <= 92, "pose is {} bytes", bytes.len());
+}
+
+#[test]
+fn the_envelope_names_its_sender_and_refuses_none_or_an_older_layout() {
+    use sinew_protocol::{InstanceId, decode_from};
+    let from = InstanceId(0x0123_4567_89ab_cdef);
+    let bytes = encode_to_vec(from, &ForceCommand::default());
+    assert_eq!(
+        bytes.len() - sinew_protocol::codec::HEADER_LEN,
+        encode_to_vec(InstanceId(1), &ForceCommand::default()).len()
+            - sinew_protocol::codec::HEADER_LEN
+    );
+    let (got, _) = decode_from::<ForceCommand>(&bytes).unwrap();
+    assert_eq!(got, from);
+    let mut anonymous = bytes.clone();
+    anonymous[3..11].fill(0);
+    assert!(matches!(
+        decode::<ForceCommand>(&anonymous),
+        Err(DecodeError::Invalid {
+            field: "sender",
+            ..
+        })
+    ));
+    // A version 2 message (3-byte envelope, no sender) is named by its version, however short.
+    assert!(matches!(
+        decode::<ForceCommand>(&[2, 0, 2, 0]),
+        Err(DecodeError::WrongVersion { got: 2, .. })
+    ));
+    assert_ne!(InstanceId::random(), InstanceId::random());
+    assert!(!InstanceId::random().is_none());
 }

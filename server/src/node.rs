@@ -22,8 +22,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
 use sinew_protocol::network::NetworkOptions;
-use sinew_protocol::rt::EmulationConfig;
-use sinew_protocol::{Role, ServerStats, keys::SceneKeys};
+use sinew_protocol::rt::{EmulationConfig, Throttle};
+use sinew_protocol::{InstanceId, Role, ServerStats, keys::SceneKeys};
 use thiserror::Error;
 use zenoh::Wait;
 
@@ -51,6 +51,17 @@ pub enum ServerError {
     /// A thread could not be spawned.
     #[error("spawning thread: {0}")]
     Thread(String),
+    /// Another server is already live for this scene.
+    #[error(
+        "another server is already live for scene `{scene}` ({found}): refusing to start a second one. \
+         Stop it first, or give this server another scene"
+    )]
+    AnotherServer {
+        /// The scene.
+        scene: String,
+        /// The presence keys found.
+        found: String,
+    },
 }
 
 impl From<zenoh::Error> for ServerError {
@@ -100,6 +111,14 @@ pub(crate) struct Shared {
     pub(crate) stop: AtomicBool,
     /// Set once when a server thread failed (a panic in the sim thread): what happened. The process must stop.
     pub(crate) failure: std::sync::OnceLock<String>,
+    /// This run of the server: the sender of everything it publishes.
+    pub(crate) instance: InstanceId,
+    /// Its presence id.
+    pub(crate) server_id: String,
+    /// Hellos from ids no tool binds: logged at most every 10 s.
+    pub(crate) unknown_hello_log: Throttle,
+    /// Other servers heard publishing for this scene.
+    pub(crate) foreign_servers: inbound::ForeignServers,
 }
 
 /// Starts a server.
@@ -112,6 +131,15 @@ impl ServerNode {
         let sim = Sim::new(&world)?;
         let keys = SceneKeys::new(&world.scene)?;
         let session = open_session(&config.network)?;
+        let found = session::live_servers(&session, &keys)?;
+        if !found.is_empty() {
+            let _ = session.close().wait();
+            return Err(ServerError::AnotherServer {
+                scene: world.scene.clone(),
+                found: found.join(", "),
+            });
+        }
+        let instance = InstanceId::random();
         let shared = Arc::new(Shared {
             keys: keys.clone(),
             slots: DeviceSlots::new(&sim),
@@ -121,6 +149,10 @@ impl ServerNode {
             rejects: inbound::RejectCounters::default(),
             stop: AtomicBool::new(false),
             failure: std::sync::OnceLock::new(),
+            instance,
+            server_id: config.server_id.clone(),
+            unknown_hello_log: Throttle::new(10_000_000_000),
+            foreign_servers: inbound::ForeignServers::new(instance),
             world,
         });
         let token = session
@@ -168,6 +200,11 @@ impl ServerHandle {
     /// Current stats (the same content the 1 Hz stats message carries).
     pub fn stats(&self) -> ServerStats {
         publish_loop::build_stats(&self.shared)
+    }
+
+    /// This run's instance id (the sender in every message it publishes).
+    pub fn instance(&self) -> InstanceId {
+        self.shared.instance
     }
 
     /// The scene name.

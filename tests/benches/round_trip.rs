@@ -93,13 +93,16 @@ fn main() {
         .position(|a| a == "--seconds")
         .and_then(|i| args.get(i + 1))
         .map_or(10.0, |s| s.parse().unwrap());
-    let pose_len = encode_to_vec(&DevicePose {
-        seq: 123_456,
-        device_time_ns: 12_345_678_901,
-        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-        round_trip_us: 1500,
-        ..DevicePose::default()
-    })
+    let pose_len = encode_to_vec(
+        sinew_protocol::InstanceId(1),
+        &DevicePose {
+            seq: 123_456,
+            device_time_ns: 12_345_678_901,
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            round_trip_us: 1500,
+            ..DevicePose::default()
+        },
+    )
     .len();
 
     let baseline = ping_pong(seconds, pose_len);

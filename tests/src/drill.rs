@@ -23,7 +23,10 @@ use hapticserver::{
     ForceSafety, HandPreset, HandScript, ModePolicy, SafetyConfig, SimDevice, TraceSample,
 };
 use sinew_protocol::rt::{DelayLine, EmulationConfig};
-use sinew_protocol::{DevicePose, ForceCommand, decode, encode};
+use sinew_protocol::{DevicePose, ForceCommand, InstanceId, decode, encode};
+
+/// The instance id of the drill's in-process server.
+const DRILL_SERVER: InstanceId = InstanceId(0x5e);
 use sinew_server::haptics::DeadbandParams;
 use sinew_server::server_tick::{PoseInput, ServerTick};
 use sinew_server::sim::Sim;
@@ -150,7 +153,8 @@ pub fn run_drill(
         let sim_device =
             SimDevice::with_params(device.script.clone(), device.hand.params(), model.clone());
         let safety = ForceSafety::new(SafetyConfig::for_device(&model))?;
-        let inbox = Arc::new(ForceInbox::new());
+        // Each device is its own instance; the drill's server is DRILL_SERVER.
+        let inbox = Arc::new(ForceInbox::new(InstanceId(rigs.len() as u64 + 1)));
         let mut haptic = HapticLoop::new(
             Box::new(sim_device),
             safety,
@@ -230,10 +234,11 @@ pub fn run_drill(
         }
         server.step(&inputs, &limits, &mut commands);
         for (r, rig) in rigs.iter_mut().enumerate() {
-            if let Some(command) = &commands[rig.tool] {
+            if let Some(command) = &mut commands[rig.tool] {
                 rig.sent += 1;
                 rig.sent_per_s[(tick - 1) / 1000] += 1;
-                encode(command, &mut bytes);
+                command.device_instance = rig.inbox.own_instance().0;
+                encode(DRILL_SERVER, command, &mut bytes);
                 if let Some(due) = rig.down.schedule(now_ns) {
                     rig.forces_in_flight.push_back((due, bytes.clone()));
                 }
@@ -257,7 +262,7 @@ pub fn run_drill(
                 if let Some((_, payload)) = rig.forces_in_flight.pop_front() {
                     // A refused payload is counted by the inbox (DrillResult::rejected).
                     if let Err(e) = rig.inbox.accept(&payload, now_ns) {
-                        eprintln!("drill: refused force payload at {now_ns} ns: {e}");
+                        eprintln!("drill: refused force payload at {now_ns} ns: {e:?}");
                     }
                 }
             }

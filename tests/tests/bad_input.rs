@@ -31,15 +31,18 @@ fn bad_poses_are_dropped_and_counted_and_the_server_keeps_running() {
     };
     let mut nan = good;
     nan.position_mm[2] = f32::NAN;
-    let mut wrong_version = encode_to_vec(&good);
+    let mut wrong_version = encode_to_vec(sinew_protocol::InstanceId(1), &good);
     wrong_version[..2].copy_from_slice(&(PROTOCOL_VERSION + 1).to_le_bytes());
-    let encoded = encode_to_vec(&good);
+    let encoded = encode_to_vec(sinew_protocol::InstanceId(1), &good);
     let inputs: Vec<(String, Vec<u8>)> = vec![
         (left.clone(), b"garbage, not a pose".to_vec()),
         (left.clone(), encoded[..encoded.len() - 4].to_vec()),
         (left.clone(), vec![1]),
         (left.clone(), wrong_version),
-        (left.clone(), encode_to_vec(&nan)),
+        (
+            left.clone(),
+            encode_to_vec(sinew_protocol::InstanceId(1), &nan),
+        ),
         (keys.device_pose("ghost").unwrap(), encoded.clone()),
     ];
     let ticks_before = wait_until(Duration::from_secs(5), || server.stats().ticks > 100);

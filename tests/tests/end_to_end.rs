@@ -297,8 +297,18 @@ fn a_device_asking_for_a_tool_the_world_does_not_give_it_is_refused() {
     assert!(wait_until(Duration::from_secs(5), || server
         .stats()
         .rejected
-        .unknown_device
+        .wrong_tool
         > 100));
     assert!(!server.stats().devices[0].active);
     assert_eq!(device.report().max_rendered_force_n, 0.0);
+    // The device is told, and says why.
+    assert!(
+        wait_until(Duration::from_secs(5), || matches!(
+            &device.report().standing,
+            hapticserver::server_watch::Standing::WrongTool { asked, bound }
+                if asked == "right-probe" && bound == "left-probe"
+        )),
+        "{}",
+        device.report()
+    );
 }

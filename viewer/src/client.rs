@@ -18,7 +18,10 @@ use std::time::{Duration, Instant};
 
 use sinew_protocol::keys::SceneKeys;
 use sinew_protocol::network::NetworkOptions;
-use sinew_protocol::{MeshDelta, Role, SceneSnapshot, ServerStats, ToolStates, decode};
+use sinew_protocol::rt::JoinedServer;
+use sinew_protocol::{
+    DecodeError, MeshDelta, Message, Role, SceneSnapshot, ServerStats, ToolStates, decode_from,
+};
 use zenoh::Wait;
 use zenoh::sample::{Sample, SampleKind};
 
@@ -83,6 +86,8 @@ impl ViewerClient {
             wake_worker: Condvar::new(),
             snapshot_ready: Condvar::new(),
             stop: AtomicBool::new(false),
+            server: JoinedServer::new(),
+            epoch: Instant::now(),
         });
 
         let mut handle = ViewerHandle {
@@ -112,7 +117,9 @@ impl ViewerClient {
             .declare_subscriber(&deltas_key)
             .callback(move |sample: Sample| {
                 let payload = sample.payload().to_bytes();
-                let decoded = decode::<MeshDelta>(&payload);
+                let Some(decoded) = for_deltas.admit::<MeshDelta>(&payload) else {
+                    return;
+                };
                 let wake = for_deltas.lock().on_delta(payload.len(), decoded);
                 if wake {
                     for_deltas.wake_worker.notify_all();
@@ -128,7 +135,9 @@ impl ViewerClient {
             .declare_subscriber(&tools_key)
             .callback(move |sample: Sample| {
                 let payload = sample.payload().to_bytes();
-                let decoded = decode::<ToolStates>(&payload);
+                let Some(decoded) = for_tools.admit::<ToolStates>(&payload) else {
+                    return;
+                };
                 for_tools.lock().on_tools(payload.len(), decoded);
             })
             .wait()
@@ -141,7 +150,9 @@ impl ViewerClient {
             .declare_subscriber(&stats_key)
             .callback(move |sample: Sample| {
                 let payload = sample.payload().to_bytes();
-                let decoded = decode::<ServerStats>(&payload);
+                let Some(decoded) = for_stats.admit::<ServerStats>(&payload) else {
+                    return;
+                };
                 for_stats.lock().on_server_stats(payload.len(), decoded);
             })
             .wait()
@@ -161,6 +172,10 @@ impl ViewerClient {
                     return;
                 };
                 let alive = sample.kind() == SampleKind::Put;
+                if !alive {
+                    // The joined server left: the next server heard is followed at once.
+                    for_presence.server.release();
+                }
                 let wake = for_presence.lock().on_server_presence(server_id, alive);
                 if wake {
                     for_presence.wake_worker.notify_all();
@@ -201,9 +216,26 @@ struct Shared {
     wake_worker: Condvar,
     snapshot_ready: Condvar,
     stop: AtomicBool,
+    /// The server this viewer follows; messages from any other live server for the scene are dropped.
+    server: JoinedServer,
+    epoch: Instant,
 }
 
 impl Shared {
+    /// Decode a payload; `None` if it comes from a server other than the joined one (dropped, counted).
+    fn admit<M: Message>(&self, payload: &[u8]) -> Option<Result<M, DecodeError>> {
+        match decode_from::<M>(payload) {
+            Ok((from, msg)) => {
+                let now_ns = self.epoch.elapsed().as_nanos() as u64;
+                self.server
+                    .admit(from, now_ns)
+                    .admitted()
+                    .then_some(Ok(msg))
+            }
+            Err(err) => Some(Err(err)),
+        }
+    }
+
     fn lock(&self) -> MutexGuard<'_, SyncState> {
         // Nothing panics while holding the lock; if something ever did, the state is still consistent
         // (every SyncState method leaves it valid), so keep going.
@@ -329,7 +361,10 @@ impl SyncWorker {
                 Ok(Some(reply)) => match reply.result() {
                     Ok(sample) => {
                         let payload = sample.payload().to_bytes();
-                        let decoded = decode::<SceneSnapshot>(&payload);
+                        let Some(decoded) = self.shared.admit::<SceneSnapshot>(&payload) else {
+                            last_problem = Some("a reply from another live server".to_owned());
+                            continue;
+                        };
                         self.shared
                             .lock()
                             .on_snapshot_payload(payload.len(), &decoded);
@@ -396,7 +431,9 @@ impl ViewerHandle {
 
     /// Counters, rates and replica position.
     pub fn stats(&self) -> ViewerStats {
-        self.shared.lock().stats()
+        let mut stats = self.shared.lock().stats();
+        stats.from_other_server = self.shared.server.foreign();
+        stats
     }
 
     /// The latest server stats, if any arrived.

@@ -45,6 +45,9 @@ pub struct ViewerStats {
     pub has_snapshot: bool,
     /// A server presence token is currently live.
     pub server_present: bool,
+    /// Messages dropped because another live server for the scene sent them (this viewer stays with the
+    /// server it joined).
+    pub from_other_server: u64,
     /// Snapshot queries sent.
     pub snapshot_queries: u64,
     /// Snapshots received and applied.

@@ -103,7 +103,10 @@ impl FakeServer {
             .declare_queryable(&snapshot_key)
             .callback(move |query| {
                 counter.fetch_add(1, Ordering::SeqCst);
-                let payload = encode_to_vec(&for_queries.lock().unwrap().snapshot());
+                let payload = encode_to_vec(
+                    sinew_protocol::InstanceId(1),
+                    &for_queries.lock().unwrap().snapshot(),
+                );
                 query.reply(&reply_key, payload).wait().unwrap();
             })
             .wait()
@@ -147,10 +150,16 @@ impl FakeServer {
         model.positions_q = now_q;
         model.object_frame = model.frame;
         if !lose_delta {
-            self.deltas.put(encode_to_vec(&delta)).wait().unwrap();
+            self.deltas
+                .put(encode_to_vec(sinew_protocol::InstanceId(1), &delta))
+                .wait()
+                .unwrap();
         }
         self.tools
-            .put(encode_to_vec(&model.tool_states()))
+            .put(encode_to_vec(
+                sinew_protocol::InstanceId(1),
+                &model.tool_states(),
+            ))
             .wait()
             .unwrap();
     }

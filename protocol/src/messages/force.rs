@@ -41,6 +41,9 @@ pub struct ForceCommand {
     pub mode: ForceMode,
     /// The tool touches tissue.
     pub in_contact: bool,
+    /// The instance (envelope sender) of the device whose poses this answers: the one holding the device id.
+    /// Another hapticserver started with the same id (refused by the server) must not render it.
+    pub device_instance: u64,
 }
 
 impl Message for ForceCommand {

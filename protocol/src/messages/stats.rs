@@ -15,12 +15,21 @@ pub struct RejectCounts {
     pub invalid: u64,
     /// A pose from a device no tool is bound to.
     pub unknown_device: u64,
+    /// A pose from a second hapticserver using a device id another one holds.
+    pub duplicate_device: u64,
+    /// A pose from a device whose hello asked for another tool than the world binds to its id.
+    pub wrong_tool: u64,
 }
 
 impl RejectCounts {
     /// Sum of all reasons.
     pub fn total(&self) -> u64 {
-        self.malformed + self.wrong_version + self.invalid + self.unknown_device
+        self.malformed
+            + self.wrong_version
+            + self.invalid
+            + self.unknown_device
+            + self.duplicate_device
+            + self.wrong_tool
     }
 }
 
@@ -44,6 +53,19 @@ pub struct DeviceStats {
     pub moderated: bool,
     /// Ticks on which the device's model stayed within the perceptual deadband and nothing was sent.
     pub forces_suppressed: u64,
+    /// The tool the world binds to this device id.
+    pub tool: String,
+    /// The instance (envelope sender) holding the id: the first hapticserver whose pose arrived, until it
+    /// leaves or goes quiet for the claim timeout. 0: nobody holds it.
+    pub holder_instance: u64,
+    /// Instances refused the id because another held it (each counted once).
+    pub duplicates_refused: u64,
+    /// The latest instance refused the id because another held it (0: none yet).
+    pub last_refused_instance: u64,
+    /// The latest instance refused because its hello asked for another tool (0: none), and that tool.
+    pub wrong_tool_instance: u64,
+    /// The tool that refused instance asked for.
+    pub wrong_tool_asked: String,
 }
 
 /// Server health, published at 1 Hz on `sinew/<scene>/stats`.
@@ -79,6 +101,12 @@ pub struct ServerStats {
     pub rejected: RejectCounts,
     /// One entry per tool-bound device.
     pub devices: Vec<DeviceStats>,
+    /// The server's id (its presence key segment).
+    pub server_id: String,
+    /// Stats messages heard from another server instance for this scene (two servers are live).
+    pub foreign_server_messages: u64,
+    /// The latest other server instance heard (0: none).
+    pub foreign_server_instance: u64,
 }
 
 impl Message for ServerStats {

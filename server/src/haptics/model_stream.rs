@@ -242,6 +242,8 @@ impl ModelStream {
             force_n: force.into(),
             mode: ForceMode::LocalModel(model),
             in_contact: out.in_contact,
+            // Set by the node from the pose's sender; the sim core knows no instances.
+            device_instance: 0,
         })
     }
 
@@ -257,6 +259,7 @@ impl ModelStream {
             force_n: [0.0; 3],
             mode: ForceMode::Direct,
             in_contact: false,
+            device_instance: 0,
         }
     }
 

@@ -113,6 +113,9 @@ impl ReplicationState {
 pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
     let mut stats = ServerStats {
         rejected: shared.rejects.snapshot(),
+        server_id: shared.server_id.clone(),
+        foreign_server_messages: shared.foreign_servers.foreign(),
+        foreign_server_instance: shared.foreign_servers.last_foreign().0,
         ..ServerStats::default()
     };
     if let Ok(report) = shared.report.lock() {
@@ -136,6 +139,16 @@ pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
                 max_force_n: d.max_force_n,
                 moderated: d.moderated,
                 forces_suppressed: d.suppressed,
+                tool: slot.tool_name.clone(),
+                holder_instance: slot.holder().0,
+                duplicates_refused: slot.duplicates_refused.load(Ordering::Relaxed),
+                last_refused_instance: slot.last_duplicate.load(Ordering::Relaxed),
+                wrong_tool_instance: slot.wrong_tool_instance.load(Ordering::Relaxed),
+                wrong_tool_asked: slot
+                    .wrong_tool_asked
+                    .lock()
+                    .map(|a| a.clone())
+                    .unwrap_or_default(),
             })
             .collect();
     }
@@ -179,7 +192,7 @@ pub(super) fn spawn(
             let bytes = match s.replication.lock() {
                 Ok(mut replication) => {
                     replication.snapshots_served += 1;
-                    encode_to_vec(&replication.snapshot(&s.world.scene))
+                    encode_to_vec(s.instance, &replication.snapshot(&s.world.scene))
                 }
                 Err(_) => return,
             };
@@ -240,13 +253,13 @@ fn run(
                     &mut buf,
                     delta_publishers,
                 );
-                encode(&tool_states, &mut buf);
+                encode(shared.instance, &tool_states, &mut buf);
                 let _ = tools_publisher.put(buf.as_slice()).wait();
             }
         }
         if last_stats.elapsed() >= Duration::from_secs(1) {
             last_stats = Instant::now();
-            encode(&build_stats(shared), &mut buf);
+            encode(shared.instance, &build_stats(shared), &mut buf);
             let _ = stats_publisher.put(buf.as_slice()).wait();
         }
     }
@@ -269,7 +282,7 @@ fn publish_frame(
     replication.tool_states.clone_from(tool_states);
     for (o, (object_positions, publisher)) in positions.iter().zip(delta_publishers).enumerate() {
         if replication.objects[o].delta(o as u16, object_positions, frame, delta) {
-            encode(&*delta, buf);
+            encode(shared.instance, &*delta, buf);
             // Sent under the replication lock so a snapshot can never be taken between a delta's state
             // change and its publication.
             if publisher.put(buf.as_slice()).wait().is_ok() {

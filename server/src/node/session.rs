@@ -16,3 +16,25 @@ pub fn open_session(options: &NetworkOptions) -> zenoh::Result<zenoh::Session> {
     }
     zenoh::open(config).wait()
 }
+
+/// How long a server waits for answers when it asks who else is live for its scene, ms.
+pub const LIVE_SERVER_QUERY_MS: u64 = 500;
+
+/// The presence keys of servers already live for `keys`' scene and reachable from `session`.
+pub fn live_servers(
+    session: &zenoh::Session,
+    keys: &sinew_protocol::keys::SceneKeys,
+) -> zenoh::Result<Vec<String>> {
+    let replies = session
+        .liveliness()
+        .get(keys.all_presence(sinew_protocol::Role::Server))
+        .timeout(std::time::Duration::from_millis(LIVE_SERVER_QUERY_MS))
+        .wait()?;
+    let mut found = Vec::new();
+    while let Ok(reply) = replies.recv() {
+        if let Ok(sample) = reply.result() {
+            found.push(sample.key_expr().to_string());
+        }
+    }
+    Ok(found)
+}

@@ -12,7 +12,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use sinew_protocol::rt::{DelayedSender, EmulationConfig, LatencyHistogram, Pacer};
-use sinew_protocol::{ForceCommand, ForceMode, RenderMode, encode};
+use sinew_protocol::{ForceCommand, ForceMode, InstanceId, RenderMode, encode};
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Reliability};
 
@@ -141,8 +141,9 @@ impl ForceOutlet {
     }
 }
 
-/// The last command sent to each device: what its farewell zero follows (sequence and echoed pose).
-type LastSent = Vec<Option<(u64, u64, u64)>>;
+/// The last command sent to each device: what its farewell zero follows (sequence, echoed pose seq and time,
+/// device instance).
+type LastSent = Vec<Option<(u64, u64, u64, u64)>>;
 
 /// Run the ticks; if they panic, zero every device, record the failure and stop the server.
 fn supervise(
@@ -174,11 +175,12 @@ fn supervise(
     let mut buf = Vec::with_capacity(64);
     let mut told = 0;
     for (outlet, last) in outlets.iter_mut().zip(&last_sent) {
-        let Some((seq, echo_pose_seq, echo_device_time_ns)) = *last else {
+        let Some((seq, echo_pose_seq, echo_device_time_ns, device_instance)) = *last else {
             continue;
         };
         for k in 1..=3 {
             encode(
+                shared.instance,
                 &ForceCommand {
                     seq: seq + k,
                     echo_pose_seq,
@@ -186,6 +188,7 @@ fn supervise(
                     force_n: [0.0; 3],
                     mode: ForceMode::Direct,
                     in_contact: false,
+                    device_instance,
                 },
                 &mut buf,
             );
@@ -241,8 +244,7 @@ fn run(
             if let Some(arrival) = slot.pose.take_newer(&mut seen[t]) {
                 last_pose[t] = Some(arrival);
             }
-            let usable =
-                !slot.gone.load(Ordering::Acquire) && !slot.refused.load(Ordering::Acquire);
+            let usable = !slot.gone.load(Ordering::Acquire);
             inputs[t] = last_pose[t].map(|a| PoseInput {
                 pose: a.pose,
                 age_s: start.saturating_duration_since(a.received).as_secs_f64(),
@@ -262,10 +264,11 @@ fn run(
         for t in 0..n {
             let d = &mut local.devices[t];
             d.active = inputs[t].is_some_and(|i| i.usable && i.age_s < world.pose_timeout_s);
-            let Some(command) = &commands[t] else {
+            let Some(command) = &mut commands[t] else {
                 continue;
             };
-            encode(command, &mut buf);
+            command.device_instance = last_pose[t].map_or(InstanceId::NONE, |a| a.from).0;
+            encode(shared.instance, command, &mut buf);
             if let Some(outlet) = outlets.get_mut(t) {
                 outlet.send(&buf);
             }
@@ -273,6 +276,7 @@ fn run(
                 command.seq,
                 command.echo_pose_seq,
                 command.echo_device_time_ns,
+                command.device_instance,
             ));
             d.forces_sent += 1;
             d.max_force_n = d.max_force_n.max(Vec3::from(command.force_n).norm());
