@@ -19,6 +19,13 @@ pub const DEFAULT_DEVICE_ENDPOINTS: [&str; 2] = ["tcp/127.0.0.1:7447", "udp/127.
 /// within 2.2 s. A handshake is a few round trips, so 1 s still leaves room for a 200 ms path.
 pub const LINK_TIMEOUT_MS: u64 = 1000;
 
+/// First retry period of a lost connect endpoint, ms (doubling up to [`RETRY_MAX_MS`]).
+pub const RETRY_INIT_MS: u64 = 50;
+
+/// Longest retry period of a lost connect endpoint, ms: the worst-case wait between a server's return and
+/// the next attempt to reach it.
+pub const RETRY_MAX_MS: u64 = 250;
+
 /// The UDP endpoint on the same address and port as a TCP one (`tcp/h:p` -> `udp/h:p`); `None` for any other
 /// protocol.
 pub fn udp_twin(endpoint: &str) -> Option<String> {
@@ -106,6 +113,14 @@ impl NetworkOptions {
             entries.push((
                 "transport/unicast/accept_timeout",
                 LINK_TIMEOUT_MS.to_string(),
+            ));
+            // A lost server is retried every 50 ms, backing off to every 250 ms (zenoh's default is 1 s
+            // doubling to 4 s): a restarted server is rejoined within about a quarter second of its return.
+            entries.push((
+                "connect/retry",
+                format!(
+                    "{{period_init_ms:{RETRY_INIT_MS},period_max_ms:{RETRY_MAX_MS},period_increase_factor:2}}"
+                ),
             ));
         }
         entries

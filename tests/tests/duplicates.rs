@@ -56,7 +56,10 @@ fn a_second_hapticserver_with_a_held_device_id_is_refused_never_moves_the_tool_a
         left_stats(&server),
         first.report()
     );
-    assert_eq!(left_stats(&server).holder_instance, first.report().instance.0);
+    assert_eq!(
+        left_stats(&server).holder_instance,
+        first.report().instance.0
+    );
 
     // A second hapticserver with the same id presses 5 mm into the pad.
     let second = start_sim_device("pad", "left", hold(PRESS), &endpoint, Pacing::Sleep).unwrap();
@@ -91,10 +94,7 @@ fn a_second_hapticserver_with_a_held_device_id_is_refused_never_moves_the_tool_a
     );
     assert_eq!(second.report().max_rendered_force_n, 0.0);
     assert!(first.report().max_rendered_force_n < 0.05);
-    assert!(matches!(
-        first.report().standing,
-        Standing::Holding { .. }
-    ));
+    assert!(matches!(first.report().standing, Standing::Holding { .. }));
 
     // The first leaves: the second takes the id, its tool enters from above and presses, and its force ramps in.
     first.kill();
@@ -102,12 +102,18 @@ fn a_second_hapticserver_with_a_held_device_id_is_refused_never_moves_the_tool_a
         wait_until(Duration::from_secs(5), || matches!(
             second.report().standing,
             Standing::Holding { .. }
-        ) && second.report().last_rendered_force_magnitude_n() > 0.5),
+        ) && second
+            .report()
+            .last_rendered_force_magnitude_n()
+            > 0.5),
         "the second device takes over and presses: {} / {:?}",
         second.report(),
         left_stats(&server)
     );
-    assert_eq!(left_stats(&server).holder_instance, second.report().instance.0);
+    assert_eq!(
+        left_stats(&server).holder_instance,
+        second.report().instance.0
+    );
 }
 
 fn server_config(listen: &str, connect: &[String]) -> ServerConfig {
@@ -193,10 +199,7 @@ fn clients_that_reach_two_live_servers_stay_with_the_one_they_joined() {
             hapticserver::sim_device::sim_device_model(),
         );
         let mut config = sinew::harness::pad_device_config("left", Box::new(hand), &a_endpoint);
-        config
-            .network
-            .connect
-            .extend(with_udp_twin(&b_endpoint));
+        config.network.connect.extend(with_udp_twin(&b_endpoint));
         config.spin_accuracy_ns = 0;
         hapticserver::HapticServer::start(config).unwrap()
     };
