@@ -36,6 +36,8 @@ use crate::zenoh_session::{UDP_LINK_WAIT, open_session, wait_for_udp_link, wants
 
 /// How often the hello is repeated.
 pub const HELLO_PERIOD: Duration = Duration::from_secs(1);
+/// How long [`HapticHandle::stop`] waits for zenoh's goodbyes once the force is at zero.
+pub const CLOSE_TIMEOUT: Duration = Duration::from_millis(500);
 /// How often the loop publishes its report.
 pub const REPORT_PERIOD: Duration = Duration::from_millis(100);
 
@@ -118,9 +120,11 @@ impl HapticServer {
             .map_err(HapticError::zenoh(format!(
                 "declaring the pose publisher on {pose_key}"
             )))?;
+        // Dropped rather than blocked when the link is congested or cut: it repeats every second, and a
+        // blocked put must never hold the watch thread (or a shutdown) during a partition.
         let hello_publisher = session
             .declare_publisher(hello_key.clone())
-            .congestion_control(CongestionControl::Block)
+            .congestion_control(CongestionControl::Drop)
             .wait()
             .map_err(HapticError::zenoh(format!(
                 "declaring the hello publisher on {hello_key}"
@@ -530,39 +534,80 @@ impl HapticHandle {
     }
 
     /// Stop gracefully: the loop ignores further commands, ramps the force to zero within the safety ramp
-    /// time, writes zero, and ends; then the subscriber and presence token are undeclared and the session
-    /// closed. Idempotent. Returns the first failure, after attempting every step.
+    /// time, writes zero, and ends. Only then the goodbyes: the hello thread ends, the subscribers and
+    /// presence token are undeclared and the session closed, all within [`CLOSE_TIMEOUT`]: when the network
+    /// cannot carry them (a partition), they are abandoned with a warning and the server notices by its lease.
+    /// Idempotent. Returns the first failure, after attempting every step.
     pub fn stop(&mut self) -> Result<(), HapticError> {
         self.stop.store(true, Ordering::Release);
         let mut first_error = None;
-        for (thread, name) in [
-            (self.hello_thread.take(), "hello"),
-            (self.loop_thread.take(), "device loop"),
-        ] {
-            if let Some(thread) = thread {
-                thread.thread().unpark();
-                if thread.join().is_err() {
-                    first_error.get_or_insert(HapticError::Panicked {
-                        name: format!("hapticserver-{} {name}", self.device_id),
-                    });
-                }
+        // The force first: the loop never waits on the network.
+        if let Some(thread) = self.loop_thread.take() {
+            thread.thread().unpark();
+            if thread.join().is_err() {
+                first_error.get_or_insert(HapticError::Panicked {
+                    name: format!("hapticserver-{} device loop", self.device_id),
+                });
             }
         }
-        if let Some(subscriber) = self.subscriber.take()
-            && let Err(err) = subscriber.undeclare().wait()
-        {
-            first_error.get_or_insert(HapticError::zenoh("undeclaring the force subscriber")(err));
+        let hello = self.hello_thread.take();
+        let subscriber = self.subscriber.take();
+        let watch_subscribers = std::mem::take(&mut self.watch_subscribers);
+        let token = self.token.take();
+        let session = self.session.take();
+        if hello.is_none() && subscriber.is_none() && token.is_none() && session.is_none() {
+            return first_error.map_or(Ok(()), Err);
         }
-        self.watch_subscribers.clear();
-        if let Some(token) = self.token.take()
-            && let Err(err) = token.undeclare().wait()
-        {
-            first_error.get_or_insert(HapticError::zenoh("undeclaring the presence token")(err));
+        let errors: Arc<Mutex<Vec<HapticError>>> = Arc::default();
+        let teardown_errors = errors.clone();
+        let device_id = self.device_id.clone();
+        let finished = sinew_protocol::rt::finish_within(
+            &format!("hapticserver-{}-close", self.device_id),
+            CLOSE_TIMEOUT,
+            move || {
+                let push = |e| {
+                    if let Ok(mut errors) = teardown_errors.lock() {
+                        errors.push(e);
+                    }
+                };
+                if let Some(thread) = hello {
+                    thread.thread().unpark();
+                    if thread.join().is_err() {
+                        push(HapticError::Panicked {
+                            name: format!("hapticserver-{device_id} watch"),
+                        });
+                    }
+                }
+                if let Some(subscriber) = subscriber
+                    && let Err(err) = subscriber.undeclare().wait()
+                {
+                    push(HapticError::zenoh("undeclaring the force subscriber")(err));
+                }
+                drop(watch_subscribers);
+                if let Some(token) = token
+                    && let Err(err) = token.undeclare().wait()
+                {
+                    push(HapticError::zenoh("undeclaring the presence token")(err));
+                }
+                if let Some(session) = session
+                    && let Err(err) = session.close().wait()
+                {
+                    tracing::warn!(device = %device_id, %err, "the zenoh session did not close cleanly (server unreachable?)");
+                }
+            },
+        );
+        if !finished {
+            tracing::warn!(
+                device = %self.device_id,
+                "force at zero; zenoh could not say goodbye within {} ms (server unreachable?): the server \
+                 will notice by its lease",
+                CLOSE_TIMEOUT.as_millis()
+            );
         }
-        if let Some(session) = self.session.take()
-            && let Err(err) = session.close().wait()
+        if let Ok(mut errors) = errors.lock()
+            && !errors.is_empty()
         {
-            first_error.get_or_insert(HapticError::zenoh("closing the session")(err));
+            first_error.get_or_insert(errors.remove(0));
         }
         first_error.map_or(Ok(()), Err)
     }

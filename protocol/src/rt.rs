@@ -6,9 +6,11 @@
 //! - [`DelayLine`], [`DelayedSender`]: in-process network emulation (delay, jitter, seeded loss).
 //! - [`JoinedServer`]: which server instance a client follows when two are live for one scene.
 //! - [`Throttle`]: log a lasting condition once, then at most once a period with a count.
+//! - [`finish_within`]: a teardown step that may block on the network, abandoned after a deadline.
 //! - [`panic_report`]: the role binaries' panic hook, which defers the backtrace so the 1 kHz threads'
 //!   supervisors zero the force first.
 
+mod bounded;
 mod delay_line;
 mod joined_server;
 mod latency_histogram;
@@ -16,6 +18,7 @@ mod latest_value;
 mod pacer;
 mod throttle;
 
+pub use bounded::finish_within;
 pub use delay_line::{
     DelayLine, DelayedSender, DelayedSenderCounters, EmulationConfig, MAX_DELAYED_MESSAGE_BYTES,
 };

@@ -171,10 +171,11 @@ impl ServerNode {
         let publish_thread = publish_loop::spawn(&session, shared.clone())?;
         Ok(ServerHandle {
             shared,
-            session,
-            threads: vec![sim_thread, publish_thread],
-            _inbound: inbound,
-            _token: token,
+            session: Some(session),
+            sim_thread: Some(sim_thread),
+            publish_thread: Some(publish_thread),
+            inbound: Some(inbound),
+            token: Some(token),
         })
     }
 }
@@ -182,11 +183,15 @@ impl ServerNode {
 /// A running server. Dropping it stops the threads and closes the session.
 pub struct ServerHandle {
     shared: Arc<Shared>,
-    session: zenoh::Session,
-    threads: Vec<JoinHandle<()>>,
-    _inbound: inbound::Inbound,
-    _token: zenoh::liveliness::LivelinessToken,
+    session: Option<zenoh::Session>,
+    sim_thread: Option<JoinHandle<()>>,
+    publish_thread: Option<JoinHandle<()>>,
+    inbound: Option<inbound::Inbound>,
+    token: Option<zenoh::liveliness::LivelinessToken>,
 }
+
+/// How long [`ServerHandle::stop`] waits for the publish thread and zenoh's goodbyes once the sim has stopped.
+pub const CLOSE_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(500);
 
 impl std::fmt::Debug for ServerHandle {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -240,13 +245,39 @@ impl ServerHandle {
         self.shared.failure.get().map(String::as_str)
     }
 
-    /// Stop the threads, then close the session. Idempotent.
+    /// Stop the sim thread, then the publish thread, the declarations and the session, the latter within
+    /// [`CLOSE_TIMEOUT`]: a reliable put or a close the network cannot carry (a partition) is abandoned with a
+    /// warning, and the clients notice by their lease and silence rules. Idempotent.
     pub fn stop(&mut self) {
         self.shared.stop.store(true, Ordering::Release);
-        for thread in self.threads.drain(..) {
+        if let Some(thread) = self.sim_thread.take() {
             let _ = thread.join();
         }
-        let _ = self.session.close().wait();
+        let publish = self.publish_thread.take();
+        let inbound = self.inbound.take();
+        let token = self.token.take();
+        let session = self.session.take();
+        if publish.is_none() && session.is_none() {
+            return;
+        }
+        let finished = sinew_protocol::rt::finish_within("sinew-close", CLOSE_TIMEOUT, move || {
+            if let Some(thread) = publish {
+                let _ = thread.join();
+            }
+            drop(inbound);
+            if let Some(token) = token {
+                let _ = token.undeclare().wait();
+            }
+            if let Some(session) = session {
+                let _ = session.close().wait();
+            }
+        });
+        if !finished {
+            tracing::warn!(
+                "zenoh could not say goodbye within {} ms (clients unreachable?): they will notice by their lease",
+                CLOSE_TIMEOUT.as_millis()
+            );
+        }
     }
 }
 

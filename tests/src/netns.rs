@@ -557,6 +557,16 @@ impl NetnsLab {
         Ok(child)
     }
 
+    /// Cut the path at `side`: that side's veth end in the relay namespace goes down, so no frame crosses in
+    /// either direction (a network partition; the processes keep running).
+    pub fn cut(&self, side: Side) -> Result<(), LabError> {
+        let end = match side {
+            Side::Server => RELAY_INTERFACES[0],
+            Side::Device => RELAY_INTERFACES[1],
+        };
+        ip(&["-n", &self.relay_ns, "link", "set", end, "down"]).map(|_| ())
+    }
+
     /// Process ids of the children started so far (some may have exited).
     pub fn children(&self) -> &[u32] {
         &self.children

@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
-use sinew::netns::{LabConfig, NetnsLab, role_binary, wait_output};
+use sinew::netns::{LabConfig, NetnsLab, Side, role_binary, wait_output};
 
 fn skip_unless_available(test: &str) -> bool {
     match NetnsLab::available() {
@@ -346,4 +346,100 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
         lost + forwarded
     );
     let _ = std::fs::remove_file(&csv_path);
+}
+
+/// Wait for `child` to exit, up to `limit`; how long it took (None: still running, then killed).
+fn exit_time(child: &mut std::process::Child, limit: Duration) -> Option<Duration> {
+    let start = std::time::Instant::now();
+    while start.elapsed() < limit {
+        if child.try_wait().ok().flatten().is_some() {
+            return Some(start.elapsed());
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let _ = child.kill();
+    None
+}
+
+#[test]
+fn every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_force_first() {
+    if skip_unless_available(
+        "every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_force_first",
+    ) {
+        return;
+    }
+    let server_bin = role_binary("sinew-server").unwrap();
+    let haptic_bin = role_binary("hapticserver").unwrap();
+    let viewer_bin = role_binary("sinew-viewer").unwrap();
+    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let mut lab = NetnsLab::new(LabConfig::symmetric(1.0, 0.0, 0.0, 11)).unwrap();
+    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let ip = lab.server_ip().to_string();
+    let (tcp, udp) = (format!("tcp/{ip}:7447"), format!("udp/{ip}:7447"));
+    let mut server = Command::new(&server_bin);
+    server
+        .arg("--world")
+        .arg(&world)
+        .args(["--listen", &tcp, "--listen", &udp]);
+    let mut server = lab.spawn_in_server_ns(&server).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let mut haptic = Command::new(&haptic_bin);
+    haptic
+        .args(["--id", "left", "--script", "press", "--depth-mm", "6"])
+        .args(["--connect", &tcp, "--connect", &udp]);
+    let mut haptic = lab.spawn_in_device_ns(&haptic).unwrap();
+    let mut viewer = Command::new(&viewer_bin);
+    viewer.args(["--headless", "--connect", &tcp]);
+    let mut viewer = lab.spawn_in_device_ns(&viewer).unwrap();
+    // Joined (the UDP link takes about 2 s) and pressing; then the network is cut, and stays cut.
+    std::thread::sleep(Duration::from_millis(5000));
+    lab.cut(Side::Device).unwrap();
+    std::thread::sleep(Duration::from_millis(2000));
+    let term = |child: &std::process::Child| {
+        Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+    };
+    let limit = Duration::from_secs(5);
+    term(&haptic);
+    let haptic_exit = exit_time(&mut haptic, limit);
+    term(&server);
+    let server_exit = exit_time(&mut server, limit);
+    term(&viewer);
+    let viewer_exit = exit_time(&mut viewer, limit);
+    let output = |child: std::process::Child| wait_output(child, Duration::from_secs(5)).unwrap();
+    let (haptic, server, viewer) = (output(haptic), output(server), output(viewer));
+    let haptic_out = String::from_utf8_lossy(&haptic.stdout).into_owned();
+    let haptic_err = String::from_utf8_lossy(&haptic.stderr).into_owned();
+    println!(
+        "exit after SIGTERM during a partition: hapticserver {haptic_exit:?}, server {server_exit:?}, viewer {viewer_exit:?}"
+    );
+    drop(lab);
+    assert_gone(&namespaces);
+    // The old behaviour: the hapticserver hung 10 s on zenoh's close and exited 1; the server ran 15 s on.
+    for (role, exit) in [
+        ("hapticserver", haptic_exit),
+        ("sinew-server", server_exit),
+        ("sinew-viewer", viewer_exit),
+    ] {
+        assert!(
+            exit.is_some_and(|t| t < Duration::from_secs(3)),
+            "{role} did not exit promptly: {exit:?}\nhapticserver:\n{haptic_out}\n{haptic_err}"
+        );
+    }
+    assert!(haptic.status.success(), "{}\n{haptic_err}", haptic.status);
+    assert!(server.status.success(), "{}", server.status);
+    assert!(viewer.status.success(), "{}", viewer.status);
+    let final_line = haptic_out
+        .lines()
+        .find(|l| l.starts_with("final:"))
+        .unwrap_or_else(|| panic!("no final line:\n{haptic_out}\n{haptic_err}"));
+    // The force was at zero before the goodbyes: the silence rule had ramped it, and the stop wrote zero.
+    assert!(final_line.contains("force 0.00 N"), "{final_line}");
+    // Logged to stdout.
+    assert!(
+        haptic_out.contains("server lost"),
+        "the device said it lost the server: {haptic_out}"
+    );
 }

@@ -474,12 +474,25 @@ impl ViewerHandle {
         {
             tracing::error!("sinew-viewer-sync thread panicked");
         }
-        self.subscribers.clear();
-        self.token = None;
-        if let Some(session) = self.session.take()
-            && let Err(err) = session.close().wait()
-        {
-            tracing::warn!(%err, "closing zenoh session");
+        let subscribers = std::mem::take(&mut self.subscribers);
+        let token = self.token.take();
+        let Some(session) = self.session.take() else {
+            return;
+        };
+        // Within half a second whatever the network does (a partition would hold zenoh's close for its lease).
+        let finished = sinew_protocol::rt::finish_within(
+            "sinew-viewer-close",
+            Duration::from_millis(500),
+            move || {
+                drop(subscribers);
+                drop(token);
+                if let Err(err) = session.close().wait() {
+                    tracing::warn!(%err, "closing zenoh session");
+                }
+            },
+        );
+        if !finished {
+            tracing::warn!("zenoh could not say goodbye within 500 ms (server unreachable?)");
         }
     }
 }

@@ -114,7 +114,12 @@ fn main() -> Result<()> {
             .duration_s
             .map(|s| seconds(s, "duration-s"))
             .transpose()?;
-        run_headless(&viewer, duration);
+        // Ctrl-C / SIGTERM: leave the loop, print the final line, stop within half a second.
+        let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = interrupted.clone();
+        ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::Release))
+            .context("installing the Ctrl-C handler")?;
+        run_headless(&viewer, duration, &interrupted);
         Ok(())
     } else if let Some(path) = &args.png {
         run_png(&viewer, &args, path, &endpoints)
@@ -182,18 +187,25 @@ fn stats_line(stats: &ViewerStats) -> String {
     )
 }
 
-fn run_headless(viewer: &ViewerHandle, duration: Option<Duration>) {
+fn run_headless(
+    viewer: &ViewerHandle,
+    duration: Option<Duration>,
+    interrupted: &std::sync::atomic::AtomicBool,
+) {
     let started = Instant::now();
     let mut next = started + Duration::from_secs(1);
     loop {
         let now = Instant::now();
-        if let Some(limit) = duration
-            && now.duration_since(started) >= limit
+        if duration.is_some_and(|limit| now.duration_since(started) >= limit)
+            || interrupted.load(std::sync::atomic::Ordering::Acquire)
         {
             break;
         }
         let wake = duration.map_or(next, |limit| next.min(started + limit));
-        std::thread::sleep(wake.saturating_duration_since(now));
+        std::thread::sleep(
+            wake.saturating_duration_since(now)
+                .min(Duration::from_millis(50)),
+        );
         if Instant::now() >= next {
             println!("{}", stats_line(&viewer.stats()));
             next += Duration::from_secs(1);
