@@ -16,6 +16,7 @@ mod inbound;
 mod publish_loop;
 mod session;
 mod sim_loop;
+pub mod tick_cost;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -129,6 +130,16 @@ impl ServerNode {
     /// Build the sim, open zenoh, declare everything, start the threads.
     pub fn start(world: World, config: ServerConfig) -> Result<ServerHandle, ServerError> {
         let sim = Sim::new(&world)?;
+        match tick_cost::estimate(&world) {
+            Ok(cost) => match tick_cost::verdict(&world.scene, &cost) {
+                // Tight is not a warning: the shipped pad is, and a normal run prints nothing to act on.
+                tick_cost::Verdict::Fits(line) | tick_cost::Verdict::Tight(line) => {
+                    tracing::info!("{line}")
+                }
+                tick_cost::Verdict::TooBig(line) => tracing::warn!("{line}"),
+            },
+            Err(err) => tracing::warn!(%err, "could not estimate the tick cost"),
+        }
         let keys = SceneKeys::new(&world.scene)?;
         let session = open_session(&config.network)?;
         let found = session::live_servers(&session, &keys)?;

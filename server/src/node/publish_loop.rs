@@ -228,6 +228,8 @@ fn run(
     let mut delta = MeshDelta::default();
     let mut buf = Vec::with_capacity(64 * 1024);
     let mut last_stats = Instant::now();
+    let mut late = super::tick_cost::LateTicks::new();
+    let period_us = 1e6 / shared.world.tick_hz;
 
     while !shared.stop.load(Ordering::Acquire) {
         pacer.wait();
@@ -259,7 +261,13 @@ fn run(
         }
         if last_stats.elapsed() >= Duration::from_secs(1) {
             last_stats = Instant::now();
-            encode(shared.instance, &build_stats(shared), &mut buf);
+            let stats = build_stats(shared);
+            if let Some(line) =
+                late.observe(last_stats, stats.overruns, stats.tick_p99_us, period_us)
+            {
+                tracing::warn!("{line}");
+            }
+            encode(shared.instance, &stats, &mut buf);
             let _ = stats_publisher.put(buf.as_slice()).wait();
         }
     }
