@@ -165,7 +165,11 @@ impl HapticServer {
             })
             .wait()
             .map_err(HapticError::zenoh("declaring the stats subscriber"))?;
-        // A server whose presence token goes away has left: the next server heard is followed at once.
+        // A server whose presence token goes away has left: the next server heard is followed at once. A
+        // server that appears (a restart, a healed partition) gets this device's hello within a watch period:
+        // it lets no instance drive a tool before its hello.
+        let hello_now = Arc::new(AtomicBool::new(false));
+        let presence_hello = hello_now.clone();
         let presence_inbox = inbox.clone();
         let server_presence = session
             .liveliness()
@@ -173,6 +177,8 @@ impl HapticServer {
             .callback(move |sample: zenoh::sample::Sample| {
                 if sample.kind() == zenoh::sample::SampleKind::Delete {
                     presence_inbox.server().release();
+                } else {
+                    presence_hello.store(true, Ordering::Release);
                 }
             })
             .wait()
@@ -252,20 +258,12 @@ impl HapticServer {
             abrupt: handle.abrupt.clone(),
             panic_at_tick,
         };
-        let loop_name = format!("hapticserver-{device_id}");
-        handle.loop_thread = Some(
-            std::thread::Builder::new()
-                .name(loop_name.clone())
-                .spawn(move || device_loop.run())
-                .map_err(|source| HapticError::Thread {
-                    name: loop_name,
-                    source,
-                })?,
-        );
+        // The hello goes out before the first pose: the server lets no instance drive a tool before its hello.
         let hello_name = format!("hapticserver-{device_id}-watch");
         let supervision = Supervision {
             hello_publisher,
             hello_bytes,
+            hello_now,
             stop: handle.stop.clone(),
             watch: ServerWatch::new(&device_id, instance),
             inbox,
@@ -279,6 +277,16 @@ impl HapticServer {
                 .spawn(move || supervision.run())
                 .map_err(|source| HapticError::Thread {
                     name: hello_name,
+                    source,
+                })?,
+        );
+        let loop_name = format!("hapticserver-{device_id}");
+        handle.loop_thread = Some(
+            std::thread::Builder::new()
+                .name(loop_name.clone())
+                .spawn(move || device_loop.run())
+                .map_err(|source| HapticError::Thread {
+                    name: loop_name,
                     source,
                 })?,
         );
@@ -411,6 +419,7 @@ impl DeviceLoop {
 struct Supervision {
     hello_publisher: Publisher<'static>,
     hello_bytes: Vec<u8>,
+    hello_now: Arc<AtomicBool>,
     stop: Arc<AtomicBool>,
     watch: ServerWatch,
     inbox: Arc<ForceInbox>,
@@ -425,7 +434,7 @@ impl Supervision {
         let mut next_hello = Instant::now();
         while !self.stop.load(Ordering::Acquire) {
             let now = Instant::now();
-            if now >= next_hello {
+            if now >= next_hello || self.hello_now.swap(false, Ordering::AcqRel) {
                 if let Err(err) = self.hello_publisher.put(self.hello_bytes.as_slice()).wait() {
                     tracing::debug!(%err, "hello not published");
                 }

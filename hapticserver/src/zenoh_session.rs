@@ -25,6 +25,18 @@ pub fn zenoh_config(network: &NetworkOptions) -> Result<zenoh::Config, HapticErr
             .insert_json5(key, &value)
             .map_err(HapticError::zenoh(format!("setting {key} = {value}")))?;
     }
+    if network.config_file.is_none() {
+        // zenoh's open waits (500 ms) until every connector has the peer's declarations; the UDP twin of a
+        // TCP endpoint joins a transport that already has them and never reports in, so every start waited
+        // the whole delay and warned `Scouting delay elapsed before start conditions are met`. The device
+        // does not need that wait: it waits for its UDP link itself (`wait_for_udp_link`), and a first pose
+        // sent before the server's subscriber is known is only one of a 1 kHz stream.
+        config
+            .insert_json5("open/return_conditions/connect_scouted", "false")
+            .map_err(HapticError::zenoh(
+                "setting open/return_conditions/connect_scouted",
+            ))?;
+    }
     Ok(config)
 }
 

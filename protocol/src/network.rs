@@ -114,6 +114,17 @@ impl NetworkOptions {
                 "transport/unicast/accept_timeout",
                 LINK_TIMEOUT_MS.to_string(),
             ));
+            // Peers learn of each other by gossip. A client that does not listen cannot be dialled, yet a client
+            // that dialled it waited 500 ms for it on every start and warned `Scouting delay elapsed before start
+            // conditions are met`. A role that only connects (device, viewer) talks to the server it connects
+            // to, so it dials no gossiped peer; a role that listens (a server) still dials the servers it hears
+            // of, which is how two live servers for one scene find each other.
+            if self.listen.is_empty() {
+                entries.push((
+                    "scouting/gossip/autoconnect",
+                    "{router:[],peer:[\"router\"]}".to_owned(),
+                ));
+            }
             // A lost server is retried every 50 ms, backing off to every 250 ms (zenoh's default is 1 s
             // doubling to 4 s): a restarted server is rejoined within about a quarter second of its return.
             entries.push((

@@ -195,6 +195,7 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
             unknown_device: rng.u64(..),
             duplicate_device: rng.u64(..),
             wrong_tool: rng.u64(..),
+            no_hello: rng.u64(..),
         },
         devices: (0..rng.usize(0..3))
             .map(|_| DeviceStats {

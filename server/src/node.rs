@@ -142,7 +142,12 @@ impl ServerNode {
         }
         let keys = SceneKeys::new(&world.scene)?;
         let session = open_session(&config.network)?;
+        let asked = std::time::Instant::now();
         let found = session::live_servers(&session, &keys)?;
+        tracing::debug!(
+            ms = asked.elapsed().as_millis(),
+            "asked for other live servers"
+        );
         if !found.is_empty() {
             let _ = session.close().wait();
             return Err(ServerError::AnotherServer {

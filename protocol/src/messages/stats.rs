@@ -19,6 +19,8 @@ pub struct RejectCounts {
     pub duplicate_device: u64,
     /// A pose from a device whose hello asked for another tool than the world binds to its id.
     pub wrong_tool: u64,
+    /// A pose from a device instance whose hello has not arrived yet (a device must say hello first).
+    pub no_hello: u64,
 }
 
 impl RejectCounts {
@@ -30,6 +32,7 @@ impl RejectCounts {
             + self.unknown_device
             + self.duplicate_device
             + self.wrong_tool
+            + self.no_hello
     }
 }
 

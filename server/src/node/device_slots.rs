@@ -47,6 +47,8 @@ pub enum Claim {
     },
     /// This instance asked for another tool, or left (its token was deleted): refuse the pose.
     Refused,
+    /// No hello from this instance yet: its tool and force limit are unknown, so it drives nothing.
+    Unannounced,
 }
 
 /// How often a lasting duplicate is logged again, ns.
@@ -83,13 +85,35 @@ pub struct DeviceSlot {
     pub wrong_tool_asked: Mutex<String>,
     /// Log throttle for refused duplicates.
     pub duplicate_log: Throttle,
+    /// The latest instances whose hello this server accepted (a ring): only they may drive the tool.
+    greeted: [AtomicU64; GREETED],
+    greeted_next: AtomicU64,
 }
+
+/// How many greeted instances a slot remembers.
+const GREETED: usize = 4;
 
 impl DeviceSlot {
     /// Device max force from its hello, if announced.
     pub fn hello_max_force_n(&self) -> Option<f32> {
         let v = f32::from_bits(self.hello_max_force_bits.load(Ordering::Acquire));
         (v > 0.0).then_some(v)
+    }
+
+    /// `from`'s hello was accepted: it may drive the tool (its max force and tool are known).
+    pub fn greet(&self, from: InstanceId) {
+        if self.greeted(from) {
+            return;
+        }
+        let i = self.greeted_next.fetch_add(1, Ordering::AcqRel) as usize % GREETED;
+        self.greeted[i].store(from.0, Ordering::Release);
+    }
+
+    /// Whether `from`'s hello was accepted.
+    pub fn greeted(&self, from: InstanceId) -> bool {
+        self.greeted
+            .iter()
+            .any(|g| g.load(Ordering::Acquire) == from.0)
     }
 
     /// The instance holding the id.
@@ -104,6 +128,9 @@ impl DeviceSlot {
             || from.0 == self.departed.load(Ordering::Acquire)
         {
             return Claim::Refused;
+        }
+        if !self.greeted(from) {
+            return Claim::Unannounced;
         }
         loop {
             let holder = self.holder.load(Ordering::Acquire);
@@ -179,6 +206,8 @@ impl DeviceSlots {
                     wrong_tool_instance: AtomicU64::new(0),
                     wrong_tool_asked: Mutex::new(String::new()),
                     duplicate_log: Throttle::new(DUPLICATE_LOG_PERIOD_NS),
+                    greeted: Default::default(),
+                    greeted_next: AtomicU64::new(0),
                 })
                 .collect(),
             epoch: Instant::now(),
@@ -226,6 +255,8 @@ mod tests {
             wrong_tool_instance: AtomicU64::new(0),
             wrong_tool_asked: Mutex::new(String::new()),
             duplicate_log: Throttle::new(DUPLICATE_LOG_PERIOD_NS),
+            greeted: Default::default(),
+            greeted_next: AtomicU64::new(0),
         }
     }
 
@@ -236,6 +267,9 @@ mod tests {
     fn the_first_instance_keeps_the_id_and_a_second_is_refused_once_counted() {
         let s = slot();
         let (a, b) = (InstanceId(1), InstanceId(2));
+        assert_eq!(s.claim(a, 0, TIMEOUT), Claim::Unannounced, "no hello yet");
+        s.greet(a);
+        s.greet(b);
         assert_eq!(
             s.claim(a, 0, TIMEOUT),
             Claim::Taken {
@@ -265,6 +299,9 @@ mod tests {
     fn a_quiet_or_departed_holder_lets_the_next_instance_take_the_id() {
         let s = slot();
         let (a, b, c) = (InstanceId(1), InstanceId(2), InstanceId(3));
+        for i in [a, b, c] {
+            s.greet(i);
+        }
         s.claim(a, 0, TIMEOUT);
         assert_eq!(s.claim(b, TIMEOUT, TIMEOUT), Claim::Taken { previous: a });
         assert_eq!(s.release(), b);
@@ -284,6 +321,8 @@ mod tests {
     fn a_wrong_tool_refuses_that_instance_only() {
         let s = slot();
         let (a, b) = (InstanceId(1), InstanceId(2));
+        s.greet(a);
+        s.greet(b);
         s.wrong_tool_instance.store(a.0, Ordering::Release);
         assert_eq!(s.claim(a, 0, TIMEOUT), Claim::Refused);
         assert_eq!(

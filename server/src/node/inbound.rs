@@ -28,6 +28,7 @@ pub struct RejectCounters {
     unknown_device: AtomicU64,
     duplicate_device: AtomicU64,
     wrong_tool: AtomicU64,
+    no_hello: AtomicU64,
 }
 
 impl RejectCounters {
@@ -51,6 +52,7 @@ impl RejectCounters {
             unknown_device: self.unknown_device.load(Ordering::Relaxed),
             duplicate_device: self.duplicate_device.load(Ordering::Relaxed),
             wrong_tool: self.wrong_tool.load(Ordering::Relaxed),
+            no_hello: self.no_hello.load(Ordering::Relaxed),
         }
     }
 }
@@ -190,6 +192,10 @@ fn on_pose(shared: &Shared, sample: &Sample) {
             shared.rejects.wrong_tool.fetch_add(1, Ordering::Relaxed);
             return;
         }
+        Claim::Unannounced => {
+            shared.rejects.no_hello.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
     }
     slot.pose.store(PoseArrival {
         pose,
@@ -257,6 +263,7 @@ fn on_hello(shared: &Shared, sample: &Sample) {
             );
         }
     } else {
+        slot.greet(from);
         let _ = slot.wrong_tool_instance.compare_exchange(
             from.0,
             0,

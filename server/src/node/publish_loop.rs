@@ -262,9 +262,13 @@ fn run(
         if last_stats.elapsed() >= Duration::from_secs(1) {
             last_stats = Instant::now();
             let stats = build_stats(shared);
-            if let Some(line) =
-                late.observe(last_stats, stats.overruns, stats.tick_p99_us, period_us)
-            {
+            if let Some(line) = late.observe(
+                last_stats,
+                stats.ticks,
+                stats.overruns,
+                stats.tick_p99_us,
+                period_us,
+            ) {
                 tracing::warn!("{line}");
             }
             encode(shared.instance, &stats, &mut buf);
