@@ -223,6 +223,15 @@ impl ServerHandle {
         publish_loop::build_stats(&self.shared)
     }
 
+    /// The live tick's compute time since start (a copy of the sim thread's histogram, at most 100 ticks old).
+    pub fn tick_time(&self) -> sinew_protocol::rt::LatencyHistogram {
+        self.shared
+            .report
+            .lock()
+            .map(|r| r.tick_time.clone())
+            .unwrap_or_default()
+    }
+
     /// This run's instance id (the sender in every message it publishes).
     pub fn instance(&self) -> InstanceId {
         self.shared.instance

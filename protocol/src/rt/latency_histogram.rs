@@ -132,6 +132,31 @@ impl LatencyHistogram {
         self.sum_ns = other.sum_ns;
     }
 
+    /// The samples recorded after `earlier` was copied from this same histogram: a window of a cumulative
+    /// record (for a soak run's per-minute figures). Its max is the upper edge of its highest bucket, capped at
+    /// this histogram's max. Allocates (not for hot loops).
+    pub fn since(&self, earlier: &LatencyHistogram) -> LatencyHistogram {
+        let mut window = LatencyHistogram::new();
+        let mut highest = None;
+        for (bucket, (now, then)) in self.counts.iter().zip(earlier.counts.iter()).enumerate() {
+            let count = now.saturating_sub(*then);
+            window.counts[bucket] = count;
+            window.total += count;
+            if count > 0 {
+                highest = Some(bucket);
+            }
+        }
+        window.sum_ns = self.sum_ns.saturating_sub(earlier.sum_ns);
+        window.max_ns = highest.map_or(0, |b| {
+            if b == BUCKETS - 1 {
+                self.max_ns
+            } else {
+                bucket_upper_ns(b).min(self.max_ns)
+            }
+        });
+        window
+    }
+
     /// Forget every sample.
     pub fn reset(&mut self) {
         self.counts.fill(0);
@@ -144,6 +169,23 @@ impl LatencyHistogram {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_window_holds_only_the_later_samples() {
+        let mut h = LatencyHistogram::new();
+        for _ in 0..100 {
+            h.record_ns(1_000);
+        }
+        let earlier = h.clone();
+        for _ in 0..10 {
+            h.record_ns(500_000);
+        }
+        let window = h.since(&earlier);
+        assert_eq!(window.count(), 10);
+        let p50 = window.percentile_ns(50.0);
+        assert!((480_000..=520_000).contains(&p50), "{p50}");
+        assert_eq!(window.mean_ns(), 500_000.0);
+    }
 
     #[test]
     fn percentiles_are_within_bucket_resolution() {
