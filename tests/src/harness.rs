@@ -294,3 +294,12 @@ pub fn pad_device_config(
     };
     config
 }
+
+/// One scenario at a time within a test binary (each runs several 1 kHz loops; two cores are shared): hold the
+/// guard for the test's length. A test that panicked releases it poisoned, which the next one ignores.
+pub fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}

@@ -2,25 +2,16 @@
 //! and 3): two hapticservers with one device id, and two servers for one scene. Every wait has a timeout.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use hapticserver::server_watch::{Link, Standing};
 use hapticserver::{HandScript, HapticHandle};
 use sinew::harness::{
-    KillOnDrop, Pacing, free_loopback_endpoint, load_shipped_world, spawn_pad_server_process,
-    start_pad_server, start_sim_device, start_viewer, wait_until,
+    KillOnDrop, Pacing, free_loopback_endpoint, load_shipped_world, serial,
+    spawn_pad_server_process, start_pad_server, start_sim_device, start_viewer, wait_until,
 };
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerError, ServerHandle, ServerNode};
-
-static SERIAL: Mutex<()> = Mutex::new(());
-
-fn serial() -> MutexGuard<'static, ()> {
-    SERIAL
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-}
 
 /// Device frame: the pad surface is z = 0 at the device origin.
 const HOVER: [f32; 3] = [0.0, 0.0, 10.0];

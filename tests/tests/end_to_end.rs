@@ -3,24 +3,16 @@
 //! runs several 1 kHz loops; two cores are shared) and every wait has a timeout; nothing asserts on latency.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::Arc;
 use std::time::Duration;
 
 use hapticserver::{HandScript, HapticHandle};
 use sinew::harness::{
-    Pacing, load_shipped_world, replica_error, start_pad_server, start_sim_device, start_viewer,
-    wait_until,
+    Pacing, load_shipped_world, replica_error, serial, start_pad_server, start_sim_device,
+    start_viewer, wait_until,
 };
 use sinew_protocol::rt::LatestValue;
 use sinew_server::node::ServerHandle;
-
-static SERIAL: Mutex<()> = Mutex::new(());
-
-fn serial() -> MutexGuard<'static, ()> {
-    SERIAL
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-}
 
 /// Device frame: the pad surface is z = 0 at the device origin (left origin = world x -18, right = +18).
 const HOVER: [f32; 3] = [0.0, 0.0, 15.0];

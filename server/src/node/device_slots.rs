@@ -94,6 +94,28 @@ pub struct DeviceSlot {
 const GREETED: usize = 4;
 
 impl DeviceSlot {
+    /// A free slot for `device_id`, bound to the tool `tool_name`.
+    pub fn new(device_id: &str, tool_name: &str) -> Self {
+        DeviceSlot {
+            device_id: device_id.to_owned(),
+            tool_name: tool_name.to_owned(),
+            pose: LatestValue::new(),
+            gone: AtomicBool::new(false),
+            hello_max_force_bits: AtomicU32::new(0),
+            poses_received: AtomicU64::new(0),
+            holder: AtomicU64::new(0),
+            holder_heard_ns: AtomicU64::new(0),
+            departed: AtomicU64::new(0),
+            duplicates_refused: AtomicU64::new(0),
+            last_duplicate: AtomicU64::new(0),
+            wrong_tool_instance: AtomicU64::new(0),
+            wrong_tool_asked: Mutex::new(String::new()),
+            duplicate_log: Throttle::new(DUPLICATE_LOG_PERIOD_NS),
+            greeted: Default::default(),
+            greeted_next: AtomicU64::new(0),
+        }
+    }
+
     /// Device max force from its hello, if announced.
     pub fn hello_max_force_n(&self) -> Option<f32> {
         let v = f32::from_bits(self.hello_max_force_bits.load(Ordering::Acquire));
@@ -191,24 +213,7 @@ impl DeviceSlots {
             slots: sim
                 .tools
                 .iter()
-                .map(|t| DeviceSlot {
-                    device_id: t.device_id.clone(),
-                    tool_name: t.name.clone(),
-                    pose: LatestValue::new(),
-                    gone: AtomicBool::new(false),
-                    hello_max_force_bits: AtomicU32::new(0),
-                    poses_received: AtomicU64::new(0),
-                    holder: AtomicU64::new(0),
-                    holder_heard_ns: AtomicU64::new(0),
-                    departed: AtomicU64::new(0),
-                    duplicates_refused: AtomicU64::new(0),
-                    last_duplicate: AtomicU64::new(0),
-                    wrong_tool_instance: AtomicU64::new(0),
-                    wrong_tool_asked: Mutex::new(String::new()),
-                    duplicate_log: Throttle::new(DUPLICATE_LOG_PERIOD_NS),
-                    greeted: Default::default(),
-                    greeted_next: AtomicU64::new(0),
-                })
+                .map(|t| DeviceSlot::new(&t.device_id, &t.name))
                 .collect(),
             epoch: Instant::now(),
         }
@@ -240,24 +245,7 @@ mod tests {
     use super::*;
 
     fn slot() -> DeviceSlot {
-        DeviceSlot {
-            device_id: "left".into(),
-            tool_name: "probe".into(),
-            pose: LatestValue::new(),
-            gone: AtomicBool::new(false),
-            hello_max_force_bits: AtomicU32::new(0),
-            poses_received: AtomicU64::new(0),
-            holder: AtomicU64::new(0),
-            holder_heard_ns: AtomicU64::new(0),
-            departed: AtomicU64::new(0),
-            duplicates_refused: AtomicU64::new(0),
-            last_duplicate: AtomicU64::new(0),
-            wrong_tool_instance: AtomicU64::new(0),
-            wrong_tool_asked: Mutex::new(String::new()),
-            duplicate_log: Throttle::new(DUPLICATE_LOG_PERIOD_NS),
-            greeted: Default::default(),
-            greeted_next: AtomicU64::new(0),
-        }
+        DeviceSlot::new("left", "probe")
     }
 
     const MS: u64 = 1_000_000;
