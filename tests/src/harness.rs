@@ -303,3 +303,13 @@ pub fn serial() -> std::sync::MutexGuard<'static, ()> {
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
+
+/// Deepest point of object 0 below its rest plane z = 0, mm, from the server's latest frame (the pad's dent).
+pub fn deepest_dent_mm(server: &sinew_server::node::ServerHandle) -> f32 {
+    server
+        .latest_positions(0)
+        .unwrap_or_default()
+        .iter()
+        .map(|p| -p[2])
+        .fold(0.0, f32::max)
+}

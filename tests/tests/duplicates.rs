@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use hapticserver::server_watch::{Link, Standing};
 use hapticserver::{HandScript, HapticHandle};
 use sinew::harness::{
-    KillOnDrop, Pacing, free_loopback_endpoint, load_shipped_world, serial,
+    KillOnDrop, Pacing, deepest_dent_mm, free_loopback_endpoint, load_shipped_world, serial,
     spawn_pad_server_process, start_pad_server, start_sim_device, start_viewer, wait_until,
 };
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
@@ -19,15 +19,6 @@ const PRESS: [f32; 3] = [0.0, 0.0, -5.0];
 
 fn hold(position_mm: [f32; 3]) -> HandScript {
     HandScript::Hold { position_mm }
-}
-
-fn deepest_dent_mm(server: &ServerHandle) -> f32 {
-    server
-        .latest_positions(0)
-        .unwrap()
-        .iter()
-        .map(|p| -p[2])
-        .fold(0.0, f32::max)
 }
 
 fn left_stats(server: &ServerHandle) -> sinew_protocol::DeviceStats {

@@ -8,8 +8,8 @@ use std::time::Duration;
 
 use hapticserver::{HandScript, HapticHandle};
 use sinew::harness::{
-    Pacing, load_shipped_world, replica_error, serial, start_pad_server, start_sim_device,
-    start_viewer, wait_until,
+    Pacing, deepest_dent_mm, load_shipped_world, replica_error, serial, start_pad_server,
+    start_sim_device, start_viewer, wait_until,
 };
 use sinew_protocol::rt::LatestValue;
 use sinew_server::node::ServerHandle;
@@ -89,16 +89,6 @@ fn settled_force(device: &HapticHandle) -> [f32; 3] {
     });
     assert!(settled, "force never settled: {last:?}");
     last
-}
-
-/// Deepest point of the pad below its rest plane, mm, from the server's latest frame.
-fn deepest_dent_mm(server: &ServerHandle) -> f32 {
-    server
-        .latest_positions(0)
-        .unwrap()
-        .iter()
-        .map(|p| -p[2])
-        .fold(0.0, f32::max)
 }
 
 #[test]

@@ -220,24 +220,12 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
     ) {
         return;
     }
-    let server_bin = role_binary("sinew-server").unwrap();
     let haptic_bin = role_binary("hapticserver").unwrap();
-    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let mut lab = NetnsLab::new(LabConfig::symmetric(50.0, 10.0, 0.05, 7)).unwrap();
     let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
-    let ip = lab.server_ip().to_string();
-    let tcp = format!("tcp/{ip}:7447");
-    let udp = format!("udp/{ip}:7447");
     let csv_path =
         std::env::temp_dir().join(format!("sinew-netns-moderated-{}.csv", std::process::id()));
-
-    let mut server = Command::new(&server_bin);
-    server
-        .arg("--world")
-        .arg(&world)
-        .args(["--listen", &tcp, "--listen", &udp]);
-    let mut server = lab.spawn_in_server_ns(&server).unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
+    let (mut server, tcp, udp) = start_lab_pad_server(&mut lab);
     let mut haptic = Command::new(&haptic_bin);
     haptic
         .args(["--id", "left", "--script", "press", "--depth-mm", "10"])
@@ -348,6 +336,22 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
     let _ = std::fs::remove_file(&csv_path);
 }
 
+/// `sinew-server` on worlds/pad.toml in the lab's server namespace, listening on TCP and UDP at port 7447,
+/// given 1.5 s to come up; with the two endpoints a device connects to.
+fn start_lab_pad_server(lab: &mut NetnsLab) -> (std::process::Child, String, String) {
+    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let ip = lab.server_ip().to_string();
+    let (tcp, udp) = (format!("tcp/{ip}:7447"), format!("udp/{ip}:7447"));
+    let mut server = Command::new(role_binary("sinew-server").unwrap());
+    server
+        .arg("--world")
+        .arg(&world)
+        .args(["--listen", &tcp, "--listen", &udp]);
+    let server = lab.spawn_in_server_ns(&server).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    (server, tcp, udp)
+}
+
 /// Wait for `child` to exit, up to `limit`; how long it took (None: still running, then killed).
 fn exit_time(child: &mut std::process::Child, limit: Duration) -> Option<Duration> {
     let start = std::time::Instant::now();
@@ -368,21 +372,11 @@ fn every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_fo
     ) {
         return;
     }
-    let server_bin = role_binary("sinew-server").unwrap();
     let haptic_bin = role_binary("hapticserver").unwrap();
     let viewer_bin = role_binary("sinew-viewer").unwrap();
-    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let mut lab = NetnsLab::new(LabConfig::symmetric(1.0, 0.0, 0.0, 11)).unwrap();
     let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
-    let ip = lab.server_ip().to_string();
-    let (tcp, udp) = (format!("tcp/{ip}:7447"), format!("udp/{ip}:7447"));
-    let mut server = Command::new(&server_bin);
-    server
-        .arg("--world")
-        .arg(&world)
-        .args(["--listen", &tcp, "--listen", &udp]);
-    let mut server = lab.spawn_in_server_ns(&server).unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
+    let (mut server, tcp, udp) = start_lab_pad_server(&mut lab);
     let mut haptic = Command::new(&haptic_bin);
     haptic
         .args(["--id", "left", "--script", "press", "--depth-mm", "6"])
