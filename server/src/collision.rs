@@ -10,4 +10,4 @@ mod surface_collider;
 mod tool_collider;
 
 pub use surface_collider::{NodeMarks, SurfaceCollider, SurfaceColliderError};
-pub use tool_collider::ToolCollider;
+pub use tool_collider::{ContactSide, ToolCollider};

@@ -407,14 +407,16 @@ impl Sim {
         let margin = self.collision_margin_mm;
         for tool in &mut self.tools {
             for (object, contacts) in self.objects.iter_mut().zip(tool.contacts.iter_mut()) {
-                contacts.clear();
                 if tool.active {
+                    contacts.clear();
                     let aabb = tool
                         .collider
                         .aabb(&tool.position_mm, &tool.rotation, margin);
                     object
                         .collider
                         .nodes_near(&aabb, &mut object.marks, &mut contacts.candidates);
+                } else {
+                    contacts.forget();
                 }
             }
         }
@@ -482,7 +484,7 @@ impl Sim {
                             object.collider.refit(&object.state.positions_mm);
                         }
                         for tool in &mut self.tools {
-                            tool.contacts[o].clear();
+                            tool.contacts[o].forget();
                         }
                         report.faults += 1;
                         self.last_energy_n_mm = None;

@@ -78,6 +78,49 @@ fn a_20_mm_pose_jump_across_the_pad_from_above_leaves_the_pad_pushing_back() {
 }
 
 #[test]
+fn a_probe_pressed_20_mm_into_the_pad_never_passes_through_it() {
+    // A slow press (20 mm/s) from 10 mm above to 20 mm below the surface, then a 1 s hold. Before the
+    // contact was sided the sheet closed over the probe 12-16 mm down and the force fell to 0 N for good.
+    let mut sim = pad();
+    let mut forces = run(&mut sim, &at(10.0, true), 0.1);
+    for k in 1..=1500 {
+        forces.extend(run(&mut sim, &at(10.0 - 0.02 * k as f32, true), 0.001));
+    }
+    forces.extend(run(&mut sim, &at(-20.0, true), 1.0));
+    let touched = forces
+        .iter()
+        .position(|f| *f > 0.05)
+        .expect("the probe reached the pad");
+    // Deeper is firmer: the force never falls below 80% of the most it has reached.
+    let mut most = 0.0f32;
+    let mut worst_drop = (0usize, 1.0f32);
+    for (tick, f) in forces.iter().enumerate().skip(touched) {
+        most = most.max(*f);
+        let kept = *f / most;
+        if kept < worst_drop.1 {
+            worst_drop = (tick, kept);
+        }
+    }
+    println!(
+        "deep press: touched at tick {touched}, least kept {:.3} of the peak at tick {}, end {:.3} N",
+        worst_drop.1,
+        worst_drop.0,
+        steady(&forces)
+    );
+    assert!(
+        worst_drop.1 > 0.8,
+        "the pad let go of the probe: at tick {} the force was {:.3} of its peak so far",
+        worst_drop.0,
+        worst_drop.1
+    );
+    assert!(
+        steady(&forces) > 2.0,
+        "20 mm deep the pad pushes only {:.3} N",
+        steady(&forces)
+    );
+}
+
+#[test]
 fn a_device_that_joins_while_pressing_finds_the_pad_on_top_and_the_force_does_not_overshoot() {
     let reference = reference_press_n();
     assert!(reference > 0.3, "reference press {reference:.3} N");

@@ -7,7 +7,7 @@
 //! ```text
 //! cargo bench -p sinew --bench latency_table                      # table, all round trips
 //! cargo bench -p sinew --bench latency_table -- --rtts 100,200    # fewer round trips
-//! cargo bench -p sinew --bench latency_table -- --figure tests/figures/force_direct_vs_moderated_100ms_light.png
+//! cargo bench -p sinew --bench latency_table -- --figure figures/force_direct_vs_moderated_100ms_light.png  (relative to tests/)
 //! ```
 //!
 //! Columns: the hold on the soft pad and on the 10x stiffer pad at +-20 ms jitter and 5% loss (stable = force

@@ -20,6 +20,15 @@ pub enum ToolCollider {
     Mesh(Box<TriMesh>),
 }
 
+/// Which way a point left the tool ([`ToolCollider::push_out_along`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactSide {
+    /// Along the push, to the tool's surface on the tissue side: the tool presses it.
+    Front,
+    /// Sideways out of the shaft: the point is beside the tool or its handle, not under it.
+    Shaft,
+}
+
 impl ToolCollider {
     /// From the world spec (a mesh spec is validated closed by the loader).
     pub fn from_spec(spec: &ToolShapeSpec) -> Result<Self, TriMeshBuilderError> {
@@ -68,33 +77,42 @@ impl ToolCollider {
     /// exit point on the tool surface and the tool's outward unit normal there. None when the point is
     /// outside. Uses a parry ray cast from inside (non-solid) for the exit. No allocation, never returns
     /// non-finite values.
+    ///
+    /// Spheres and capsules also have a shaft: the tool swept back out of the tissue, along `-push_dir` (the
+    /// surface's outward rest normal), as the handle of a real probe is. A point in the shaft (over the tool's
+    /// back half, or above the tool within its radius) leaves sideways, across the shaft, never along the
+    /// push: a dent's wall closing in over a deep probe, or a node that slid round the probe's equator, is held
+    /// beside the shaft instead of teleported under the tool or let over its top. Without it a 4 mm probe
+    /// pressing 15 mm into the pad went through it: the anchors pulled the wall over the probe and the sheet
+    /// closed above it (`server/tests/no_tunnelling`).
+    ///
+    /// `held_in_front`: the point was held on the push side last tick ([`ContactSide::Front`]). Such a point
+    /// stays on that side: if one step of the tissue carried it past the core into the shaft (stretched springs
+    /// can move a light node several mm in a millisecond), it is brought back the way it came, under the tool,
+    /// not let through.
     pub fn push_out_along(
         &self,
         position_mm: &Vector3<f32>,
         rotation: &UnitQuaternion<f32>,
         point_mm: &Vector3<f32>,
         push_dir: &Vector3<f32>,
-    ) -> Option<(Vector3<f32>, Vector3<f32>)> {
+        held_in_front: bool,
+    ) -> Option<(Vector3<f32>, Vector3<f32>, ContactSide)> {
+        let mut start = *point_mm;
+        if let Some((core, across)) = self.shaft_offset(position_mm, rotation, point_mm, push_dir) {
+            if !held_in_front {
+                return self
+                    .push_out_of_shaft(point_mm, push_dir, across)
+                    .map(|(exit, normal)| (exit, normal, ContactSide::Shaft));
+            }
+            // Back to the core's level, inside the tool, then out along the push as usual.
+            start = core + across;
+        }
+        let point_mm = &start;
         let tool_pose = pose(position_mm, rotation);
         let p = to_parry(point_mm);
         if !self.shape().contains_point(&tool_pose, p) {
             return None;
-        }
-        // A swept sphere's point on the far side of its core from the push (the half of the tool facing out of
-        // the tissue) entered from the side, as a dent's wall closes in above a deep probe: along the push it
-        // would cross the whole tool and be teleported under it, spring back, re-enter and repeat (a 200 Hz,
-        // 3% force chatter at 1.5 probe radii). It leaves the way it came: radially, to the nearest surface.
-        if let ToolCollider::Ball(Ball { radius }) | ToolCollider::Capsule(Capsule { radius, .. }) =
-            self
-        {
-            let core = self.core_point(position_mm, rotation, point_mm);
-            let out = point_mm - core;
-            let len = out.norm();
-            if out.dot(push_dir) < 0.0 && len > 1e-4 {
-                let normal = out / len;
-                let exit = core + normal * *radius;
-                return exit.iter().all(|c| c.is_finite()).then_some((exit, normal));
-            }
         }
         let ray = Ray::new(p, to_parry(push_dir));
         let max_toi = 2.0 * self.shape().compute_local_aabb().extents().length() + 1.0;
@@ -124,7 +142,76 @@ impl ToolCollider {
         if len.is_nan() || len <= 1e-7 || !exit.iter().all(|c| c.is_finite()) {
             return None;
         }
-        Some((exit, normal / len))
+        Some((exit, normal / len, ContactSide::Front))
+    }
+
+    /// Where a point sits against the shaft of a sphere or capsule ([`Self::push_out_along`]): its core
+    /// point and its offset across the shaft, when it lies on the shaft side of the core (along `-push_dir`)
+    /// within the radius across it. None for mesh tools and for points on the push side or beside the shaft.
+    fn shaft_offset(
+        &self,
+        position_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        point_mm: &Vector3<f32>,
+        push_dir: &Vector3<f32>,
+    ) -> Option<(Vector3<f32>, Vector3<f32>)> {
+        let up = -push_dir;
+        let (core, radius) = match self {
+            ToolCollider::Ball(b) => (*position_mm, b.radius),
+            ToolCollider::Capsule(c) => {
+                let a = position_mm + rotation * from_parry(c.segment.a);
+                let b = position_mm + rotation * from_parry(c.segment.b);
+                // The segment point under the point, seen along the shaft (across it, in the plane normal
+                // to `up`); a segment along the shaft offers its deeper end.
+                let ab = b - a;
+                let ab_across = ab - up * ab.dot(&up);
+                let len2 = ab_across.norm_squared();
+                let t = if len2 < 1e-6 {
+                    if ab.dot(&up) > 0.0 { 0.0 } else { 1.0 }
+                } else {
+                    let ap = point_mm - a;
+                    ((ap - up * ap.dot(&up)).dot(&ab_across) / len2).clamp(0.0, 1.0)
+                };
+                (a + ab * t, c.radius)
+            }
+            ToolCollider::Mesh(_) => return None,
+        };
+        let offset = point_mm - core;
+        let along = offset.dot(&up);
+        let across = offset - up * along;
+        (along > 0.0 && across.norm_squared() < radius * radius).then_some((core, across))
+    }
+
+    /// A point in the shaft leaves it sideways, across the shaft, to its wall. None if not finite.
+    fn push_out_of_shaft(
+        &self,
+        point_mm: &Vector3<f32>,
+        push_dir: &Vector3<f32>,
+        across: Vector3<f32>,
+    ) -> Option<(Vector3<f32>, Vector3<f32>)> {
+        let radius = match self {
+            ToolCollider::Ball(b) => b.radius,
+            ToolCollider::Capsule(c) => c.radius,
+            ToolCollider::Mesh(_) => return None,
+        };
+        let distance = across.norm();
+        let normal = if distance > 1e-4 {
+            across / distance
+        } else {
+            // On the axis: any direction across it will do; this one is deterministic.
+            let side = if push_dir.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            let across = side - push_dir * side.dot(push_dir);
+            across / across.norm()
+        };
+        let exit = point_mm + normal * (radius - distance);
+        exit.iter()
+            .chain(normal.iter())
+            .all(|c| c.is_finite())
+            .then_some((exit, normal))
     }
 
     /// How far the tool reaches from its origin along the unit direction `dir` (world), mm: the support
@@ -178,8 +265,8 @@ mod tests {
         let centre = Vector3::new(0.0, 0.0, 3.0);
         let q = UnitQuaternion::identity();
         let down = -Vector3::z();
-        let (exit, normal) = tool
-            .push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, 0.0), &down)
+        let (exit, normal, _) = tool
+            .push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, 0.0), &down, false)
             .unwrap();
         assert!(
             (exit - Vector3::new(0.0, 0.0, -2.0)).norm() < 1e-4,
@@ -187,8 +274,8 @@ mod tests {
         );
         assert!((normal - down).norm() < 1e-4);
         // Off-axis: exits on the sphere below, normal radial.
-        let (exit, normal) = tool
-            .push_out_along(&centre, &q, &Vector3::new(3.0, 0.0, 0.0), &down)
+        let (exit, normal, _) = tool
+            .push_out_along(&centre, &q, &Vector3::new(3.0, 0.0, 0.0), &down, false)
             .unwrap();
         assert!(
             (exit - Vector3::new(3.0, 0.0, -1.0)).norm() < 1e-4,
@@ -196,25 +283,66 @@ mod tests {
         );
         assert!((normal - Vector3::new(0.6, 0.0, -0.8)).norm() < 1e-4);
         assert!(
-            tool.push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, -2.5), &down)
+            tool.push_out_along(&centre, &q, &Vector3::new(0.0, 0.0, -2.5), &down, false)
                 .is_none()
         );
     }
 
     #[test]
-    fn a_point_above_a_balls_centre_leaves_radially_not_through_the_ball() {
+    fn a_point_over_a_balls_centre_leaves_sideways_out_of_the_shaft_not_through_the_ball() {
         let tool = ToolCollider::from_spec(&ToolShapeSpec::Sphere { radius_mm: 4.0 }).unwrap();
         let centre = Vector3::new(0.0, 0.0, -2.0);
         let q = UnitQuaternion::identity();
-        // A dent wall node 0.6 mm above the equator, 0.1 mm inside: along -z it would exit 1.5 mm lower.
+        let down = -Vector3::z();
+        // A dent wall node 0.6 mm above the equator, 0.15 mm inside: along -z it would exit 1.5 mm lower.
         let p = Vector3::new(3.85, 0.0, -1.4);
-        let (exit, normal) = tool
-            .push_out_along(&centre, &q, &p, &-Vector3::z())
+        let (exit, normal, side) = tool.push_out_along(&centre, &q, &p, &down, false).unwrap();
+        assert_eq!(side, ContactSide::Shaft);
+        assert!((normal - Vector3::x()).norm() < 1e-5, "{normal:?}");
+        assert!(
+            (exit - Vector3::new(4.0, 0.0, -1.4)).norm() < 1e-4,
+            "{exit:?}"
+        );
+        // Above the ball altogether, within its radius: the handle's place, so out sideways too.
+        let (exit, normal, side) = tool
+            .push_out_along(&centre, &q, &Vector3::new(0.0, -1.0, 3.0), &down, false)
             .unwrap();
-        let radial = (p - centre).normalize();
-        assert!((normal - radial).norm() < 1e-5, "{normal:?}");
-        assert!((exit - (centre + radial * 4.0)).norm() < 1e-4, "{exit:?}");
-        assert!((exit - p).norm() < 0.11, "moved {} mm", (exit - p).norm());
+        assert_eq!(side, ContactSide::Shaft);
+        assert!((normal + Vector3::y()).norm() < 1e-5, "{normal:?}");
+        assert!(
+            (exit - Vector3::new(0.0, -4.0, 3.0)).norm() < 1e-4,
+            "{exit:?}"
+        );
+        // Beside the shaft, or under the ball and outside it: untouched.
+        for free in [Vector3::new(4.5, 0.0, 3.0), Vector3::new(0.0, 0.0, -6.5)] {
+            assert!(
+                tool.push_out_along(&centre, &q, &free, &down, false)
+                    .is_none()
+            );
+        }
+    }
+
+    #[test]
+    fn a_point_held_under_a_ball_that_one_step_carried_over_its_centre_goes_back_under() {
+        let tool = ToolCollider::from_spec(&ToolShapeSpec::Sphere { radius_mm: 4.0 }).unwrap();
+        let centre = Vector3::new(0.0, 0.0, -10.0);
+        let q = UnitQuaternion::identity();
+        let down = -Vector3::z();
+        // Held under the ball last tick; stretched springs threw it 1 mm over the centre (and even above the
+        // ball): it is put back on the lower surface, below where it is across the shaft.
+        for p in [Vector3::new(2.0, 0.0, -9.0), Vector3::new(1.0, 1.0, -3.0)] {
+            let (exit, normal, side) = tool.push_out_along(&centre, &q, &p, &down, true).unwrap();
+            assert_eq!(side, ContactSide::Front);
+            assert!(exit.z < centre.z, "{exit:?}");
+            assert!((exit.xy() - p.xy()).norm() < 1e-5, "{exit:?}");
+            assert!(((exit - centre).norm() - 4.0).abs() < 1e-4, "{exit:?}");
+            assert!(normal.z < 0.0, "{normal:?}");
+        }
+        // Without that memory the same point is beside the shaft.
+        let (_, _, side) = tool
+            .push_out_along(&centre, &q, &Vector3::new(2.0, 0.0, -9.0), &down, false)
+            .unwrap();
+        assert_eq!(side, ContactSide::Shaft);
     }
 
     #[test]
@@ -227,8 +355,14 @@ mod tests {
         // Capsule lying along x (rotated 90 degrees about y), centred 1 mm above the origin.
         let q = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f32::consts::FRAC_PI_2);
         let centre = Vector3::new(0.0, 0.0, 1.0);
-        let (exit, normal) = tool
-            .push_out_along(&centre, &q, &Vector3::new(5.0, 0.0, 0.0), &-Vector3::z())
+        let (exit, normal, _) = tool
+            .push_out_along(
+                &centre,
+                &q,
+                &Vector3::new(5.0, 0.0, 0.0),
+                &-Vector3::z(),
+                false,
+            )
             .unwrap();
         assert!(
             (exit - Vector3::new(5.0, 0.0, -1.0)).norm() < 1e-3,

@@ -3,15 +3,16 @@
 //! Each tissue node found inside the tool is pushed into the tissue (along minus its rest outward normal) until
 //! it reaches the tool surface, and it is held there with the tool's (quasi-static) velocity: the surface
 //! yields and stays put. Pushing along the tissue normal, not radially, keeps a sheet from sliding round a tool and
-//! wrapping over it. The exception is a node in the half of a sphere or capsule that faces out of the tissue (a
-//! deep dent's wall closing in above the probe): it entered from the side and leaves radially, to the nearest
-//! surface point, instead of being pushed through the whole tool. Held nodes act on the tool through its surface normal `n_i` there: with `f_i` the node's
+//! wrapping over it. Contact is sided: a sphere or capsule has a shaft back out of the tissue, a node that comes
+//! in over the tool (a deep dent's wall closing in) is held beside the shaft, and a node held under the tool
+//! stays under it even when one step carried it past the tool's core ([`ToolCollider::push_out_along`]); so a
+//! thin sheet never closes over a probe pressed deep into it. Held nodes act on the tool through its surface normal `n_i` there: with `f_i` the node's
 //! internal force, the tool feels `(f_i . n_i) n_i` when `f_i . n_i < 0` (frictionless, push-only). The sum
 //! points out of the tissue, grows with depth, and resists lateral strokes through the dent's walls.
 
 use nalgebra::UnitQuaternion;
 
-use crate::collision::ToolCollider;
+use crate::collision::{ContactSide, ToolCollider};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 /// The nodes one tool holds in one object, and the directions it pushes them. Reused every tick.
@@ -23,6 +24,10 @@ pub struct ProbeContacts {
     pub held: Vec<u32>,
     /// Tool outward normal (unit) at each held node.
     pub normals: Vec<Vec3>,
+    /// Nodes held on the push side ([`ContactSide::Front`]) last tick, sorted: they stay on that side.
+    in_front: Vec<u32>,
+    /// The same for this tick, being built (swapped into `in_front` at the end of [`Self::project`]).
+    in_front_now: Vec<u32>,
 }
 
 impl ProbeContacts {
@@ -32,14 +37,24 @@ impl ProbeContacts {
             candidates: Vec::with_capacity(capacity),
             held: Vec::with_capacity(capacity),
             normals: Vec::with_capacity(capacity),
+            in_front: Vec::with_capacity(capacity),
+            in_front_now: Vec::with_capacity(capacity),
         }
     }
 
-    /// Forget last tick's contacts (keeps capacity).
+    /// Forget last tick's contacts before a new broad phase (keeps capacity). The side each node was held
+    /// on is kept for [`Self::project`].
     pub fn clear(&mut self) {
         self.candidates.clear();
         self.held.clear();
         self.normals.clear();
+    }
+
+    /// Forget everything, sides included (the tissue was reset, or the tool left).
+    pub fn forget(&mut self) {
+        self.clear();
+        self.in_front.clear();
+        self.in_front_now.clear();
     }
 
     /// Push every candidate node that is inside the tool out to its surface; record the held nodes.
@@ -54,15 +69,24 @@ impl ProbeContacts {
     ) {
         self.held.clear();
         self.normals.clear();
+        self.in_front_now.clear();
         for &node in &self.candidates {
             let i = node as usize;
             if model.is_fixed(i) {
                 continue;
             }
             let push_dir = -model.rest_normals()[i];
-            if let Some((surface, normal)) =
-                tool.push_out_along(position_mm, rotation, &state.positions_mm[i], &push_dir)
-            {
+            let held_in_front = self.in_front.binary_search(&node).is_ok();
+            if let Some((surface, normal, side)) = tool.push_out_along(
+                position_mm,
+                rotation,
+                &state.positions_mm[i],
+                &push_dir,
+                held_in_front,
+            ) {
+                if side == ContactSide::Front {
+                    self.in_front_now.push(node);
+                }
                 state.positions_mm[i] = surface;
                 // A held node moves with the tool: it keeps no velocity of its own. Keeping the tangential
                 // part let held nodes creep round the frictionless tool, drop out of contact and snap back
@@ -72,6 +96,8 @@ impl ProbeContacts {
                 self.normals.push(normal);
             }
         }
+        self.in_front_now.sort_unstable();
+        std::mem::swap(&mut self.in_front, &mut self.in_front_now);
     }
 
     /// Force the tissue exerts on the tool through the held nodes, N. No allocation.
