@@ -76,6 +76,9 @@ fn seconds(value: f64, flag: &str) -> Result<Duration> {
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    if args.png.is_some() {
+        give_the_graphics_stack_a_runtime_dir();
+    }
     init_tracing();
 
     if args.window && !display_available() {
@@ -212,6 +215,46 @@ fn run_headless(
         }
     }
     println!("final: {}", stats_line(&viewer.stats()));
+}
+
+/// wgpu's GL backend, which kiss3d always enables, probes for a Wayland display; with no `XDG_RUNTIME_DIR` (a
+/// CI runner, an ssh session, a service) libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set in the
+/// environment.` twice, which reads as a failure of the render. Offscreen rendering needs no display: when the
+/// variable is unset or not a directory, point it at a private empty one, so the probe fails quietly.
+fn give_the_graphics_stack_a_runtime_dir() {
+    use std::os::unix::fs::MetadataExt;
+    let valid = std::env::var_os("XDG_RUNTIME_DIR")
+        .filter(|dir| !dir.is_empty())
+        .is_some_and(|dir| Path::new(&dir).is_dir());
+    if valid {
+        return;
+    }
+    let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+        return;
+    };
+    // One per user, reused; refused if someone else made it or opened it up.
+    let dir = std::env::temp_dir().join(format!("sinew-viewer-runtime-{uid}"));
+    if create_private_dir(&dir).is_err()
+        || std::fs::symlink_metadata(&dir)
+            .map(|m| !m.is_dir() || m.uid() != uid || m.mode() & 0o077 != 0)
+            .unwrap_or(true)
+    {
+        return; // the probe then prints its line; rendering works either way
+    }
+    // SAFETY: called first thing in `main`, before tracing, zenoh or any other thread exists, so no other thread
+    // can read or write the environment concurrently.
+    #[allow(unsafe_code)]
+    unsafe {
+        std::env::set_var("XDG_RUNTIME_DIR", &dir);
+    }
+}
+
+fn create_private_dir(dir: &Path) -> std::io::Result<()> {
+    use std::os::unix::fs::DirBuilderExt;
+    match std::fs::DirBuilder::new().mode(0o700).create(dir) {
+        Err(e) if e.kind() != std::io::ErrorKind::AlreadyExists => Err(e),
+        _ => Ok(()),
+    }
 }
 
 fn run_png(viewer: &ViewerHandle, args: &Args, path: &Path, endpoints: &str) -> Result<()> {
