@@ -11,6 +11,7 @@ pub mod haptics;
 mod incidence;
 pub mod interaction;
 pub mod node;
+pub mod recording;
 pub mod replication;
 pub mod server_tick;
 pub mod sim;

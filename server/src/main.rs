@@ -41,6 +41,10 @@ struct Args {
     /// Fault drill: make the sim thread panic at this tick, as a simulation bug would.
     #[arg(long, hide = true)]
     fault_panic_at_tick: Option<u64>,
+    /// Record the session (every tick's poses and force commands, and the world) to this MCAP file; replay
+    /// it with `sinew replay FILE`.
+    #[arg(long, value_name = "FILE")]
+    record: Option<PathBuf>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -71,6 +75,7 @@ fn main() -> anyhow::Result<()> {
         server_id: args.id,
         emulation,
         panic_at_tick: args.fault_panic_at_tick,
+        record: args.record,
         ..ServerConfig::default()
     };
     let mut server = ServerNode::start(world, config).context("starting the server")?;

@@ -52,6 +52,9 @@ pub enum ServerError {
     /// A thread could not be spawned.
     #[error("spawning thread: {0}")]
     Thread(String),
+    /// The recording could not start (nothing was started).
+    #[error(transparent)]
+    Record(#[from] crate::recording::RecordError),
     /// Another server is already live for this scene.
     #[error(
         "another server is already live for scene `{scene}` ({found}): refusing to start a second one. \
@@ -85,6 +88,8 @@ pub struct ServerConfig {
     /// Fault drill: the sim thread panics at this tick, as a bug in the simulation would (`--fault-panic-at-tick`,
     /// hidden). `None` in every normal run.
     pub panic_at_tick: Option<u64>,
+    /// Record every tick's inputs and force commands, with the world, to this MCAP file (`--record`).
+    pub record: Option<std::path::PathBuf>,
 }
 
 impl Default for ServerConfig {
@@ -95,6 +100,7 @@ impl Default for ServerConfig {
             spin_native_accuracy_ns: 100_000,
             emulation: EmulationConfig::default(),
             panic_at_tick: None,
+            record: None,
         }
     }
 }
@@ -130,6 +136,11 @@ impl ServerNode {
     /// Build the sim, open zenoh, declare everything, start the threads.
     pub fn start(world: World, config: ServerConfig) -> Result<ServerHandle, ServerError> {
         let sim = Sim::new(&world)?;
+        // Before zenoh: an unwritable path is refused with nothing started.
+        let recording = match &config.record {
+            Some(path) => Some(crate::recording::Recorder::start(path, &world)?),
+            None => None,
+        };
         match tick_cost::estimate(&world) {
             Ok(cost) => match tick_cost::verdict(&world.scene, &cost) {
                 // Tight is not a warning: the shipped pad is, and a normal run prints nothing to act on.
@@ -176,13 +187,20 @@ impl ServerNode {
             .declare_token(keys.presence(Role::Server, &config.server_id)?)
             .wait()?;
         let inbound = inbound::declare(&session, &shared)?;
+        let (recorder, tap) = match recording {
+            Some((recorder, tap)) => (Some(recorder), Some(tap)),
+            None => (None, None),
+        };
         let sim_thread = sim_loop::spawn(
             &session,
             shared.clone(),
             sim,
-            config.spin_native_accuracy_ns,
-            config.emulation,
-            config.panic_at_tick,
+            sim_loop::SimThreadOptions {
+                spin_native_accuracy_ns: config.spin_native_accuracy_ns,
+                emulation: config.emulation,
+                panic_at_tick: config.panic_at_tick,
+                recorder: tap,
+            },
         )?;
         let publish_thread = publish_loop::spawn(&session, shared.clone())?;
         Ok(ServerHandle {
@@ -192,6 +210,8 @@ impl ServerNode {
             publish_thread: Some(publish_thread),
             inbound: Some(inbound),
             token: Some(token),
+            recorder,
+            record_summary: None,
         })
     }
 }
@@ -204,6 +224,8 @@ pub struct ServerHandle {
     publish_thread: Option<JoinHandle<()>>,
     inbound: Option<inbound::Inbound>,
     token: Option<zenoh::liveliness::LivelinessToken>,
+    recorder: Option<crate::recording::Recorder>,
+    record_summary: Option<crate::recording::RecordSummary>,
 }
 
 /// How long [`ServerHandle::stop`] waits for the publish thread and zenoh's goodbyes once the sim has stopped.
@@ -235,6 +257,18 @@ impl ServerHandle {
     /// This run's instance id (the sender in every message it publishes).
     pub fn instance(&self) -> InstanceId {
         self.shared.instance
+    }
+
+    /// What the recording wrote, once [`Self::stop`] has finished it (None without `record`).
+    pub fn record_summary(&self) -> Option<&crate::recording::RecordSummary> {
+        self.record_summary.as_ref()
+    }
+
+    /// Ticks the recording dropped so far because its queue was full (0 without `record`).
+    pub fn record_dropped(&self) -> u64 {
+        self.recorder
+            .as_ref()
+            .map_or(0, crate::recording::Recorder::dropped)
     }
 
     /// The scene name.
@@ -277,6 +311,26 @@ impl ServerHandle {
         self.shared.stop.store(true, Ordering::Release);
         if let Some(thread) = self.sim_thread.take() {
             let _ = thread.join();
+        }
+        // The sim thread handed over its last tick and the final state (or dropped its tap in a panic): the
+        // writer finishes the file.
+        if let Some(recorder) = self.recorder.take() {
+            let summary = recorder.join();
+            match &summary.error {
+                None => tracing::info!(
+                    file = %summary.path.display(),
+                    ticks = summary.ticks,
+                    dropped = summary.dropped,
+                    final_state = summary.final_state,
+                    "recording finished"
+                ),
+                Some(error) => tracing::error!(
+                    file = %summary.path.display(),
+                    ticks = summary.ticks,
+                    "recording ended early: {error}"
+                ),
+            }
+            self.record_summary = Some(summary);
         }
         let publish = self.publish_thread.take();
         let inbound = self.inbound.take();

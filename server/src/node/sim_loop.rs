@@ -19,6 +19,7 @@ use zenoh::qos::{CongestionControl, Reliability};
 use super::device_slots::PoseArrival;
 use super::{ServerError, Shared};
 use crate::haptics::DeadbandParams;
+use crate::recording::{FinalState, RecorderTap, TickRecord};
 use crate::server_tick::{PoseInput, ServerTick};
 use crate::sim::Sim;
 use crate::tissue::Vec3;
@@ -81,14 +82,30 @@ impl SimReport {
     }
 }
 
+/// How the sim thread runs, beyond the shared state.
+pub(super) struct SimThreadOptions {
+    /// spin_sleep native accuracy, ns.
+    pub spin_native_accuracy_ns: u32,
+    /// Emulated network on the force commands.
+    pub emulation: EmulationConfig,
+    /// Fault drill: panic at this tick.
+    pub panic_at_tick: Option<u64>,
+    /// Where every tick is recorded, if it is.
+    pub recorder: Option<RecorderTap>,
+}
+
 pub(super) fn spawn(
     session: &zenoh::Session,
     shared: Arc<Shared>,
     sim: Sim,
-    spin_native_accuracy_ns: u32,
-    emulation: EmulationConfig,
-    panic_at_tick: Option<u64>,
+    options: SimThreadOptions,
 ) -> Result<JoinHandle<()>, ServerError> {
+    let SimThreadOptions {
+        spin_native_accuracy_ns,
+        emulation,
+        panic_at_tick,
+        recorder,
+    } = options;
     let mut outlets = Vec::with_capacity(sim.tools.len());
     for tool in &sim.tools {
         let publisher = session
@@ -118,6 +135,7 @@ pub(super) fn spawn(
                 &mut outlets,
                 spin_native_accuracy_ns,
                 panic_at_tick,
+                recorder,
             )
         })
         .map_err(|e| ServerError::Thread(e.to_string()))
@@ -152,6 +170,7 @@ fn supervise(
     outlets: &mut [ForceOutlet],
     spin_native_accuracy_ns: u32,
     panic_at_tick: Option<u64>,
+    recorder: Option<RecorderTap>,
 ) {
     let mut last_sent: LastSent = vec![None; sim.tools.len()];
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -162,6 +181,7 @@ fn supervise(
             &mut last_sent,
             spin_native_accuracy_ns,
             panic_at_tick,
+            recorder,
         );
     }));
     let Err(payload) = outcome else {
@@ -209,6 +229,7 @@ fn run(
     last_sent: &mut LastSent,
     spin_native_accuracy_ns: u32,
     panic_at_tick: Option<u64>,
+    mut recorder: Option<RecorderTap>,
 ) {
     let world = &shared.world;
     let n = sim.tools.len();
@@ -286,6 +307,9 @@ fn run(
         for (t, d) in local.devices.iter_mut().enumerate() {
             d.suppressed = tick.stream_counters(t).suppressed;
         }
+        if let Some(tap) = recorder.as_mut() {
+            tap.offer(&TickRecord::new(local.ticks, &inputs, &limits, &commands));
+        }
 
         let sim = tick.sim();
         frame_due |= sim.steps().is_multiple_of(ticks_per_frame);
@@ -304,5 +328,22 @@ fn run(
     }
     if let Ok(mut shared_report) = shared.report.lock() {
         shared_report.copy_from(&local);
+    }
+    if let Some(tap) = recorder {
+        let sim = tick.sim();
+        tap.finish(FinalState {
+            ticks: local.ticks,
+            positions_mm: sim
+                .objects
+                .iter()
+                .map(|o| {
+                    o.state
+                        .positions_mm
+                        .iter()
+                        .map(|p| [p.x, p.y, p.z])
+                        .collect()
+                })
+                .collect(),
+        });
     }
 }

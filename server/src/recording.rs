@@ -1,0 +1,37 @@
+//! Recordings: every tick's inputs and outputs written to an MCAP file off the sim thread, and replay of that
+//! file through the same deterministic core, bit for bit (issue "Training sessions").
+//!
+//! The determinism contract: [`crate::server_tick::ServerTick::step`] is a pure function of the world, the
+//! tick's poses (with their ages, which are the only wall-clock input and are recorded) and the devices'
+//! announced force limits. Nothing in it reads a clock, a random source, thread timing or a hash map's
+//! iteration order, and dt is fixed. So re-running the recorded inputs from the world's rest state gives
+//! every force command and the final tissue bit for bit ([`replay`]).
+//!
+//! - [`writer`]: the recorder thread and the sim thread's tap into it;
+//! - [`reader`]: reads a recording back, with its world, tolerating a truncated or damaged end;
+//! - [`replay`]: re-runs it and compares;
+//! - [`tick_record`], [`json_view`], [`world_files`]: what is recorded, its Foxglove view, the world's files.
+
+pub mod json_view;
+pub mod reader;
+pub mod replay;
+pub mod tick_record;
+pub mod world_files;
+pub mod writer;
+
+pub use reader::{ReadError, Recording, read_recording};
+pub use replay::{ReplayOutcome, replay};
+pub use tick_record::{DeviceTick, FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
+pub use writer::{RecordError, RecordSummary, Recorder, RecorderTap};
+
+/// Version of the recording layout (channels and their payloads). A reader refuses other versions.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Topic of the exact per-tick records.
+pub const TOPIC_TICKS: &str = "/sinew/ticks";
+
+/// Topic of the final tissue state.
+pub const TOPIC_FINAL: &str = "/sinew/final_state";
+
+/// Message encoding of the exact channels (postcard of [`TickMessage`] and [`FinalState`]).
+pub const TICKS_ENCODING: &str = "x-sinew-postcard";

@@ -1,0 +1,78 @@
+//! The JSON view of a recording's poses and forces, with the JSON schemas Foxglove reads them by. A view only:
+//! replay reads the exact postcard channel, never these.
+
+use serde_json::json;
+use sinew_protocol::{DevicePose, ForceCommand, ForceMode, RenderMode};
+
+/// JSON schema of `/sinew/<device>/pose`.
+pub const POSE_SCHEMA: &str = r#"{
+  "title": "sinew.DevicePose",
+  "description": "A device pose as the server tick used it (device frame, mm).",
+  "type": "object",
+  "properties": {
+    "seq": {"type": "integer", "description": "pose sequence number"},
+    "device_time_ns": {"type": "integer", "description": "device clock when sampled, ns"},
+    "position_mm": {"type": "array", "items": {"type": "number"}, "description": "stylus position x y z, mm"},
+    "orientation_xyzw": {"type": "array", "items": {"type": "number"}, "description": "stylus orientation quaternion"},
+    "linear_velocity_mm_s": {"type": "array", "items": {"type": "number"}, "description": "stylus velocity, mm/s"},
+    "buttons": {"type": "integer", "description": "button bits"},
+    "jaw_angle_rad": {"type": "number", "description": "jaw or activation angle, rad"},
+    "round_trip_us": {"type": "integer", "description": "the device's last measured round trip, us"},
+    "render_mode": {"type": "string", "enum": ["direct", "moderated"]},
+    "age_s": {"type": "number", "description": "age of the pose when the tick read it, s"},
+    "usable": {"type": "boolean", "description": "the device could drive its tool"}
+  }
+}"#;
+
+/// JSON schema of `/sinew/<device>/force`.
+pub const FORCE_SCHEMA: &str = r#"{
+  "title": "sinew.ForceCommand",
+  "description": "A force command the server sent a device (device frame, N).",
+  "type": "object",
+  "properties": {
+    "seq": {"type": "integer"},
+    "echo_pose_seq": {"type": "integer", "description": "the pose this answers"},
+    "force_n": {"type": "array", "items": {"type": "number"}, "description": "force x y z, N"},
+    "force_magnitude_n": {"type": "number", "description": "|force|, N"},
+    "in_contact": {"type": "boolean"},
+    "mode": {"type": "string", "enum": ["direct", "local_model"]}
+  }
+}"#;
+
+/// A pose as JSON.
+pub fn pose_json(pose: &DevicePose, age_s: f64, usable: bool) -> Result<String, String> {
+    serde_json::to_string(&json!({
+        "seq": pose.seq,
+        "device_time_ns": pose.device_time_ns,
+        "position_mm": pose.position_mm,
+        "orientation_xyzw": pose.orientation_xyzw,
+        "linear_velocity_mm_s": pose.linear_velocity_mm_s,
+        "buttons": pose.buttons,
+        "jaw_angle_rad": pose.jaw_angle_rad,
+        "round_trip_us": pose.round_trip_us,
+        "render_mode": match pose.render_mode {
+            RenderMode::Direct => "direct",
+            RenderMode::Moderated => "moderated",
+        },
+        "age_s": age_s,
+        "usable": usable,
+    }))
+    .map_err(|e| e.to_string())
+}
+
+/// A force command as JSON.
+pub fn force_json(force: &ForceCommand) -> Result<String, String> {
+    let [x, y, z] = force.force_n;
+    serde_json::to_string(&json!({
+        "seq": force.seq,
+        "echo_pose_seq": force.echo_pose_seq,
+        "force_n": force.force_n,
+        "force_magnitude_n": (x * x + y * y + z * z).sqrt(),
+        "in_contact": force.in_contact,
+        "mode": match force.mode {
+            ForceMode::Direct => "direct",
+            ForceMode::LocalModel(_) => "local_model",
+        },
+    }))
+    .map_err(|e| e.to_string())
+}

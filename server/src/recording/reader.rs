@@ -1,0 +1,219 @@
+//! Reading a recording back: its metadata, the world files it carries, every exact tick record and the final
+//! state. A damaged or truncated file yields what precedes the damage, and says where it stopped.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+use thiserror::Error;
+
+use super::tick_record::{FinalState, TickMessage};
+use super::world_files::is_plain_relative;
+use super::{FORMAT_VERSION, TOPIC_FINAL, TOPIC_TICKS};
+use crate::world::{World, WorldError, load_world};
+
+/// Why a recording cannot be read (nothing of it is usable).
+#[derive(Debug, Error)]
+pub enum ReadError {
+    /// The file could not be read.
+    #[error("`{path}`: {message}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The system's reason.
+        message: String,
+    },
+    /// Not an MCAP file, or not one Sinew wrote.
+    #[error("`{path}` is not a Sinew recording: {message}")]
+    NotARecording {
+        /// The file.
+        path: PathBuf,
+        /// What is missing or wrong.
+        message: String,
+    },
+    /// Written by another version of the recording layout or the protocol.
+    #[error("`{path}` was recorded with {what} {found}; this build reads {expected}")]
+    Version {
+        /// The file.
+        path: PathBuf,
+        /// Which version.
+        what: &'static str,
+        /// In the file.
+        found: String,
+        /// This build's.
+        expected: String,
+    },
+    /// The world it carries does not load.
+    #[error("`{path}`: the world it carries does not load: {source}")]
+    World {
+        /// The recording.
+        path: PathBuf,
+        /// The loader's error.
+        source: Box<WorldError>,
+    },
+}
+
+/// A recording, read.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    /// The file.
+    pub path: PathBuf,
+    /// Its `sinew` metadata.
+    pub metadata: BTreeMap<String, String>,
+    /// The world's files, world file first: (name, contents).
+    pub files: Vec<(String, Vec<u8>)>,
+    /// Every tick record, in file order.
+    pub ticks: Vec<TickMessage>,
+    /// The tissue when the recording ended (None if the session did not end cleanly or the end is damaged).
+    pub final_state: Option<FinalState>,
+    /// Why reading stopped before the end, if it did (damage, truncation): the ticks before it are usable.
+    pub damage: Option<String>,
+}
+
+/// Read `path`. Errors only when nothing of it is usable; damage after a usable start is in
+/// [`Recording::damage`].
+pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
+    let bytes = std::fs::read(path).map_err(|e| ReadError::Read {
+        path: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    let not_a_recording = |message: String| ReadError::NotARecording {
+        path: path.to_owned(),
+        message,
+    };
+    let records = mcap::read::ChunkFlattener::new_with_options(
+        &bytes,
+        mcap::read::Options::IgnoreEndMagic.into(),
+    )
+    .map_err(|e| not_a_recording(e.to_string()))?;
+    let mut recording = Recording {
+        path: path.to_owned(),
+        metadata: BTreeMap::new(),
+        files: Vec::new(),
+        ticks: Vec::new(),
+        final_state: None,
+        damage: None,
+    };
+    let mut topics: HashMap<u16, String> = HashMap::new();
+    let mut seen_metadata = false;
+    for record in records {
+        let record = match record {
+            Ok(record) => record,
+            Err(e) if seen_metadata => {
+                recording.damage = Some(damage_at(&recording, &e.to_string()));
+                break;
+            }
+            Err(e) => return Err(not_a_recording(e.to_string())),
+        };
+        match record {
+            mcap::records::Record::Metadata(metadata) if metadata.name == "sinew" => {
+                check_versions(path, &metadata.metadata)?;
+                recording.metadata = metadata.metadata;
+                seen_metadata = true;
+            }
+            mcap::records::Record::Attachment { header, data, .. } => {
+                recording.files.push((header.name, data.into_owned()));
+            }
+            mcap::records::Record::Channel(channel) => {
+                topics.insert(channel.id, channel.topic);
+            }
+            mcap::records::Record::Message { header, data } => {
+                match topics.get(&header.channel_id).map(String::as_str) {
+                    Some(TOPIC_TICKS) => match postcard::from_bytes::<TickMessage>(&data) {
+                        Ok(tick) => recording.ticks.push(tick),
+                        Err(e) => {
+                            recording.damage = Some(damage_at(
+                                &recording,
+                                &format!("a tick record is corrupt ({e})"),
+                            ));
+                            break;
+                        }
+                    },
+                    Some(TOPIC_FINAL) => match postcard::from_bytes::<FinalState>(&data) {
+                        Ok(state) => recording.final_state = Some(state),
+                        Err(e) => {
+                            recording.damage = Some(damage_at(
+                                &recording,
+                                &format!("the final state is corrupt ({e})"),
+                            ));
+                            break;
+                        }
+                    },
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+    }
+    if !seen_metadata {
+        return Err(not_a_recording("no `sinew` metadata record".to_owned()));
+    }
+    if recording.files.is_empty() {
+        return Err(not_a_recording("it carries no world file".to_owned()));
+    }
+    Ok(recording)
+}
+
+fn damage_at(recording: &Recording, what: &str) -> String {
+    match recording.ticks.last() {
+        Some(last) => format!(
+            "{what}; read {} ticks, the last complete one tick {}",
+            recording.ticks.len(),
+            last.tick
+        ),
+        None => format!("{what}; no tick could be read"),
+    }
+}
+
+fn check_versions(path: &Path, metadata: &BTreeMap<String, String>) -> Result<(), ReadError> {
+    let format = metadata.get("format_version").cloned().unwrap_or_default();
+    if format != FORMAT_VERSION.to_string() {
+        return Err(ReadError::Version {
+            path: path.to_owned(),
+            what: "recording format",
+            found: format,
+            expected: FORMAT_VERSION.to_string(),
+        });
+    }
+    let protocol = metadata
+        .get("protocol_version")
+        .cloned()
+        .unwrap_or_default();
+    if protocol != sinew_protocol::PROTOCOL_VERSION.to_string() {
+        return Err(ReadError::Version {
+            path: path.to_owned(),
+            what: "protocol version",
+            found: protocol,
+            expected: sinew_protocol::PROTOCOL_VERSION.to_string(),
+        });
+    }
+    Ok(())
+}
+
+impl Recording {
+    /// Write the world's files into `dir` (which must exist) and load the world from there.
+    pub fn load_world(&self, dir: &Path) -> Result<World, ReadError> {
+        let world_error = |source: WorldError| ReadError::World {
+            path: self.path.clone(),
+            source: Box::new(source),
+        };
+        let io_error = |file: &Path, e: std::io::Error| ReadError::Read {
+            path: file.to_owned(),
+            message: format!("writing the recorded world out: {e}"),
+        };
+        for (name, data) in &self.files {
+            if !is_plain_relative(Path::new(name)) {
+                return Err(ReadError::NotARecording {
+                    path: self.path.clone(),
+                    message: format!("it names a world file `{name}` outside its folder"),
+                });
+            }
+            let file = dir.join(name);
+            if let Some(parent) = file.parent() {
+                std::fs::create_dir_all(parent).map_err(|e| io_error(parent, e))?;
+            }
+            std::fs::write(&file, data).map_err(|e| io_error(&file, e))?;
+        }
+        let world_file = dir.join(&self.files[0].0);
+        load_world(&world_file).map_err(world_error)
+    }
+}

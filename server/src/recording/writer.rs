@@ -1,0 +1,431 @@
+//! The recorder: an MCAP file written on its own thread from what the sim thread hands over.
+//!
+//! Owns: the file, its channels and attachments, the bounded queue from the sim thread ([`RecorderTap`]) and
+//! the counts of what was written and dropped. The sim thread only ever calls [`RecorderTap::offer`], which
+//! copies a fixed-size [`TickRecord`] into a preallocated queue or counts it as dropped: it never blocks and
+//! never allocates. Must not: stop the session. A write error (a full disk) stops the recording, once, with a
+//! log line; the server runs on.
+//!
+//! The file holds, all stamped with simulated time:
+//! - `/sinew/ticks` (postcard, [`TickMessage`]): every tick's inputs and force commands, exactly (replay);
+//! - `/sinew/<device>/pose` and `/sinew/<device>/force` (JSON, with JSON schemas): the same, for Foxglove;
+//! - `/sinew/final_state` (postcard, [`FinalState`]): every node position when the recording ended;
+//! - attachments: the world file and every mesh file it names, so a recording replays on its own;
+//! - metadata `sinew`: recording format, protocol version, scene, tick rate.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::thread::JoinHandle;
+
+use thiserror::Error;
+
+use super::tick_record::{FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
+use super::world_files::world_files;
+use super::{FORMAT_VERSION, TICKS_ENCODING, TOPIC_FINAL, TOPIC_TICKS};
+use crate::world::World;
+
+/// Ticks the queue holds (a quarter second at 1 kHz) before it drops.
+pub const QUEUE_TICKS: usize = 256;
+
+/// Why a recording could not start.
+#[derive(Debug, Error)]
+pub enum RecordError {
+    /// The file could not be created.
+    #[error("cannot record to `{path}`: {message}")]
+    Create {
+        /// The path asked for.
+        path: PathBuf,
+        /// The system's reason.
+        message: String,
+    },
+    /// A file the world names could not be read into the recording.
+    #[error("cannot record the world file `{path}` into the recording: {message}")]
+    WorldFile {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// The world has more tools than a record holds.
+    #[error("cannot record a world with {tools} tools: a recording holds at most {max}")]
+    TooManyTools {
+        /// Tools in the world.
+        tools: usize,
+        /// The most a record holds.
+        max: usize,
+    },
+    /// Writing the start of the file failed.
+    #[error("cannot record to `{path}`: {message}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The MCAP writer's reason.
+        message: String,
+    },
+}
+
+/// What goes through the queue.
+#[derive(Debug)]
+enum Item {
+    Tick(Box<TickRecord>),
+    Final(FinalState),
+}
+
+/// The sim thread's end of the recorder.
+#[derive(Debug)]
+pub struct RecorderTap {
+    queue: SyncSender<Item>,
+    dropped: Arc<AtomicU64>,
+    /// Spare boxes: each record travels in one and comes back, so the queue carries a pointer, not 8 tools'
+    /// worth of commands, and the sim thread never allocates.
+    #[allow(clippy::vec_box)]
+    boxes: Vec<Box<TickRecord>>,
+    returned: Receiver<Box<TickRecord>>,
+}
+
+impl RecorderTap {
+    /// Hand a tick over, or count it as dropped when the queue is full. Never blocks; no allocation (the
+    /// records travel in boxes the writer hands back).
+    pub fn offer(&mut self, record: &TickRecord) {
+        while let Ok(spare) = self.returned.try_recv() {
+            self.boxes.push(spare);
+        }
+        let Some(mut slot) = self.boxes.pop() else {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+            return;
+        };
+        *slot = *record;
+        match self.queue.try_send(Item::Tick(slot)) {
+            Ok(()) => {}
+            Err(
+                TrySendError::Full(Item::Tick(slot)) | TrySendError::Disconnected(Item::Tick(slot)),
+            ) => {
+                self.boxes.push(slot);
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(_) => {}
+        }
+    }
+
+    /// The session ended: hand over the final tissue state (blocking: the loop has stopped).
+    pub fn finish(self, state: FinalState) {
+        let _ = self.queue.send(Item::Final(state));
+    }
+}
+
+/// What a recording wrote.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct RecordSummary {
+    /// The file.
+    pub path: PathBuf,
+    /// Ticks written.
+    pub ticks: u64,
+    /// Ticks dropped because the queue was full.
+    pub dropped: u64,
+    /// The final state was written.
+    pub final_state: bool,
+    /// Why the recording stopped early (a write failed), if it did.
+    pub error: Option<String>,
+}
+
+/// The recorder thread's handle.
+#[derive(Debug)]
+pub struct Recorder {
+    thread: Option<JoinHandle<RecordSummary>>,
+    dropped: Arc<AtomicU64>,
+    failed: Arc<AtomicBool>,
+}
+
+impl Recorder {
+    /// Create `path`, write the world into it, and start the writer thread. Fails (and creates nothing more)
+    /// when the path cannot be written, a world file cannot be read, or the world has too many tools.
+    pub fn start(path: &Path, world: &World) -> Result<(Recorder, RecorderTap), RecordError> {
+        if world.tools.len() > MAX_RECORDED_TOOLS {
+            return Err(RecordError::TooManyTools {
+                tools: world.tools.len(),
+                max: MAX_RECORDED_TOOLS,
+            });
+        }
+        let files = world_files(&world.source)
+            .map_err(|(path, message)| RecordError::WorldFile { path, message })?;
+        let file = File::create(path).map_err(|e| RecordError::Create {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        let write_error = |e: mcap::McapError| RecordError::Write {
+            path: path.to_owned(),
+            message: e.to_string(),
+        };
+        let mut out = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            // Compress on this thread: helper threads would compete with the 1 kHz loops for the cores.
+            .compression_threads(0)
+            .profile("sinew")
+            .create(BufWriter::new(file))
+            .map_err(write_error)?;
+        let mut metadata = BTreeMap::new();
+        metadata.insert("format_version".to_owned(), FORMAT_VERSION.to_string());
+        metadata.insert(
+            "protocol_version".to_owned(),
+            sinew_protocol::PROTOCOL_VERSION.to_string(),
+        );
+        metadata.insert("scene".to_owned(), world.scene.clone());
+        metadata.insert("tick_hz".to_owned(), world.tick_hz.to_string());
+        metadata.insert(
+            "world_file".to_owned(),
+            files.first().map(|f| f.name.clone()).unwrap_or_default(),
+        );
+        out.write_metadata(&mcap::records::Metadata {
+            name: "sinew".to_owned(),
+            metadata,
+        })
+        .map_err(write_error)?;
+        for file in &files {
+            out.attach(&mcap::Attachment {
+                log_time: 0,
+                create_time: 0,
+                name: file.name.clone(),
+                media_type: file.media_type.to_owned(),
+                data: std::borrow::Cow::Borrowed(&file.data),
+            })
+            .map_err(write_error)?;
+        }
+        let channels = Channels::add(&mut out, world).map_err(write_error)?;
+
+        let (queue, items) = sync_channel(QUEUE_TICKS);
+        let (give_back, returned) = sync_channel(QUEUE_TICKS + 1);
+        let boxes = (0..QUEUE_TICKS)
+            .map(|_| Box::new(TickRecord::new(0, &[], &[], &[])))
+            .collect();
+        let dropped = Arc::new(AtomicU64::new(0));
+        let failed = Arc::new(AtomicBool::new(false));
+        let tick_ns = (1e9 / world.tick_hz).round() as u64;
+        let summary = RecordSummary {
+            path: path.to_owned(),
+            ..RecordSummary::default()
+        };
+        let thread = {
+            let dropped = dropped.clone();
+            let failed = failed.clone();
+            std::thread::Builder::new()
+                .name("sinew-recorder".into())
+                .spawn(move || {
+                    write_loop(
+                        out, channels, items, give_back, tick_ns, summary, &dropped, &failed,
+                    )
+                })
+                .map_err(|e| RecordError::Create {
+                    path: path.to_owned(),
+                    message: format!("spawning the recorder thread: {e}"),
+                })?
+        };
+        Ok((
+            Recorder {
+                thread: Some(thread),
+                dropped: dropped.clone(),
+                failed,
+            },
+            RecorderTap {
+                queue,
+                dropped,
+                boxes,
+                returned,
+            },
+        ))
+    }
+
+    /// Ticks dropped so far.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// A write failed and the recording stopped.
+    pub fn failed(&self) -> bool {
+        self.failed.load(Ordering::Relaxed)
+    }
+
+    /// Wait for the file to be finished (after the tap was finished or dropped).
+    pub fn join(mut self) -> RecordSummary {
+        self.thread
+            .take()
+            .and_then(|t| t.join().ok())
+            .unwrap_or_default()
+    }
+}
+
+/// Channel ids.
+struct Channels {
+    ticks: u16,
+    final_state: u16,
+    /// Per tool: (pose, force) JSON channels.
+    devices: Vec<(u16, u16)>,
+}
+
+impl Channels {
+    fn add<W: std::io::Write + std::io::Seek>(
+        out: &mut mcap::Writer<W>,
+        world: &World,
+    ) -> Result<Self, mcap::McapError> {
+        let none = BTreeMap::new();
+        let ticks = out.add_channel(0, TOPIC_TICKS, TICKS_ENCODING, &none)?;
+        let final_state = out.add_channel(0, TOPIC_FINAL, TICKS_ENCODING, &none)?;
+        let pose_schema = out.add_schema(
+            "sinew.DevicePose",
+            "jsonschema",
+            super::json_view::POSE_SCHEMA.as_bytes(),
+        )?;
+        let force_schema = out.add_schema(
+            "sinew.ForceCommand",
+            "jsonschema",
+            super::json_view::FORCE_SCHEMA.as_bytes(),
+        )?;
+        let mut devices = Vec::with_capacity(world.tools.len());
+        for tool in &world.tools {
+            let mut metadata = BTreeMap::new();
+            metadata.insert("tool".to_owned(), tool.name.clone());
+            let pose = out.add_channel(
+                pose_schema,
+                &format!("/sinew/{}/pose", tool.device_id),
+                "json",
+                &metadata,
+            )?;
+            let force = out.add_channel(
+                force_schema,
+                &format!("/sinew/{}/force", tool.device_id),
+                "json",
+                &metadata,
+            )?;
+            devices.push((pose, force));
+        }
+        Ok(Self {
+            ticks,
+            final_state,
+            devices,
+        })
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_loop<W: std::io::Write + std::io::Seek>(
+    mut out: mcap::Writer<W>,
+    channels: Channels,
+    items: Receiver<Item>,
+    give_back: SyncSender<Box<TickRecord>>,
+    tick_ns: u64,
+    mut summary: RecordSummary,
+    dropped: &AtomicU64,
+    failed: &AtomicBool,
+) -> RecordSummary {
+    let mut sequence = 0u32;
+    let mut bytes = Vec::with_capacity(4096);
+    let fail = |summary: &mut RecordSummary, what: String| {
+        if summary.error.is_none() {
+            tracing::error!(
+                file = %summary.path.display(),
+                "recording stopped: {what}; the session goes on unrecorded"
+            );
+            summary.error = Some(what);
+            failed.store(true, Ordering::Relaxed);
+        }
+    };
+    for item in items {
+        match item {
+            Item::Tick(record) => {
+                if summary.error.is_none() {
+                    let time_ns = record.tick.saturating_mul(tick_ns);
+                    let message = TickMessage::from(record.as_ref());
+                    let result = write_tick(
+                        &mut out,
+                        &channels,
+                        &message,
+                        time_ns,
+                        &mut sequence,
+                        &mut bytes,
+                    );
+                    match result {
+                        Ok(()) => summary.ticks += 1,
+                        Err(e) => fail(&mut summary, e),
+                    }
+                }
+                let _ = give_back.try_send(record);
+            }
+            Item::Final(state) => {
+                if summary.error.is_none() {
+                    let time_ns = state.ticks.saturating_mul(tick_ns);
+                    let result = postcard::to_allocvec(&state)
+                        .map_err(|e| e.to_string())
+                        .and_then(|data| {
+                            write_message(
+                                &mut out,
+                                channels.final_state,
+                                &mut sequence,
+                                time_ns,
+                                &data,
+                            )
+                        });
+                    match result {
+                        Ok(()) => summary.final_state = true,
+                        Err(e) => fail(&mut summary, e),
+                    }
+                }
+            }
+        }
+    }
+    if summary.error.is_none()
+        && let Err(e) = out.finish()
+    {
+        fail(&mut summary, e.to_string());
+    }
+    summary.dropped = dropped.load(Ordering::Relaxed);
+    summary
+}
+
+fn write_tick<W: std::io::Write + std::io::Seek>(
+    out: &mut mcap::Writer<W>,
+    channels: &Channels,
+    message: &TickMessage,
+    time_ns: u64,
+    sequence: &mut u32,
+    bytes: &mut Vec<u8>,
+) -> Result<(), String> {
+    bytes.clear();
+    let data = postcard::to_extend(message, std::mem::take(bytes)).map_err(|e| e.to_string())?;
+    write_message(out, channels.ticks, sequence, time_ns, &data)?;
+    *bytes = data;
+    for (device, &(pose_channel, force_channel)) in message.devices.iter().zip(&channels.devices) {
+        if let Some(pose) = &device.pose {
+            let json = super::json_view::pose_json(pose, device.age_s, device.usable)?;
+            write_message(out, pose_channel, sequence, time_ns, json.as_bytes())?;
+        }
+        if let Some(force) = &device.force {
+            let json = super::json_view::force_json(force)?;
+            write_message(out, force_channel, sequence, time_ns, json.as_bytes())?;
+        }
+    }
+    Ok(())
+}
+
+fn write_message<W: std::io::Write + std::io::Seek>(
+    out: &mut mcap::Writer<W>,
+    channel_id: u16,
+    sequence: &mut u32,
+    time_ns: u64,
+    data: &[u8],
+) -> Result<(), String> {
+    *sequence = sequence.wrapping_add(1);
+    out.write_to_known_channel(
+        &mcap::records::MessageHeader {
+            channel_id,
+            sequence: *sequence,
+            log_time: time_ns,
+            publish_time: time_ns,
+        },
+        data,
+    )
+    .map_err(|e| e.to_string())
+}

@@ -1,0 +1,214 @@
+//! Recording and bit-exact replay (issue "Training sessions"): a two-surgeon session over real zenoh on
+//! loopback is recorded by the server, then re-run from the file through the simulation on virtual time;
+//! every force command and the final tissue must come out identical to the bit. Damaged files give errors or
+//! a replay of what precedes the damage, never a panic; an unwritable path is refused at start.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use hapticserver::HandScript;
+use sinew::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_sim_device, wait_until,
+};
+use sinew_protocol::network::{NetworkOptions, with_udp_twin};
+use sinew_server::node::{ServerConfig, ServerError, ServerNode};
+use sinew_server::recording::{ReadError, read_recording, replay};
+
+fn temp(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("sinew-{}-{name}", std::process::id()))
+}
+
+fn config(endpoint: &str, record: Option<PathBuf>) -> ServerConfig {
+    ServerConfig {
+        network: NetworkOptions {
+            listen: with_udp_twin(endpoint),
+            ..NetworkOptions::default()
+        },
+        spin_native_accuracy_ns: 0,
+        record,
+        ..ServerConfig::default()
+    }
+}
+
+/// Record about three seconds of two surgeons (one presses and strokes, one presses and holds); returns the
+/// file.
+fn record_session(name: &str) -> PathBuf {
+    let path = temp(name);
+    let endpoint = free_loopback_endpoint().unwrap();
+    let mut server = ServerNode::start(
+        load_shipped_world("pad.toml").unwrap(),
+        config(&endpoint, Some(path.clone())),
+    )
+    .unwrap();
+    let left = start_sim_device(
+        "pad",
+        "left",
+        HandScript::PressAndStroke {
+            at_mm: [0.0; 3],
+            depth_mm: 4.0,
+            approach_mm: 10.0,
+            descend_s: 0.5,
+            stroke_mm: 6.0,
+            stroke_period_s: 1.0,
+        },
+        &endpoint,
+        Pacing::Sleep,
+    )
+    .unwrap();
+    let right = start_sim_device(
+        "pad",
+        "right",
+        HandScript::Hold {
+            position_mm: [0.0, 0.0, -4.0],
+        },
+        &endpoint,
+        Pacing::Sleep,
+    )
+    .unwrap();
+    assert!(
+        wait_until(Duration::from_secs(10), || {
+            let stats = server.stats();
+            stats.devices.iter().all(|d| d.active)
+        }),
+        "both devices drive their tools"
+    );
+    std::thread::sleep(Duration::from_secs(3));
+    drop(left);
+    drop(right);
+    server.stop();
+    let summary = server
+        .record_summary()
+        .cloned()
+        .expect("a recording summary");
+    println!("recorded: {summary:?}");
+    assert!(summary.error.is_none(), "{summary:?}");
+    assert!(summary.final_state);
+    assert_eq!(summary.dropped, 0, "the queue dropped ticks: {summary:?}");
+    assert!(summary.ticks > 2000, "{summary:?}");
+    path
+}
+
+#[test]
+fn a_recorded_two_surgeon_session_replays_bit_for_bit_and_damage_is_told() {
+    let _serial = serial();
+    let path = record_session("session.mcap");
+    let size = std::fs::metadata(&path).unwrap().len();
+    let recording = read_recording(&path).unwrap();
+    assert!(recording.damage.is_none(), "{:?}", recording.damage);
+    assert_eq!(recording.files[0].0, "pad.toml");
+    assert!(
+        recording
+            .files
+            .iter()
+            .any(|(name, _)| name == "meshes/pad.obj")
+    );
+    let dir = temp("replay-world");
+    std::fs::create_dir_all(&dir).unwrap();
+    let world = recording.load_world(&dir).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+
+    let started = std::time::Instant::now();
+    let outcome = replay(&recording, &world).unwrap();
+    let wall_s = started.elapsed().as_secs_f64();
+    println!(
+        "replay: {outcome:?}; {size} bytes for {:.2} s ({:.0} kB/min); replayed at {:.1}x real time",
+        outcome.sim_s,
+        size as f64 / 1e3 / (outcome.sim_s / 60.0),
+        outcome.sim_s / wall_s
+    );
+    assert!(outcome.forces_compared > 2000, "{outcome:?}");
+    let exact_bytes: usize = recording
+        .ticks
+        .iter()
+        .map(|t| postcard::to_allocvec(t).unwrap().len())
+        .sum();
+    println!(
+        "exact channel: {exact_bytes} bytes uncompressed ({} per tick)",
+        exact_bytes / recording.ticks.len()
+    );
+    // The session really touched the tissue: some recorded force is well above zero.
+    let strongest = recording
+        .ticks
+        .iter()
+        .flat_map(|t| t.devices.iter())
+        .filter_map(|d| d.force)
+        .map(|f| f.force_n.iter().map(|c| c * c).sum::<f32>().sqrt())
+        .fold(0.0f32, f32::max);
+    assert!(
+        strongest > 0.5,
+        "the strongest recorded force is {strongest} N"
+    );
+    assert!(outcome.exact(), "{outcome:?}");
+
+    // A replay on a different world diverges, and says so: the comparison can fail.
+    let mut stiffer = world.clone();
+    stiffer.objects[0].material.stiffness_n_per_mm *= 1.01;
+    let diverged = replay(&recording, &stiffer).unwrap();
+    assert!(!diverged.exact());
+    assert!(diverged.force_mismatches > 0 && diverged.first_mismatch.is_some());
+
+    // Truncated to 60%: what precedes the cut replays exactly; the damage is named.
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = temp("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
+    let partial = read_recording(&cut).unwrap();
+    let damage = partial.damage.clone().expect("the cut is reported");
+    println!("truncated: {damage}");
+    assert!(partial.ticks.len() > 100 && partial.ticks.len() < recording.ticks.len());
+    let salvaged = replay(&partial, &world).unwrap();
+    assert_eq!(salvaged.force_mismatches, 0, "{salvaged:?}");
+    assert!(!salvaged.final_compared);
+
+    // A corrupted byte inside a compressed chunk: an error or a shorter salvage, never a panic.
+    let mut corrupt = bytes.clone();
+    let at = corrupt.len() / 2;
+    for b in &mut corrupt[at..at + 64] {
+        *b ^= 0x5a;
+    }
+    let corrupt_path = temp("corrupt.mcap");
+    std::fs::write(&corrupt_path, &corrupt).unwrap();
+    match read_recording(&corrupt_path) {
+        Ok(r) => {
+            assert!(r.damage.is_some() || r.ticks.len() < recording.ticks.len());
+            let outcome = replay(&r, &world).unwrap();
+            assert_eq!(outcome.force_mismatches, 0);
+        }
+        Err(e) => println!("corrupt: {e}"),
+    }
+
+    // Not a recording at all.
+    let text = temp("not.mcap");
+    std::fs::write(&text, b"scene = \"pad\"\n").unwrap();
+    let err = read_recording(&text).unwrap_err();
+    assert!(matches!(err, ReadError::NotARecording { .. }), "{err}");
+    assert!(err.to_string().contains("not.mcap"), "{err}");
+
+    for file in [&path, &cut, &corrupt_path, &text] {
+        let _ = std::fs::remove_file(file);
+    }
+}
+
+#[test]
+fn an_unwritable_recording_path_is_refused_before_anything_starts() {
+    let _serial = serial();
+    let endpoint = free_loopback_endpoint().unwrap();
+    let path = PathBuf::from("/nonexistent-dir/session.mcap");
+    let err = ServerNode::start(
+        load_shipped_world("pad.toml").unwrap(),
+        config(&endpoint, Some(path)),
+    )
+    .unwrap_err();
+    assert!(matches!(err, ServerError::Record(_)), "{err}");
+    assert!(
+        err.to_string().contains("/nonexistent-dir/session.mcap"),
+        "{err}"
+    );
+    // Nothing was left listening: a server can start on the same endpoint at once.
+    let mut server = ServerNode::start(
+        load_shipped_world("pad.toml").unwrap(),
+        config(&endpoint, None),
+    )
+    .unwrap();
+    server.stop();
+}
