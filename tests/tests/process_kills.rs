@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use hapticserver::HandScript;
 use sinew::harness::{
     KillOnDrop, Pacing, deepest_dent_mm, replica_error, serial, start_pad_server, start_sim_device,
-    start_viewer, wait_until,
+    start_viewer, surgeon_scripts, wait_until,
 };
 use sinew::netns::role_binary;
 use sinew_protocol::network::with_udp_twin;
@@ -146,22 +146,9 @@ fn left_side_dent_mm(server: &sinew_server::node::ServerHandle) -> f32 {
 fn a_viewer_process_killed_by_sigkill_disturbs_nothing_and_a_new_viewer_joins() {
     let _serial = serial();
     let (endpoint, server) = start_pad_server(Pacing::Sleep).unwrap();
-    // A stroking device keeps the tissue moving, so the server keeps publishing mesh deltas.
-    let device = start_sim_device(
-        "pad",
-        "left",
-        HandScript::PressAndStroke {
-            at_mm: [0.0; 3],
-            depth_mm: 4.0,
-            approach_mm: 10.0,
-            descend_s: 0.5,
-            stroke_mm: 6.0,
-            stroke_period_s: 1.0,
-        },
-        &endpoint,
-        Pacing::Sleep,
-    )
-    .unwrap();
+    // The demo's stroking surgeon keeps the tissue moving, so the server keeps publishing mesh deltas.
+    let device =
+        start_sim_device("pad", "left", surgeon_scripts().0, &endpoint, Pacing::Sleep).unwrap();
     let staying = start_viewer("pad", "staying", &endpoint).unwrap();
     assert!(staying.wait_for_snapshot(Duration::from_secs(10)));
     let served_before = server.stats().snapshots_served;

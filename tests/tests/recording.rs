@@ -7,9 +7,9 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use hapticserver::HandScript;
 use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_sim_device, wait_until,
+    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_sim_device, surgeon_scripts,
+    wait_until,
 };
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerError, ServerNode};
@@ -31,8 +31,8 @@ fn config(endpoint: &str, record: Option<PathBuf>) -> ServerConfig {
     }
 }
 
-/// Record about three seconds of two surgeons (one presses and strokes, one presses and holds); returns the
-/// file.
+/// Record about three seconds of the demo's two surgeons (one presses and strokes, one presses and holds);
+/// returns the file.
 fn record_session(name: &str) -> PathBuf {
     let path = temp(name);
     let endpoint = free_loopback_endpoint().unwrap();
@@ -41,31 +41,9 @@ fn record_session(name: &str) -> PathBuf {
         config(&endpoint, Some(path.clone())),
     )
     .unwrap();
-    let left = start_sim_device(
-        "pad",
-        "left",
-        HandScript::PressAndStroke {
-            at_mm: [0.0; 3],
-            depth_mm: 4.0,
-            approach_mm: 10.0,
-            descend_s: 0.5,
-            stroke_mm: 6.0,
-            stroke_period_s: 1.0,
-        },
-        &endpoint,
-        Pacing::Sleep,
-    )
-    .unwrap();
-    let right = start_sim_device(
-        "pad",
-        "right",
-        HandScript::Hold {
-            position_mm: [0.0, 0.0, -4.0],
-        },
-        &endpoint,
-        Pacing::Sleep,
-    )
-    .unwrap();
+    let (left_script, right_script) = surgeon_scripts();
+    let left = start_sim_device("pad", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
+    let right = start_sim_device("pad", "right", right_script, &endpoint, Pacing::Sleep).unwrap();
     assert!(
         wait_until(Duration::from_secs(10), || {
             let stats = server.stats();
