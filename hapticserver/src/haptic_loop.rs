@@ -44,6 +44,7 @@ struct LoopCounters {
     last_commanded_force_n: [f32; 3],
     last_position_mm: [f32; 3],
     models_received: u64,
+    longest_command_gap_ms: f32,
 }
 
 /// The state of one device loop.
@@ -238,6 +239,14 @@ impl HapticLoop {
         let velocity_mm_s = self.last_velocity_mm_s;
         let now_s = ns_to_s(now_ns);
         if let Some(received) = self.inbox.latest().take_newer(&mut self.seen_writes) {
+            if let Some(previous) = self.latest {
+                // The silence the safety rule saw, between two commands (the last one, a lost server's, is not
+                // a gap: it never ends).
+                let gap_ms =
+                    received.received_ns.saturating_sub(previous.received_ns) as f32 * 1e-6;
+                self.counters.longest_command_gap_ms =
+                    self.counters.longest_command_gap_ms.max(gap_ms);
+            }
             self.latest = Some(received);
             let command = received.command;
             self.counters.last_commanded_force_n = command.force_n;
@@ -374,6 +383,7 @@ impl HapticLoop {
         report.poses_published = c.poses_published;
         report.publish_errors = c.publish_errors;
         report.forces_received = self.inbox.received();
+        report.longest_command_gap_ms = c.longest_command_gap_ms;
         report.round_trip.copy_from(&self.round_trip);
         report.wire_round_trip.copy_from(&self.wire_round_trip);
         report.last_round_trip_us = self.last_round_trip_us;

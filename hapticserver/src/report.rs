@@ -28,6 +28,9 @@ pub struct HapticReport {
     pub publish_errors: u64,
     /// Valid force commands received.
     pub forces_received: u64,
+    /// The longest time between two commands the loop took, ms (0 before the second): how close the stream came
+    /// to the silence rule.
+    pub longest_command_gap_ms: f32,
     /// Pose -> rendered force round trips (pose read to the tick that first renders the force answering it), ns.
     pub round_trip: LatencyHistogram,
     /// Pose read -> arrival of the force answering it (no wait for the device's next tick), ns.
@@ -97,6 +100,7 @@ impl HapticReport {
             poses_published: 0,
             publish_errors: 0,
             forces_received: 0,
+            longest_command_gap_ms: 0.0,
             round_trip: LatencyHistogram::new(),
             wire_round_trip: LatencyHistogram::new(),
             last_round_trip_us: 0,
@@ -142,7 +146,7 @@ impl fmt::Display for HapticReport {
         write!(
             f,
             "{id}: {mode} ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
-             forces_rx {rx} overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ \
+             forces_rx {rx} longest gap {gap:.1} ms overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ \
              udp {udp} server {server} ({standing})",
             id = self.device_id,
             mode = if self.moderated {
@@ -159,6 +163,7 @@ impl fmt::Display for HapticReport {
             y = p[1],
             z = p[2],
             rx = self.forces_received,
+            gap = self.longest_command_gap_ms,
             over = self.overruns,
             stale = self.safety.stale_events,
             clamped = self.safety.clamped,

@@ -125,8 +125,11 @@ fn force_tracks_a_zero_delay_run_at_two_hertz() {
     assert!(drift < 3.0, "drift {drift:.2} mm at up to {speed:.0} mm/s");
 }
 
+/// The heartbeat (7 ms) keeps the stream inside the device's 50 ms silence rule through +-10 ms of jitter and
+/// 5% loss; the deadband keeps a held contact at about the heartbeat's rate.
 #[test]
-fn holding_still_costs_at_most_100_messages_a_second_and_no_silence_at_5_percent_loss() {
+fn holding_still_costs_at_most_150_messages_a_second_and_no_silence_through_jitter_and_5_percent_loss()
+ {
     let world = load_shipped_world("pad.toml").unwrap();
     for loss in [0.01, 0.05] {
         let result = run_drill(
@@ -136,7 +139,7 @@ fn holding_still_costs_at_most_100_messages_a_second_and_no_silence_at_5_percent
                 press(10.0, 1.0),
                 Link {
                     rtt_ms: 100.0,
-                    jitter_ms: 0.0,
+                    jitter_ms: 10.0,
                     loss,
                     seed: 5,
                 },
@@ -147,7 +150,7 @@ fn holding_still_costs_at_most_100_messages_a_second_and_no_silence_at_5_percent
         .unwrap();
         // 10 s of holding after the press: the deadband leaves the heartbeat.
         let per_s = result.commands_sent[0] as f64 / 12.0;
-        assert!(per_s <= 100.0, "{per_s:.0} messages/s at {loss} loss");
+        assert!(per_s <= 150.0, "{per_s:.0} messages/s at {loss} loss");
         assert_eq!(
             result.stale_events[0], 0,
             "a silence reached the device's 50 ms rule"

@@ -3,7 +3,7 @@
 //! simulated hapticservers, the devices on the multilink default (poses and forces on UDP), 100 ms round trip,
 //! +-20 ms jitter and 5% loss each way. The drills (`latency_drills.rs`) prove the acceptance figures on
 //! virtual time; this proves the same code holds them with real sessions, threads and clocks: both surgeons
-//! press and hold still, no silence reaches a device's 50 ms rule, and holding costs at most 100 force
+//! press and hold still, no silence reaches a device's 50 ms rule, and holding costs at most 150 force
 //! messages a second. Tolerances are looser than the drills' only where a shared VM's scheduling stalls reach
 //! the simulated hand (its integrator sees the stall as a long tick).
 
@@ -165,7 +165,7 @@ fn two_surgeons_100_ms_away_with_jitter_and_loss_hold_still_over_real_sessions()
             "{id}: stylus speed RMS {speed_rms:.3} mm/s while holding"
         );
         assert!(
-            per_s <= 100.0,
+            per_s <= 150.0,
             "{id}: {per_s:.0} force messages a second while holding"
         );
         assert_eq!(report.decode_rejects.total(), 0, "{id} refused payloads");

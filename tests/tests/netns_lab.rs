@@ -11,6 +11,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
+use sinew::harness::serial;
 use sinew::netns::{LabConfig, NetnsLab, Side, role_binary, wait_output};
 
 fn skip_unless_available(test: &str) -> bool {
@@ -69,6 +70,8 @@ fn relay_loss(report: &str) -> (u64, u64) {
 
 #[test]
 fn a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes() {
+    // One scenario at a time: each runs 1 kHz loops and a relay on two shared cores.
+    let _serial = serial();
     if skip_unless_available("a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes") {
         return;
     }
@@ -169,6 +172,8 @@ fn a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes() {
 
 #[test]
 fn namespaces_are_removed_even_when_the_test_panics() {
+    // One scenario at a time: each runs 1 kHz loops and a relay on two shared cores.
+    let _serial = serial();
     if skip_unless_available("namespaces_are_removed_even_when_the_test_panics") {
         return;
     }
@@ -215,6 +220,8 @@ fn magnitude(f: [f32; 3]) -> f32 {
 #[test]
 fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_when_the_server_dies()
 {
+    // One scenario at a time: each runs 1 kHz loops and a relay on two shared cores.
+    let _serial = serial();
     if skip_unless_available(
         "moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_when_the_server_dies",
     ) {
@@ -367,6 +374,8 @@ fn exit_time(child: &mut std::process::Child, limit: Duration) -> Option<Duratio
 
 #[test]
 fn every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_force_first() {
+    // One scenario at a time: each runs 1 kHz loops and a relay on two shared cores.
+    let _serial = serial();
     if skip_unless_available(
         "every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_force_first",
     ) {

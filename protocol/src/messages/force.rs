@@ -21,7 +21,7 @@ pub enum ForceMode {
 ///
 /// Direction: server -> hapticserver, on `sinew/<scene>/device/<id>/force`. Rate: one per server tick (1 kHz)
 /// while the device's tool is bound and renders directly; for a device in latency-moderated mode only when
-/// the model changed by more than the perceptual deadband, and at least every 11 ms (heartbeat).
+/// the model changed by more than the perceptual deadband, and at least every 7 ms (heartbeat).
 /// Reliability: best effort (a UDP link where the transport has one), congestion drop, express.
 /// Units: newtons, mm, device frame (the world frame shifted to the device's origin, no rotation). The server
 /// has already clamped `force_n` to the device's announced maximum; the hapticserver clamps again (it owns

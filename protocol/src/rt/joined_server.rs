@@ -51,7 +51,7 @@ pub struct JoinedServer {
 
 impl JoinedServer {
     /// A joined server silent this long may be replaced by the next one heard, ns. Longer than any gap a
-    /// live server leaves (its heartbeat is 11 ms, its stats 1 s apart but tool states flow at the publish
+    /// live server leaves (its heartbeat is 7 ms, its stats 1 s apart but tool states flow at the publish
     /// rate), shorter than a server restart.
     pub const QUIET_SWITCH_NS: u64 = 300_000_000;
 
