@@ -16,4 +16,5 @@ pub mod replication;
 pub mod server_tick;
 pub mod sim;
 pub mod tissue;
+pub mod training;
 pub mod world;

@@ -20,7 +20,7 @@ pub mod world_files;
 pub mod writer;
 
 pub use reader::{ReadError, Recording, read_recording};
-pub use replay::{ReplayOutcome, replay};
+pub use replay::{ReplayOutcome, replay, replay_observed};
 pub use tick_record::{DeviceTick, FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
 pub use writer::{RecordError, RecordSummary, Recorder, RecorderTap};
 

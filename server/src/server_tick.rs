@@ -67,6 +67,11 @@ impl ServerTick {
         &self.outputs
     }
 
+    /// Per tool: a device drove it on the last step.
+    pub fn tools_active(&self) -> &[bool] {
+        &self.was_active
+    }
+
     /// Tool `t`'s stream counters.
     pub fn stream_counters(&self, t: usize) -> StreamCounters {
         self.streams

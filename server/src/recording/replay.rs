@@ -4,6 +4,7 @@
 use crate::haptics::DeadbandParams;
 use crate::server_tick::{PoseInput, ServerTick};
 use crate::sim::{Sim, SimBuildError};
+use crate::training::TickView;
 use crate::world::World;
 
 use super::reader::Recording;
@@ -42,6 +43,15 @@ impl ReplayOutcome {
 
 /// Re-run `recording` on `world` (its own, loaded with [`Recording::load_world`]).
 pub fn replay(recording: &Recording, world: &World) -> Result<ReplayOutcome, SimBuildError> {
+    replay_observed(recording, world, |_| {})
+}
+
+/// [`replay`], showing `observe` every re-run tick (what the training layer measures).
+pub fn replay_observed(
+    recording: &Recording,
+    world: &World,
+    mut observe: impl FnMut(&TickView<'_>),
+) -> Result<ReplayOutcome, SimBuildError> {
     let sim = Sim::new(world)?;
     let n = sim.tools.len();
     let mut tick = ServerTick::new(
@@ -63,7 +73,13 @@ pub fn replay(recording: &Recording, world: &World) -> Result<ReplayOutcome, Sim
             inputs[t] = device.pose_input();
             limits[t] = device.max_force_n;
         }
-        tick.step(&inputs, &limits, &mut out);
+        let step = tick.step(&inputs, &limits, &mut out);
+        observe(&TickView {
+            tick: record.tick,
+            active: tick.tools_active(),
+            outputs: tick.outputs(),
+            step: &step,
+        });
         for (t, (device, replayed)) in record.devices.iter().zip(&out).enumerate() {
             if device.force.is_none() && replayed.is_none() {
                 continue;

@@ -1,0 +1,20 @@
+//! The training layer: what a session measures of each surgeon (issue "Training sessions").
+//!
+//! Everything here is fed from the server tick's outputs ([`observer::TickView`]), tick by tick, so it runs
+//! the same behind a replay of a recording (`sinew report`) as it would live, and its answers follow from the
+//! recorded inputs bit for bit.
+//!
+//! - [`events`]: contact, grasp, cut, burn, harm and fault events, as edges of a tool's activity;
+//! - [`skill_state`]: the surgical state machine the events drive, with time per state;
+//! - [`metrics`]: task time, path length and economy, contact time, forces, harm;
+//! - [`observer`]: all three per tool, fed one tick at a time.
+
+pub mod events;
+pub mod metrics;
+pub mod observer;
+pub mod skill_state;
+
+pub use events::{EventDetector, EventKind, SessionEvent, ToolActivity};
+pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
+pub use observer::{SessionObserver, TickView};
+pub use skill_state::{SkillMachine, SkillState, Transition};

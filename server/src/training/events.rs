@@ -1,0 +1,366 @@
+//! Session events: what happened to a tool, as edges of its per-tick activity (contact began, a grasp ended,
+//! the force rose above the harm threshold), stamped with the tick.
+//!
+//! Owns: [`ToolActivity`] (one tool's state on one tick, as the training layer sees it), [`EventKind`],
+//! [`SessionEvent`] and [`EventDetector`] (turns a tool's activity, tick after tick, into events).
+//!
+//! The instruments (grasp, cut, cauterize) set `grasping`, `cutting` and `burning` from their jaw and edge
+//! states; the probe sets none of them. The suturing states will add their own kinds here (needle grasped,
+//! puncture, pull-through) and their own flags to [`ToolActivity`].
+//!
+//! Touches chatter: a probe lifting off a dent that follows it up leaves and retouches for a few ticks. So
+//! contact and approach end only after [`EventDetector::END_DEBOUNCE_TICKS`] ticks without them (a touch
+//! broken for less is one touch), and harm ends only below 95% of its threshold. A device leaving ends
+//! everything at once.
+//!
+//! Must not: allocate (the detector can run on the sim thread) or read a clock (tick numbers only).
+
+use serde::{Deserialize, Serialize};
+
+use crate::sim::ToolOutput;
+
+/// One tool's state on one tick, as the training layer sees it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ToolActivity {
+    /// A device drives the tool (present, fresh pose).
+    pub active: bool,
+    /// A tissue surface lies within the look-ahead of the tool (it is approaching or leaving), or it touches.
+    pub near: bool,
+    /// The tool touches tissue.
+    pub in_contact: bool,
+    /// Jaws closed on tissue.
+    pub grasping: bool,
+    /// A sharp edge is cutting.
+    pub cutting: bool,
+    /// An active tip is burning tissue.
+    pub burning: bool,
+    /// Magnitude of the tissue's force on the tool, N.
+    pub force_n: f32,
+    /// Where the device puts the tool, world, mm: the hand's instrument tip (the simulated tool lags it only
+    /// where tissue holds it back, and when it is dragged to a joining hand).
+    pub tip_world_mm: [f32; 3],
+}
+
+impl ToolActivity {
+    /// What a tick's [`ToolOutput`] says of a tool driven (`active`) or not. Instruments add their own flags.
+    pub fn from_output(active: bool, out: &ToolOutput) -> Self {
+        let force_n = out.force_world_n.norm();
+        Self {
+            active,
+            near: active && (out.in_contact || out.plane_count > 0),
+            in_contact: active && out.in_contact,
+            grasping: false,
+            cutting: false,
+            burning: false,
+            force_n: if force_n.is_finite() { force_n } else { 0.0 },
+            tip_world_mm: out.device_world_mm.into(),
+        }
+    }
+}
+
+/// What happened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub enum EventKind {
+    /// A device began driving the tool.
+    Joined,
+    /// The device stopped driving it (left, timed out, refused).
+    Left,
+    /// A surface came within the tool's look-ahead.
+    ApproachBegin,
+    /// No surface within the look-ahead any more.
+    ApproachEnd,
+    /// The tool touched tissue.
+    ContactBegin,
+    /// It no longer touches.
+    ContactEnd,
+    /// Jaws closed on tissue.
+    GraspBegin,
+    /// Jaws let go.
+    GraspEnd,
+    /// A sharp edge began cutting.
+    CutBegin,
+    /// It stopped.
+    CutEnd,
+    /// An active tip began burning.
+    BurnBegin,
+    /// It stopped.
+    BurnEnd,
+    /// The force on the tool rose above the harm threshold.
+    HarmBegin,
+    /// It fell below it again.
+    HarmEnd,
+    /// The anti-divergence guard reset an object this tick (scene-wide; reported on every tool).
+    TissueFault,
+}
+
+impl EventKind {
+    /// Every kind, in declaration order (reports list counts in this order).
+    pub const ALL: [EventKind; 15] = [
+        EventKind::Joined,
+        EventKind::Left,
+        EventKind::ApproachBegin,
+        EventKind::ApproachEnd,
+        EventKind::ContactBegin,
+        EventKind::ContactEnd,
+        EventKind::GraspBegin,
+        EventKind::GraspEnd,
+        EventKind::CutBegin,
+        EventKind::CutEnd,
+        EventKind::BurnBegin,
+        EventKind::BurnEnd,
+        EventKind::HarmBegin,
+        EventKind::HarmEnd,
+        EventKind::TissueFault,
+    ];
+
+    /// Its index in [`EventKind::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Its name in reports (snake case).
+    pub fn name(self) -> &'static str {
+        match self {
+            EventKind::Joined => "joined",
+            EventKind::Left => "left",
+            EventKind::ApproachBegin => "approach_begin",
+            EventKind::ApproachEnd => "approach_end",
+            EventKind::ContactBegin => "contact_begin",
+            EventKind::ContactEnd => "contact_end",
+            EventKind::GraspBegin => "grasp_begin",
+            EventKind::GraspEnd => "grasp_end",
+            EventKind::CutBegin => "cut_begin",
+            EventKind::CutEnd => "cut_end",
+            EventKind::BurnBegin => "burn_begin",
+            EventKind::BurnEnd => "burn_end",
+            EventKind::HarmBegin => "harm_begin",
+            EventKind::HarmEnd => "harm_end",
+            EventKind::TissueFault => "tissue_fault",
+        }
+    }
+}
+
+/// An event on one tool at one tick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SessionEvent {
+    /// Tick index.
+    pub tick: u64,
+    /// Tool index, in world order.
+    pub tool: u8,
+    /// What happened.
+    pub kind: EventKind,
+}
+
+/// Turns one tool's activity, tick after tick, into events (edges of its flags).
+#[derive(Debug, Clone, Copy)]
+pub struct EventDetector {
+    tool: u8,
+    harm_threshold_n: f32,
+    /// The last tick's activity, debounced.
+    last: ToolActivity,
+    harmful: bool,
+    ticks_without_contact: u32,
+    ticks_without_near: u32,
+}
+
+impl EventDetector {
+    /// Contact and approach end after this many ticks without them.
+    pub const END_DEBOUNCE_TICKS: u32 = 10;
+    /// Harm ends below this fraction of its threshold.
+    pub const HARM_END_FRACTION: f32 = 0.95;
+
+    /// A detector for tool `tool`, whose harm events fire above `harm_threshold_n`.
+    pub fn new(tool: u8, harm_threshold_n: f32) -> Self {
+        Self {
+            tool,
+            harm_threshold_n,
+            last: ToolActivity::default(),
+            harmful: false,
+            ticks_without_contact: 0,
+            ticks_without_near: 0,
+        }
+    }
+
+    /// The last tick's activity as the events saw it (contact and approach debounced).
+    pub fn debounced(&self) -> &ToolActivity {
+        &self.last
+    }
+
+    /// The events of tick `tick`, given the tool's activity then and whether an object was reset, in a fixed
+    /// order: beginnings outermost first (joined, approach, contact, grasp, cut, burn, harm), then endings
+    /// innermost first, then the fault.
+    pub fn detect(
+        &mut self,
+        tick: u64,
+        now: &ToolActivity,
+        tissue_fault: bool,
+        mut emit: impl FnMut(SessionEvent),
+    ) {
+        let mut send = |kind| {
+            emit(SessionEvent {
+                tick,
+                tool: self.tool,
+                kind,
+            })
+        };
+        let last = self.last;
+        let mut now = *now;
+        if now.active {
+            let quiet = |flag: bool, count: &mut u32| {
+                *count = if flag { 0 } else { count.saturating_add(1) };
+                *count
+            };
+            let no_contact = quiet(now.in_contact, &mut self.ticks_without_contact);
+            now.in_contact |= last.in_contact && no_contact < Self::END_DEBOUNCE_TICKS;
+            let no_near = quiet(now.near || now.in_contact, &mut self.ticks_without_near);
+            now.near |= last.near && no_near < Self::END_DEBOUNCE_TICKS;
+            now.near |= now.in_contact;
+        }
+        let harmful = now.active
+            && if self.harmful {
+                now.force_n >= Self::HARM_END_FRACTION * self.harm_threshold_n
+            } else {
+                now.force_n > self.harm_threshold_n
+            };
+        let edges = [
+            (last.active, now.active, EventKind::Joined, EventKind::Left),
+            (
+                last.near,
+                now.near,
+                EventKind::ApproachBegin,
+                EventKind::ApproachEnd,
+            ),
+            (
+                last.in_contact,
+                now.in_contact,
+                EventKind::ContactBegin,
+                EventKind::ContactEnd,
+            ),
+            (
+                last.grasping,
+                now.grasping,
+                EventKind::GraspBegin,
+                EventKind::GraspEnd,
+            ),
+            (
+                last.cutting,
+                now.cutting,
+                EventKind::CutBegin,
+                EventKind::CutEnd,
+            ),
+            (
+                last.burning,
+                now.burning,
+                EventKind::BurnBegin,
+                EventKind::BurnEnd,
+            ),
+            (
+                self.harmful,
+                harmful,
+                EventKind::HarmBegin,
+                EventKind::HarmEnd,
+            ),
+        ];
+        for (was, is, begin, _) in edges {
+            if is && !was {
+                send(begin);
+            }
+        }
+        for (was, is, _, end) in edges.iter().rev() {
+            if *was && !*is {
+                send(*end);
+            }
+        }
+        if tissue_fault {
+            send(EventKind::TissueFault);
+        }
+        self.last = now;
+        self.harmful = harmful;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+
+    fn kinds(detector: &mut EventDetector, tick: u64, a: ToolActivity) -> Vec<EventKind> {
+        let mut out = Vec::new();
+        detector.detect(tick, &a, false, |e| {
+            assert_eq!(e.tick, tick);
+            out.push(e.kind)
+        });
+        out
+    }
+
+    #[test]
+    fn edges_become_events_in_nesting_order() {
+        let mut d = EventDetector::new(1, 2.0);
+        let idle = ToolActivity {
+            active: true,
+            ..ToolActivity::default()
+        };
+        let touching = ToolActivity {
+            near: true,
+            in_contact: true,
+            force_n: 2.5,
+            ..idle
+        };
+        assert_eq!(kinds(&mut d, 0, idle), [EventKind::Joined]);
+        assert_eq!(kinds(&mut d, 1, idle), []);
+        assert_eq!(
+            kinds(&mut d, 2, touching),
+            [
+                EventKind::ApproachBegin,
+                EventKind::ContactBegin,
+                EventKind::HarmBegin
+            ]
+        );
+        assert_eq!(kinds(&mut d, 3, touching), []);
+        // Lifting off for fewer than the debounce ticks, then touching again, is one touch; the force below
+        // the threshold but above 95% of it is still harm.
+        let lifted = ToolActivity {
+            in_contact: false,
+            force_n: 1.95,
+            ..touching
+        };
+        for tick in 4..4 + u64::from(EventDetector::END_DEBOUNCE_TICKS) - 1 {
+            assert_eq!(kinds(&mut d, tick, lifted), []);
+        }
+        assert_eq!(kinds(&mut d, 20, touching), []);
+        let lifted = ToolActivity {
+            force_n: 0.0,
+            ..lifted
+        };
+        assert_eq!(kinds(&mut d, 21, lifted), [EventKind::HarmEnd]);
+        for tick in 22..30 {
+            assert_eq!(kinds(&mut d, tick, lifted), [], "tick {tick}");
+        }
+        assert_eq!(kinds(&mut d, 30, lifted), [EventKind::ContactEnd]);
+        assert_eq!(
+            kinds(&mut d, 31, touching),
+            [EventKind::ContactBegin, EventKind::HarmBegin]
+        );
+        assert_eq!(
+            kinds(&mut d, 32, ToolActivity::default()),
+            [
+                EventKind::HarmEnd,
+                EventKind::ContactEnd,
+                EventKind::ApproachEnd,
+                EventKind::Left
+            ]
+        );
+    }
+
+    #[test]
+    fn every_kind_has_its_index_and_a_distinct_name() {
+        for (i, kind) in EventKind::ALL.iter().enumerate() {
+            assert_eq!(kind.index(), i);
+        }
+        let mut names: Vec<_> = EventKind::ALL.iter().map(|k| k.name()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), EventKind::ALL.len());
+    }
+}
