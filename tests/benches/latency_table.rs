@@ -224,30 +224,10 @@ fn print_table(rtts_ms: &[f64]) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn font_bytes() -> anyhow::Result<&'static [u8]> {
-    let candidates: Vec<PathBuf> = std::env::var_os("SINEW_FONT")
-        .map(PathBuf::from)
-        .into_iter()
-        .chain([
-            "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf".into(),
-            "/usr/share/fonts/TTF/DejaVuSans.ttf".into(),
-        ])
-        .collect();
-    for path in &candidates {
-        if let Ok(bytes) = std::fs::read(path) {
-            return Ok(Box::leak(bytes.into_boxed_slice()));
-        }
-    }
-    anyhow::bail!(
-        "no TrueType font for the figure's labels (tried {candidates:?}): install fonts-dejavu-core or set SINEW_FONT"
-    )
-}
-
 /// Force along the pad normal against time: zero delay, direct and moderated at 100 ms (+-20 ms, 5% loss),
 /// light hand, pressing and holding on the soft pad.
 fn draw_figure(path: &Path) -> anyhow::Result<()> {
-    plotters::style::register_font("sans-serif", FontStyle::Normal, font_bytes()?)
-        .map_err(|_| anyhow::anyhow!("the figure's font is not a usable TrueType font"))?;
+    sinew::figure_font::register_sans_serif()?;
     let hand = HandPreset::Light;
     let cases = [
         (

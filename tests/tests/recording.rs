@@ -11,9 +11,10 @@ use sinew::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, serial, start_sim_device, surgeon_scripts,
     wait_until,
 };
+use sinew::netns::role_binary;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerError, ServerNode};
-use sinew_server::recording::{ReadError, read_recording, replay};
+use sinew_server::recording::{ReadError, ReplayOutcome, read_recording, replay};
 
 fn temp(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("sinew-{}-{name}", std::process::id()))
@@ -118,6 +119,7 @@ fn a_recorded_two_surgeon_session_replays_bit_for_bit_and_damage_is_told() {
         "the strongest recorded force is {strongest} N"
     );
     assert!(outcome.exact(), "{outcome:?}");
+    check_report(&path, &outcome);
 
     // A replay on a different world diverges, and says so: the comparison can fail.
     let mut stiffer = world.clone();
@@ -161,6 +163,16 @@ fn a_recorded_two_surgeon_session_replays_bit_for_bit_and_damage_is_told() {
     let err = read_recording(&text).unwrap_err();
     assert!(matches!(err, ReadError::NotARecording { .. }), "{err}");
     assert!(err.to_string().contains("not.mcap"), "{err}");
+    let refused = std::process::Command::new(role_binary("sinew").unwrap())
+        .arg("report")
+        .arg(&text)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !refused.status.success() && stderr.contains("not.mcap"),
+        "{stderr}"
+    );
 
     for file in [&path, &cut, &corrupt_path, &text] {
         let _ = std::fs::remove_file(file);
@@ -189,4 +201,72 @@ fn an_unwritable_recording_path_is_refused_before_anything_starts() {
     )
     .unwrap();
     server.stop();
+}
+
+/// `sinew report` on the recording: the files are written, the figures have each participant's colour, the
+/// metrics describe the scripted session (left presses and strokes, right presses and holds), and the time per
+/// skill state adds up to the session.
+fn check_report(path: &std::path::Path, outcome: &ReplayOutcome) {
+    let out = temp("report");
+    let run = std::process::Command::new(role_binary("sinew").unwrap())
+        .arg("report")
+        .arg(path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    println!("{stdout}");
+    assert!(
+        run.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(json["bit_exact"], true);
+    assert_eq!(json["ticks"], outcome.ticks);
+    let people = json["participants"].as_array().unwrap();
+    assert_eq!(people.len(), 2);
+    let metric = |p: usize, key: &str| people[p]["metrics"][key].as_f64().unwrap();
+    for (p, device) in ["left", "right"].iter().enumerate() {
+        assert_eq!(people[p]["device"], *device);
+        assert!(metric(p, "contacts") >= 1.0, "{device} never touched");
+        assert!(metric(p, "contact_time_s") > 1.0, "{device}");
+        let peak = metric(p, "peak_force_n");
+        assert!(peak > 0.5 && peak <= 3.3 + 1e-4, "{device}: peak {peak}");
+        let in_states: f64 = people[p]["time_in_state_s"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|v| v.as_f64().unwrap())
+            .sum();
+        assert!(
+            (in_states - outcome.sim_s).abs() < 1e-6,
+            "{device}: {in_states} s in states"
+        );
+    }
+    // Left strokes +-8 mm along x while right holds still: left's tip travels much further.
+    assert!(
+        metric(0, "path_length_mm") > 2.0 * metric(1, "path_length_mm"),
+        "left {} mm, right {} mm",
+        metric(0, "path_length_mm"),
+        metric(1, "path_length_mm")
+    );
+    let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    assert!(
+        summary.contains("left (") && summary.contains("right ("),
+        "{summary}"
+    );
+    // Each figure has both participants' colours (left blue, right red).
+    for figure in ["force.png", "path_top.png", "states.png"] {
+        let image = image::open(out.join(figure)).unwrap().to_rgb8();
+        let has = |rgb: [u8; 3]| image.pixels().filter(|p| p.0 == rgb).count();
+        let (blue, red) = (has([31, 119, 180]), has([214, 39, 40]));
+        assert!(
+            blue > 50 && red > 50,
+            "{figure}: {blue} blue, {red} red pixels"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&out);
 }

@@ -53,6 +53,16 @@ enum Command {
         /// The recording (MCAP).
         file: PathBuf,
     },
+    /// A training report of a recording: replays it with the training layer watching and writes
+    /// report.json (metrics, time per skill state, events per participant), force.png, path_top.png,
+    /// states.png and summary.txt into a directory.
+    Report {
+        /// The recording (MCAP).
+        file: PathBuf,
+        /// Where to write the report (default: the recording's name with `-report`).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 fn main() -> anyhow::Result<()> {
@@ -88,6 +98,17 @@ fn main() -> anyhow::Result<()> {
             })?;
         }
         Command::Replay { file } => replay(&file)?,
+        Command::Report { file, out } => {
+            let out = out.unwrap_or_else(|| {
+                let stem = file
+                    .file_stem()
+                    .map_or("session".into(), |s| s.to_string_lossy().into_owned());
+                file.with_file_name(format!("{stem}-report"))
+            });
+            let report = sinew::report::write_report(&file, &out)?;
+            print!("{}", sinew::report::summary(&report));
+            println!("report written to {}", out.display());
+        }
     }
     Ok(())
 }
