@@ -14,7 +14,7 @@ use sinew_server::world::load_world;
 use sinew_viewer::ViewerHandle;
 
 use crate::harness::{
-    Pacing, SimDeviceSetup, replica_error, start_server_emulated, start_sim_device_emulated,
+    Pacing, SimDeviceSetup, replica_error, start_server_recording, start_sim_device_emulated,
     start_viewer, surgeon_scripts,
 };
 
@@ -37,6 +37,8 @@ pub struct DemoOptions {
     pub mode: hapticserver::ModePolicy,
     /// The simulated operators' hand.
     pub hand: hapticserver::HandPreset,
+    /// Record the session into this MCAP file (`sinew replay`, `sinew report` read it).
+    pub record: Option<PathBuf>,
 }
 
 /// The demo's final figures.
@@ -71,7 +73,13 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
         ..Default::default()
     };
     one_way.validate().map_err(anyhow::Error::msg)?;
-    let server = start_server_emulated(world, &options.endpoint, Pacing::Spin, one_way)?;
+    let server = start_server_recording(
+        world,
+        &options.endpoint,
+        Pacing::Spin,
+        one_way,
+        options.record.clone(),
+    )?;
     let (left, right) = surgeon_scripts();
     let device = |id: &str, script| {
         start_sim_device_emulated(
@@ -126,6 +134,17 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     }
     running.viewer.stop();
     running.server.stop();
+    if let Some(record) = running.server.record_summary() {
+        match &record.error {
+            None => println!(
+                "recorded {} ticks ({} dropped) into {}: `sinew replay` or `sinew report` it",
+                record.ticks,
+                record.dropped,
+                record.path.display()
+            ),
+            Some(error) => println!("the recording stopped early: {error}"),
+        }
+    }
     Ok(summary)
 }
 

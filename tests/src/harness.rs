@@ -67,8 +67,20 @@ pub fn start_server_emulated(
     pacing: Pacing,
     emulation: sinew_protocol::rt::EmulationConfig,
 ) -> anyhow::Result<ServerHandle> {
+    start_server_recording(world, endpoint, pacing, emulation, None)
+}
+
+/// [`start_server_emulated`], recording the session into `record` (MCAP) when given.
+pub fn start_server_recording(
+    world: World,
+    endpoint: &str,
+    pacing: Pacing,
+    emulation: sinew_protocol::rt::EmulationConfig,
+    record: Option<std::path::PathBuf>,
+) -> anyhow::Result<ServerHandle> {
     let config = ServerConfig {
         emulation,
+        record,
         network: NetworkOptions {
             listen: with_udp_twin(endpoint),
             ..NetworkOptions::default()

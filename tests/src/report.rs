@@ -249,7 +249,7 @@ fn draw_force(
         .iter()
         .flat_map(|s| s.force_n.iter().copied())
         .fold(harm_n, f64::max)
-        * 1.1;
+        * 1.35;
     let mut chart = ChartBuilder::on(&root)
         .caption("Force on each tool", ("sans-serif", 22))
         .margin(12)
@@ -287,6 +287,7 @@ fn draw_force(
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], BLACK.mix(0.5)));
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
         .label_font(("sans-serif", 14))
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
@@ -334,13 +335,23 @@ fn draw_paths(path: &Path, report: &SessionReport, series: &[Series]) -> anyhow:
                 colour.stroke_width(2),
             ))
             .map_err(plot_error)?
-            .label(p.device.clone())
+            .label(format!("{} (o start, x end)", p.device))
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
             });
+        // A tip that never moved sideways is a point: the markers show it.
+        if let (Some(first), Some(last)) = (s.tip_xy_mm.first(), s.tip_xy_mm.last()) {
+            chart
+                .draw_series([Circle::new(*first, 6, colour.stroke_width(2))])
+                .map_err(plot_error)?;
+            chart
+                .draw_series([Cross::new(*last, 6, colour.stroke_width(2))])
+                .map_err(plot_error)?;
+        }
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
         .label_font(("sans-serif", 14))
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)

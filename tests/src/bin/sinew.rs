@@ -46,6 +46,9 @@ enum Command {
         /// hardest for stability: try `--rtt-ms 100 --hand light` with `--mode direct`, then `moderated`.
         #[arg(long, default_value = "grip")]
         hand: hapticserver::HandPreset,
+        /// Record the session into this MCAP file (then `sinew replay FILE`, `sinew report FILE`).
+        #[arg(long)]
+        record: Option<PathBuf>,
     },
     /// Re-run a recording (`sinew-server --record FILE`) through the simulation on virtual time and check that
     /// every force command and the final tissue come out bit for bit as recorded.
@@ -81,6 +84,7 @@ fn main() -> anyhow::Result<()> {
             rtt_ms,
             mode,
             hand,
+            record,
         } => {
             anyhow::ensure!(
                 duration_s.is_finite() && duration_s > 0.0,
@@ -95,6 +99,7 @@ fn main() -> anyhow::Result<()> {
                 rtt_ms,
                 mode,
                 hand,
+                record,
             })?;
         }
         Command::Replay { file } => replay(&file)?,
