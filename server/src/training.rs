@@ -7,14 +7,17 @@
 //! - [`events`]: contact, grasp, cut, burn, harm and fault events, as edges of a tool's activity;
 //! - [`skill_state`]: the surgical state machine the events drive, with time per state;
 //! - [`metrics`]: task time, path length and economy, contact time, forces, harm;
-//! - [`observer`]: all three per tool, fed one tick at a time.
+//! - [`exercise`]: an exercise's targets, clock and errors, scored from the events;
+//! - [`observer`]: events, states and metrics per tool (and the exercise), fed one tick at a time.
 
 pub mod events;
+pub mod exercise;
 pub mod metrics;
 pub mod observer;
 pub mod skill_state;
 
 pub use events::{EventDetector, EventKind, SessionEvent, ToolActivity};
+pub use exercise::{ExerciseErrors, ExerciseRun, ExerciseScore, TargetHit};
 pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
 pub use observer::{SessionObserver, TickView};
 pub use skill_state::{SkillMachine, SkillState, Transition};

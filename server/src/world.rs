@@ -4,6 +4,7 @@
 //! Owns: turning `worlds/*.toml` plus its mesh files into a validated [`World`]. Every refusal names the
 //! file, the key and the line. Must not: build simulation state (that is [`crate::sim`]'s job).
 
+mod exercise_spec;
 mod extrude;
 mod file_format;
 mod grid_sheet;
@@ -11,6 +12,7 @@ mod loader;
 mod mesh_file;
 mod tet_mesh;
 
+pub use exercise_spec::{ExerciseKind, ExerciseSpec, TargetSpec};
 pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 pub use file_format::{IntegratorName, LengthUnit};
 pub use grid_sheet::{grid_sheet, to_obj_text};

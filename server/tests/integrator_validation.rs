@@ -307,6 +307,7 @@ fn world_of(objects: Vec<ObjectSpec>) -> World {
         ties: Vec::new(),
         objects,
         tools: Vec::new(),
+        exercise: None,
     }
 }
 

@@ -393,3 +393,109 @@ fn durations_and_rates_out_of_their_real_range_name_the_key_and_line() {
     );
     assert!(message.contains("substeps"), "{message}");
 }
+
+const EXERCISE: &str = r#"
+[exercise]
+name = "touch"
+kind = "coordination"
+time_limit_s = 30.0
+
+[[exercise.targets]]
+at_mm = [2.0, 2.0, 0.0]
+radius_mm = 1.0
+tool = "probe"
+
+[[exercise.targets]]
+at_mm = [4.0, 2.0, 0.0]
+radius_mm = 1.0
+tool = "probe"
+"#;
+
+#[test]
+fn the_shipped_exercises_and_a_test_exercise_load() {
+    let world = load_world(&write_world(&format!("{GOOD_WORLD}{EXERCISE}"), None)).unwrap();
+    let exercise = world.exercise.unwrap();
+    assert_eq!(exercise.targets.len(), 2);
+    assert_eq!(exercise.targets[1].tool, Some(0));
+    for name in ["exercise_coordination.toml", "exercise_accurate_touch.toml"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../worlds")
+            .join(name);
+        let world = load_world(&path).unwrap();
+        assert!(world.exercise.is_some(), "{name}");
+    }
+}
+
+#[test]
+fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
+    // A target naming a tool the world does not have.
+    let world = format!(
+        "{GOOD_WORLD}{}",
+        EXERCISE.replacen("tool = \"probe\"\n\n[[", "tool = \"grasper\"\n\n[[", 1)
+    );
+    let (error, message, _) = refused(&world, None);
+    let (key, line) = invalid_key_and_line(&error);
+    assert_eq!(key, "exercise.targets[0].tool");
+    let header = line_of(&world, "[[exercise.targets]]");
+    assert!(
+        (header..=line_of(&world, "grasper")).contains(&line),
+        "line {line}: {message}"
+    );
+    assert!(
+        message.contains("grasper") && message.contains("tools: probe"),
+        "{message}"
+    );
+
+    // A coordination target that names no tool.
+    let world = format!(
+        "{GOOD_WORLD}{}",
+        EXERCISE.replacen("tool = \"probe\"\n", "", 1)
+    );
+    let (error, _, _) = refused(&world, None);
+    assert_eq!(invalid_key_and_line(&error).0, "exercise.targets[0].tool");
+
+    // No time to do it in.
+    let world = format!(
+        "{GOOD_WORLD}{}",
+        EXERCISE.replace("time_limit_s = 30.0", "time_limit_s = 0.0")
+    );
+    let (error, _, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "exercise.time_limit_s",
+            line_of(&world, "time_limit_s = 0.0")
+        )
+    );
+
+    // Accurate touch without its depth limit.
+    let world = format!(
+        "{GOOD_WORLD}{}",
+        EXERCISE.replace("kind = \"coordination\"", "kind = \"accurate-touch\"")
+    );
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error).0,
+        "exercise.depth_limit_mm",
+        "{message}"
+    );
+
+    // A kind that does not exist: the parser names the variants.
+    let world = format!(
+        "{GOOD_WORLD}{}",
+        EXERCISE.replace("\"coordination\"", "\"juggling\"")
+    );
+    let (error, message, _) = refused(&world, None);
+    assert!(
+        matches!(error, WorldError::Syntax { line, .. } if line == line_of(&world, "juggling")),
+        "{message}"
+    );
+    assert!(message.contains("accurate-touch"), "{message}");
+
+    // No targets at all.
+    let world = format!(
+        "{GOOD_WORLD}\n[exercise]\nname = \"x\"\nkind = \"coordination\"\ntime_limit_s = 1.0\ntargets = []\n"
+    );
+    let (error, _, _) = refused(&world, None);
+    assert_eq!(invalid_key_and_line(&error).0, "exercise.targets");
+}

@@ -19,7 +19,8 @@ use plotters::prelude::*;
 use serde::Serialize;
 use sinew_server::recording::{read_recording, replay_observed};
 use sinew_server::training::{
-    EventKind, MetricsConfig, MetricsSummary, SessionObserver, SkillState,
+    EventKind, ExerciseRun, ExerciseScore, MetricsConfig, MetricsSummary, SessionObserver,
+    SkillState,
 };
 
 /// Samples kept for the plots: one every this many ticks.
@@ -62,6 +63,8 @@ pub struct SessionReport {
     pub damage: Option<String>,
     /// Per participant, in world order.
     pub participants: Vec<ParticipantReport>,
+    /// The exercise's score, if the world is an exercise.
+    pub exercise: Option<ExerciseScore>,
 }
 
 struct Series {
@@ -81,6 +84,9 @@ pub fn write_report(recording: &Path, out_dir: &Path) -> anyhow::Result<SessionR
     let dt_s = 1.0 / world.tick_hz;
     let tools = world.tools.len();
     let mut observer = SessionObserver::new(tools, MetricsConfig::new(dt_s));
+    if let Some(spec) = &world.exercise {
+        observer = observer.with_exercise(ExerciseRun::new(spec.clone(), tools, dt_s));
+    }
     let mut series: Vec<Series> = (0..tools)
         .map(|_| Series {
             t_s: Vec::new(),
@@ -149,6 +155,7 @@ pub fn write_report(recording: &Path, out_dir: &Path) -> anyhow::Result<SessionR
         bit_exact: outcome.exact(),
         damage: rec.damage.clone(),
         participants,
+        exercise: observer.exercise().map(ExerciseRun::score),
     };
 
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
@@ -185,6 +192,32 @@ pub fn summary(report: &SessionReport) -> String {
     );
     if let Some(damage) = &report.damage {
         let _ = writeln!(s, "  the recording ends early: {damage}");
+    }
+    if let Some(e) = &report.exercise {
+        let _ = writeln!(
+            s,
+            "exercise `{}` ({}): {} - score {:.0}/100, {} of {} targets in {:.1} s{}; errors: {} wrong tool, {} off \
+             target, {} too deep; mean distance from the marks {:.1} mm, deepest press {:.1} mm",
+            e.name,
+            e.kind.as_str(),
+            if e.passed {
+                "passed"
+            } else if e.completed {
+                "completed with errors"
+            } else {
+                "not completed"
+            },
+            e.score,
+            e.targets_hit,
+            e.targets_total,
+            e.time_s,
+            if e.timed_out { " (time ran out)" } else { "" },
+            e.errors.wrong_tool,
+            e.errors.off_target,
+            e.errors.too_deep,
+            e.mean_distance_mm,
+            e.max_depth_mm
+        );
     }
     for p in &report.participants {
         let m = &p.metrics;

@@ -39,6 +39,8 @@ pub struct ToolActivity {
     /// Where the device puts the tool, world, mm: the hand's instrument tip (the simulated tool lags it only
     /// where tissue holds it back, and when it is dragged to a joining hand).
     pub tip_world_mm: [f32; 3],
+    /// The simulated tool's origin, world, mm (where it touches: held back by the tissue it presses).
+    pub tool_world_mm: [f32; 3],
 }
 
 impl ToolActivity {
@@ -54,6 +56,7 @@ impl ToolActivity {
             burning: false,
             force_n: if force_n.is_finite() { force_n } else { 0.0 },
             tip_world_mm: out.device_world_mm.into(),
+            tool_world_mm: out.position_world_mm.into(),
         }
     }
 }

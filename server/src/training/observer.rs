@@ -7,6 +7,7 @@
 use crate::sim::{StepReport, ToolOutput};
 
 use super::events::{EventDetector, SessionEvent, ToolActivity};
+use super::exercise::ExerciseRun;
 use super::metrics::{MetricsConfig, ParticipantMetrics};
 use super::skill_state::{SkillMachine, Transition};
 
@@ -30,6 +31,7 @@ pub struct SessionObserver {
     machines: Vec<SkillMachine>,
     metrics: Vec<ParticipantMetrics>,
     activity: Vec<ToolActivity>,
+    exercise: Option<ExerciseRun>,
 }
 
 impl SessionObserver {
@@ -44,7 +46,19 @@ impl SessionObserver {
             machines: vec![SkillMachine::new(); tools],
             metrics: vec![ParticipantMetrics::new(config); tools],
             activity: vec![ToolActivity::default(); tools],
+            exercise: None,
         }
+    }
+
+    /// Also run and score `exercise`.
+    pub fn with_exercise(mut self, exercise: ExerciseRun) -> Self {
+        self.exercise = Some(exercise);
+        self
+    }
+
+    /// The exercise being run, if any.
+    pub fn exercise(&self) -> Option<&ExerciseRun> {
+        self.exercise.as_ref()
     }
 
     /// One tick: its events and state changes go to the sinks (transitions with their tool index).
@@ -70,14 +84,21 @@ impl SessionObserver {
                     ToolActivity::from_output(active, out)
                 });
             let tool = t as u8;
+            let exercise = &mut self.exercise;
             detector.detect(view.tick, &activity, fault, |event| {
                 on_event(&event);
                 metrics.on_event(&event);
                 machine.on_event(&event, |tr| on_transition(tool, &tr));
+                if let Some(run) = exercise.as_mut() {
+                    run.on_event(&event, &activity);
+                }
             });
             machine.on_tick(view.tick, activity.force_n, |tr| on_transition(tool, &tr));
             metrics.push(view.tick, &activity);
             self.activity[t] = activity;
+        }
+        if let Some(run) = self.exercise.as_mut() {
+            run.on_tick(view.tick, &self.activity);
         }
     }
 

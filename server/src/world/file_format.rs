@@ -87,6 +87,28 @@ pub(crate) struct WorldFile {
     pub tools: Vec<ToolSection>,
     #[serde(default)]
     pub ties: Vec<Spanned<TieSection>>,
+    #[serde(default)]
+    pub exercise: Option<Spanned<ExerciseSection>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ExerciseSection {
+    pub name: Spanned<String>,
+    pub kind: crate::world::ExerciseKind,
+    pub time_limit_s: Spanned<f64>,
+    #[serde(default)]
+    pub depth_limit_mm: Option<Spanned<f32>>,
+    pub targets: Spanned<Vec<Spanned<TargetSection>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct TargetSection {
+    pub at_mm: [f32; 3],
+    pub radius_mm: f32,
+    #[serde(default)]
+    pub tool: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]

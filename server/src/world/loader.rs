@@ -6,10 +6,11 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 use toml::Spanned;
 
+use super::exercise_spec::{ExerciseKind, ExerciseSpec, TargetSpec};
 use super::extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 use super::file_format::{
-    FixedSection, IntegratorName, LawSection, MaterialSection, ObjectSection, ShapeSection,
-    TieSection, ToolSection, WorldFile,
+    ExerciseSection, FixedSection, IntegratorName, LawSection, MaterialSection, ObjectSection,
+    ShapeSection, TieSection, ToolSection, WorldFile,
 };
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
 use super::tet_mesh::load_msh_mesh;
@@ -87,6 +88,8 @@ pub struct World {
     pub objects: Vec<ObjectSpec>,
     /// Tools.
     pub tools: Vec<ToolSpec>,
+    /// The training exercise (`[exercise]`), if the world is one.
+    pub exercise: Option<ExerciseSpec>,
 }
 
 /// One deformable object.
@@ -337,6 +340,10 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
     for (i, tie) in file.ties.iter().enumerate() {
         ties.push(cx.tie(i, tie, &objects)?);
     }
+    let exercise = match &file.exercise {
+        Some(section) => Some(cx.exercise(section, &tools)?),
+        None => None,
+    };
     Ok(World {
         source: path.to_owned(),
         scene,
@@ -348,8 +355,12 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         ties,
         objects,
         tools,
+        exercise,
     })
 }
+
+/// The most targets an exercise may have.
+pub const MAX_EXERCISE_TARGETS: usize = 64;
 
 fn line_of(text: &str, byte: usize) -> usize {
     text.as_bytes()[..byte.min(text.len())]
@@ -839,6 +850,99 @@ impl Context<'_> {
             pairs,
             stiffness_n_per_mm: t.stiffness_n_per_mm,
             damping_n_s_per_mm: t.damping_n_s_per_mm,
+        })
+    }
+
+    fn exercise(
+        &self,
+        section: &Spanned<ExerciseSection>,
+        tools: &[ToolSpec],
+    ) -> Result<ExerciseSpec, WorldError> {
+        let e = section.get_ref();
+        let name = e.name.get_ref().clone();
+        self.check(&e.name, "exercise.name", !name.trim().is_empty(), "empty")?;
+        let limit = *e.time_limit_s.get_ref();
+        self.check(
+            &e.time_limit_s,
+            "exercise.time_limit_s",
+            limit.is_finite() && limit > 0.0 && limit <= 86_400.0,
+            &format!("must be a time in (0, 86400] s (got {limit})"),
+        )?;
+        let depth_limit_mm = match &e.depth_limit_mm {
+            Some(at) => Some(self.positive(at, "exercise.depth_limit_mm")?),
+            None => None,
+        };
+        if e.kind == ExerciseKind::AccurateTouch && depth_limit_mm.is_none() {
+            return Err(self.invalid(
+                section,
+                "exercise.depth_limit_mm",
+                "an accurate-touch exercise needs a depth limit",
+            ));
+        }
+        let list = e.targets.get_ref();
+        self.check(
+            &e.targets,
+            "exercise.targets",
+            !list.is_empty() && list.len() <= MAX_EXERCISE_TARGETS,
+            &format!(
+                "needs 1 to {MAX_EXERCISE_TARGETS} targets (got {})",
+                list.len()
+            ),
+        )?;
+        let mut targets = Vec::with_capacity(list.len());
+        for (i, target) in list.iter().enumerate() {
+            let key = |k: &str| format!("exercise.targets[{i}].{k}");
+            let t = target.get_ref();
+            self.check(
+                target,
+                &key("at_mm"),
+                t.at_mm.iter().all(|c| c.is_finite()),
+                "must be finite",
+            )?;
+            self.check(
+                target,
+                &key("radius_mm"),
+                t.radius_mm.is_finite() && t.radius_mm > 0.0,
+                &format!("must be a positive number (got {})", t.radius_mm),
+            )?;
+            let tool = match &t.tool {
+                Some(name) => {
+                    Some(tools.iter().position(|s| &s.name == name).ok_or_else(|| {
+                        self.invalid(
+                            target,
+                            &key("tool"),
+                            format!(
+                                "no tool named `{name}` (tools: {})",
+                                tools
+                                    .iter()
+                                    .map(|s| s.name.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ),
+                        )
+                    })?)
+                }
+                None if e.kind == ExerciseKind::Coordination => {
+                    return Err(self.invalid(
+                        target,
+                        &key("tool"),
+                        "a coordination target names the tool that must touch it",
+                    ));
+                }
+                None => None,
+            };
+            targets.push(TargetSpec {
+                at_mm: t.at_mm,
+                radius_mm: t.radius_mm,
+                tool,
+            });
+        }
+        Ok(ExerciseSpec {
+            name,
+            kind: e.kind,
+            time_limit_s: limit,
+            depth_limit_mm,
+            targets,
         })
     }
 

@@ -1,0 +1,351 @@
+//! Running and scoring a training exercise ([`crate::world::ExerciseSpec`]) from the session's events.
+//!
+//! Owns: [`ExerciseRun`] (the live state: which target is next, the clock, the errors) and [`ExerciseScore`].
+//!
+//! Rules. The clock starts at the first tick a device drives a tool. Each touch (a debounced
+//! [`EventKind::ContactBegin`]) is judged where the tool's centre is at that tick, across the surface (in the
+//! world's x-y plane: targets lie on surfaces facing up, as on the pad):
+//! - within the next target's radius, by the tool it names (or any tool if it names none): a hit, and the
+//!   exercise moves to the following target; the last hit completes it;
+//! - within the next target's radius by another tool: a **wrong-tool** error;
+//! - anywhere else: an **off-target** error (tissue touched where it should not be).
+//!
+//! While a touch that hit lasts, its depth is tracked: how far the tool's centre went below where it was when the
+//! touch began. Past the exercise's depth limit, the touch is a **too-deep** error (once per touch). When the time
+//! limit passes before the last hit, the remaining targets are missed. Score: 100 points shared among the targets
+//! hit, minus 10 per error, at least 0; passed means every target hit and no error.
+//!
+//! Must not: allocate after construction (it can run on the sim thread) or read a clock.
+
+use serde::{Deserialize, Serialize};
+
+use super::events::{EventKind, SessionEvent, ToolActivity};
+use crate::world::{ExerciseKind, ExerciseSpec};
+
+/// Points lost per error.
+pub const POINTS_PER_ERROR: f64 = 10.0;
+
+/// One hit target.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TargetHit {
+    /// Target index.
+    pub target: usize,
+    /// The tool that hit it.
+    pub tool: usize,
+    /// When, s from the exercise's start.
+    pub at_s: f64,
+    /// Distance from the mark across the surface, mm.
+    pub distance_mm: f64,
+    /// Deepest press during the touch, mm.
+    pub max_depth_mm: f64,
+}
+
+/// Errors by kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct ExerciseErrors {
+    /// The next target touched by a tool it does not name.
+    pub wrong_tool: u32,
+    /// Tissue touched away from the next target.
+    pub off_target: u32,
+    /// A hit pressed deeper than the limit.
+    pub too_deep: u32,
+}
+
+impl ExerciseErrors {
+    /// All errors.
+    pub fn total(&self) -> u32 {
+        self.wrong_tool + self.off_target + self.too_deep
+    }
+}
+
+/// How an exercise went.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExerciseScore {
+    /// The exercise's name.
+    pub name: String,
+    /// Its kind.
+    pub kind: ExerciseKind,
+    /// Every target hit in time.
+    pub completed: bool,
+    /// Completed with no error.
+    pub passed: bool,
+    /// 0-100.
+    pub score: f64,
+    /// From the start to the last hit (or to the limit, or to the end of the session), s.
+    pub time_s: f64,
+    /// The time limit passed first.
+    pub timed_out: bool,
+    /// Targets hit, of `targets_total`.
+    pub targets_hit: usize,
+    /// Targets in the exercise.
+    pub targets_total: usize,
+    /// Errors.
+    pub errors: ExerciseErrors,
+    /// Mean distance of the hits from their marks, mm (0 without hits).
+    pub mean_distance_mm: f64,
+    /// Deepest press at a hit, mm.
+    pub max_depth_mm: f64,
+    /// The hits, in order.
+    pub hits: Vec<TargetHit>,
+}
+
+/// A touch in progress that hit a target: its tool's starting height and the deepest it went.
+#[derive(Debug, Clone, Copy)]
+struct OpenTouch {
+    hit: usize,
+    start_z_mm: f32,
+    flagged: bool,
+}
+
+/// The live state of an exercise.
+#[derive(Debug, Clone)]
+pub struct ExerciseRun {
+    spec: ExerciseSpec,
+    dt_s: f64,
+    started_tick: Option<u64>,
+    finished_tick: Option<u64>,
+    timed_out_tick: Option<u64>,
+    last_tick: u64,
+    hits: Vec<TargetHit>,
+    errors: ExerciseErrors,
+    open: Vec<Option<OpenTouch>>,
+}
+
+impl ExerciseRun {
+    /// A run of `spec` over `tools` tools, ticks of `dt_s`.
+    pub fn new(spec: ExerciseSpec, tools: usize, dt_s: f64) -> Self {
+        let hits = Vec::with_capacity(spec.targets.len());
+        Self {
+            spec,
+            dt_s,
+            started_tick: None,
+            finished_tick: None,
+            timed_out_tick: None,
+            last_tick: 0,
+            hits,
+            errors: ExerciseErrors::default(),
+            open: vec![None; tools],
+        }
+    }
+
+    /// The exercise.
+    pub fn spec(&self) -> &ExerciseSpec {
+        &self.spec
+    }
+
+    /// The target to touch next (None when done or out of time).
+    pub fn next_target(&self) -> Option<usize> {
+        (self.finished_tick.is_none() && self.timed_out_tick.is_none())
+            .then_some(self.hits.len())
+            .filter(|&n| n < self.spec.targets.len())
+    }
+
+    fn elapsed_s(&self, tick: u64) -> f64 {
+        self.started_tick.map_or(0.0, |start| {
+            (tick.saturating_sub(start) + 1) as f64 * self.dt_s
+        })
+    }
+
+    /// An event on tool `event.tool`, whose activity this tick is `activity`.
+    pub fn on_event(&mut self, event: &SessionEvent, activity: &ToolActivity) {
+        let tool = usize::from(event.tool);
+        match event.kind {
+            EventKind::Joined if self.started_tick.is_none() => {
+                self.started_tick = Some(event.tick)
+            }
+            EventKind::ContactBegin => self.touch(event.tick, tool, activity),
+            EventKind::ContactEnd | EventKind::Left => {
+                if let Some(slot) = self.open.get_mut(tool) {
+                    *slot = None;
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn touch(&mut self, tick: u64, tool: usize, activity: &ToolActivity) {
+        let Some(next) = self.next_target() else {
+            return;
+        };
+        let target = &self.spec.targets[next];
+        let [x, y, z] = activity.tool_world_mm;
+        let distance_mm = (f64::from(x - target.at_mm[0])).hypot(f64::from(y - target.at_mm[1]));
+        if distance_mm > f64::from(target.radius_mm) {
+            self.errors.off_target += 1;
+            return;
+        }
+        if target.tool.is_some_and(|t| t != tool) {
+            self.errors.wrong_tool += 1;
+            return;
+        }
+        let at_s = self.elapsed_s(tick);
+        self.hits.push(TargetHit {
+            target: next,
+            tool,
+            at_s,
+            distance_mm,
+            max_depth_mm: 0.0,
+        });
+        if let Some(slot) = self.open.get_mut(tool) {
+            *slot = Some(OpenTouch {
+                hit: self.hits.len() - 1,
+                start_z_mm: z,
+                flagged: false,
+            });
+        }
+        if self.hits.len() == self.spec.targets.len() {
+            self.finished_tick = Some(tick);
+        }
+    }
+
+    /// The end of tick `tick`, with every tool's activity: depths of open touches, and the clock.
+    pub fn on_tick(&mut self, tick: u64, activities: &[ToolActivity]) {
+        self.last_tick = tick;
+        let limit = self.spec.depth_limit_mm;
+        for (slot, activity) in self.open.iter_mut().zip(activities) {
+            let Some(open) = slot else { continue };
+            let depth_mm = f64::from(open.start_z_mm - activity.tool_world_mm[2]);
+            if let Some(hit) = self.hits.get_mut(open.hit)
+                && depth_mm.is_finite()
+                && depth_mm > hit.max_depth_mm
+            {
+                hit.max_depth_mm = depth_mm;
+            }
+            if let Some(limit) = limit
+                && !open.flagged
+                && depth_mm > f64::from(limit)
+            {
+                open.flagged = true;
+                self.errors.too_deep += 1;
+            }
+        }
+        if self.finished_tick.is_none()
+            && self.timed_out_tick.is_none()
+            && self.started_tick.is_some()
+            && self.elapsed_s(tick) > self.spec.time_limit_s
+        {
+            self.timed_out_tick = Some(tick);
+        }
+    }
+
+    /// The score so far.
+    pub fn score(&self) -> ExerciseScore {
+        let total = self.spec.targets.len();
+        let hit = self.hits.len();
+        let completed = self.finished_tick.is_some();
+        let errors = self.errors;
+        let end_tick = self
+            .finished_tick
+            .or(self.timed_out_tick)
+            .unwrap_or(self.last_tick);
+        let time_s = if self.timed_out_tick.is_some() && !completed {
+            self.spec.time_limit_s
+        } else {
+            self.elapsed_s(end_tick)
+        };
+        let score = (100.0 * hit as f64 / total.max(1) as f64
+            - POINTS_PER_ERROR * f64::from(errors.total()))
+        .max(0.0);
+        ExerciseScore {
+            name: self.spec.name.clone(),
+            kind: self.spec.kind,
+            completed,
+            passed: completed && errors.total() == 0,
+            score,
+            time_s,
+            timed_out: self.timed_out_tick.is_some() && !completed,
+            targets_hit: hit,
+            targets_total: total,
+            errors,
+            mean_distance_mm: if hit > 0 {
+                self.hits.iter().map(|h| h.distance_mm).sum::<f64>() / hit as f64
+            } else {
+                0.0
+            },
+            max_depth_mm: self.hits.iter().map(|h| h.max_depth_mm).fold(0.0, f64::max),
+            hits: self.hits.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use crate::world::TargetSpec;
+
+    fn spec(limit_s: f64) -> ExerciseSpec {
+        let target = |x: f32| TargetSpec {
+            at_mm: [x, 0.0, 0.0],
+            radius_mm: 2.0,
+            tool: Some(0),
+        };
+        ExerciseSpec {
+            name: "two".into(),
+            kind: ExerciseKind::Coordination,
+            time_limit_s: limit_s,
+            depth_limit_mm: None,
+            targets: vec![target(0.0), target(10.0)],
+        }
+    }
+
+    fn at(x: f32) -> ToolActivity {
+        ToolActivity {
+            active: true,
+            in_contact: true,
+            tool_world_mm: [x, 0.5, 4.0],
+            ..ToolActivity::default()
+        }
+    }
+
+    fn event(tick: u64, kind: EventKind) -> SessionEvent {
+        SessionEvent {
+            tick,
+            tool: 0,
+            kind,
+        }
+    }
+
+    #[test]
+    fn out_of_time_misses_the_rest_and_scores_what_was_hit() {
+        let mut run = ExerciseRun::new(spec(0.010), 1, 0.001);
+        run.on_event(&event(0, EventKind::Joined), &at(0.0));
+        run.on_event(&event(3, EventKind::ContactBegin), &at(0.0));
+        assert_eq!(run.next_target(), Some(1));
+        for tick in 0..20 {
+            run.on_tick(tick, &[at(0.0)]);
+        }
+        // Too late: the clock ran out at tick 10.
+        run.on_event(&event(15, EventKind::ContactBegin), &at(10.0));
+        let score = run.score();
+        assert!(
+            !score.completed && score.timed_out && !score.passed,
+            "{score:?}"
+        );
+        assert_eq!(
+            (score.targets_hit, score.score, score.time_s),
+            (1, 50.0, 0.010)
+        );
+        assert!((score.hits[0].at_s - 0.004).abs() < 1e-12);
+        assert!((score.hits[0].distance_mm - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn errors_cost_ten_points_each_and_never_below_zero() {
+        let mut run = ExerciseRun::new(spec(10.0), 2, 0.001);
+        run.on_event(&event(0, EventKind::Joined), &at(0.0));
+        for k in 0..12 {
+            // Tool 1 on tool 0's target: wrong tool, twelve times.
+            let e = SessionEvent {
+                tick: k + 1,
+                tool: 1,
+                kind: EventKind::ContactBegin,
+            };
+            run.on_event(&e, &at(0.0));
+        }
+        let score = run.score();
+        assert_eq!(score.errors.wrong_tool, 12);
+        assert_eq!(score.score, 0.0);
+    }
+}

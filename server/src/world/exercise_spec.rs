@@ -1,0 +1,65 @@
+//! A training exercise as a world file states it (`[exercise]`): what to touch, with which tool, in what order,
+//! within what time and how gently. Plain data, validated by the loader; the training layer runs and scores it
+//! (`crate::training::exercise`).
+//!
+//! ```toml
+//! [exercise]
+//! name = "coordination"
+//! kind = "coordination"        # or "accurate-touch"
+//! time_limit_s = 60.0
+//! depth_limit_mm = 3.0         # accurate-touch: deepest press allowed at a target, mm
+//! [[exercise.targets]]
+//! at_mm = [-20.0, 10.0, 0.0]   # a point on the tissue surface, world frame
+//! radius_mm = 5.0              # a touch this close (across the surface) hits it
+//! tool = "left-probe"          # coordination: the tool whose colour the target shows
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+/// What the exercise trains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ExerciseKind {
+    /// Touch targets one after another, each with the tool it names (laparoscopic basic skills: coordination).
+    /// Scored by time, path and errors (wrong tool, a touch off the target).
+    Coordination,
+    /// Touch marked points on deformable tissue without pressing deeper than a limit. Scored by accuracy
+    /// (distance from the mark) and harm (presses too deep).
+    AccurateTouch,
+}
+
+impl ExerciseKind {
+    /// The name the world file uses.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ExerciseKind::Coordination => "coordination",
+            ExerciseKind::AccurateTouch => "accurate-touch",
+        }
+    }
+}
+
+/// One target.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetSpec {
+    /// A point on the tissue's rest surface, world frame, mm.
+    pub at_mm: [f32; 3],
+    /// A touch whose point lies this close to `at_mm` across the surface hits the target, mm.
+    pub radius_mm: f32,
+    /// The tool that must touch it (by index in the world's tools); None: any tool.
+    pub tool: Option<usize>,
+}
+
+/// A validated `[exercise]` section.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExerciseSpec {
+    /// Its name in reports.
+    pub name: String,
+    /// What it trains.
+    pub kind: ExerciseKind,
+    /// Time allowed from the first driven tick, s.
+    pub time_limit_s: f64,
+    /// Deepest press allowed at a target, mm (accurate-touch).
+    pub depth_limit_mm: Option<f32>,
+    /// Targets, in the order they must be touched.
+    pub targets: Vec<TargetSpec>,
+}
