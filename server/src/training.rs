@@ -17,7 +17,9 @@ pub mod observer;
 pub mod skill_state;
 
 pub use events::{EventDetector, EventKind, SessionEvent, ToolActivity};
-pub use exercise::{ExerciseErrors, ExerciseRun, ExerciseScore, TargetHit};
+pub use exercise::{
+    ExerciseErrors, ExerciseRun, ExerciseScore, RankedPair, RankingResult, TargetHit,
+};
 pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
 pub use observer::{SessionObserver, TickView};
 pub use skill_state::{SkillMachine, SkillState, Transition};

@@ -12,7 +12,7 @@ mod loader;
 mod mesh_file;
 mod tet_mesh;
 
-pub use exercise_spec::{ExerciseKind, ExerciseSpec, TargetSpec};
+pub use exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 pub use file_format::{IntegratorName, LengthUnit};
 pub use grid_sheet::{grid_sheet, to_obj_text};

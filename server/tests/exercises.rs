@@ -268,3 +268,103 @@ fn accurate_touch_gentle_passes_and_a_deep_press_and_a_stray_touch_cost_20_point
         bad.hits[0]
     );
 }
+
+#[test]
+fn stiffness_ranking_in_the_right_order_passes_and_one_swap_costs_a_pair_and_the_samples_really_differ()
+ {
+    let world = shipped("exercise_stiffness_ranking.toml");
+    let samples = world.exercise.as_ref().unwrap().samples.clone();
+    let x_of = |name: &str| {
+        let s = samples.iter().find(|s| s.name == name).unwrap();
+        (s.min_xy_mm[0] + s.max_xy_mm[0]) / 2.0
+    };
+    // Explore every sample (2 mm), then tap them in `order`; the right hand stays up.
+    let trainee = |order: [&str; 3]| {
+        let mut left = Hand::at(hover(-12.0)).hold(0.2);
+        for name in ["sample-a", "sample-b", "sample-c"] {
+            left = left.touch(x_of(name), 0.0, 2.0);
+        }
+        for name in order {
+            left = left.touch(x_of(name), 0.0, 1.0);
+        }
+        left
+    };
+    let right = Hand::at(hover(12.0));
+    let good = run(
+        &world,
+        &trainee(["sample-b", "sample-c", "sample-a"]),
+        &right,
+    );
+    let ranking = good.ranking.clone().unwrap();
+    assert_eq!(ranking.truth, ["sample-b", "sample-c", "sample-a"]);
+    assert_eq!(ranking.answer, ranking.truth);
+    assert_eq!(ranking.touches, [2, 2, 2]);
+    assert!(good.completed && good.passed, "{good:?}");
+    assert_eq!(
+        (good.targets_hit, good.targets_total, good.score),
+        (3, 3, 100.0)
+    );
+    let mut ratios: Vec<f64> = ranking.pairs.iter().map(|p| p.stiffness_ratio).collect();
+    ratios.sort_by(f64::total_cmp);
+    assert!(
+        (ratios[0] - 1.3).abs() < 1e-3 && (ratios[2] - 2.0).abs() < 1e-3,
+        "{ratios:?}"
+    );
+
+    // c before b: the 1.3x pair is wrong, the others right.
+    let swapped = run(
+        &world,
+        &trainee(["sample-c", "sample-b", "sample-a"]),
+        &right,
+    );
+    let pairs = &swapped.ranking.as_ref().unwrap().pairs;
+    let wrong: Vec<_> = pairs.iter().filter(|p| !p.correct).collect();
+    assert_eq!(wrong.len(), 1, "{pairs:?}");
+    assert!((wrong[0].stiffness_ratio - 1.3).abs() < 1e-3);
+    assert!(swapped.completed && !swapped.passed);
+    assert!((swapped.score - 200.0 / 3.0).abs() < 1e-9, "{swapped:?}");
+}
+
+/// The ranking is learnable: pressing each sample 2 mm, the softest pushes back least and the firmest most.
+#[test]
+fn the_ranking_samples_push_back_in_their_stiffness_order() {
+    let world = shipped("exercise_stiffness_ranking.toml");
+    let sim = Sim::new(&world).unwrap();
+    let mut tick = ServerTick::new(sim, 0.001, world.pose_timeout_s, DeadbandParams::default());
+    let origin = world.tools[0].device_origin_in_world_mm;
+    let mut force_at = std::collections::BTreeMap::new();
+    for sample in &world.exercise.as_ref().unwrap().samples {
+        let x = (sample.min_xy_mm[0] + sample.max_xy_mm[0]) / 2.0;
+        let hand = Hand::at(hover(x))
+            .go([x, 0.0, TOUCH_Z - 2.0], 30.0)
+            .hold(0.5);
+        let mut out = [None; 2];
+        let start = 0;
+        let mut last = 0.0;
+        for k in start..(hand.end().0 * 1000.0) as u64 {
+            let p = hand.position(k as f64 * 0.001);
+            let input = PoseInput {
+                pose: DevicePose {
+                    seq: k + 1,
+                    position_mm: [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]],
+                    orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+                    ..DevicePose::default()
+                },
+                age_s: 0.0,
+                usable: true,
+            };
+            tick.step(&[Some(input), None], &[None, None], &mut out);
+            last = tick.outputs()[0].force_world_n.z;
+        }
+        force_at.insert(sample.name.clone(), last);
+        // Lift off and let the tool leave before the next sample.
+        let mut out = [None; 2];
+        tick.step(&[None, None], &[None, None], &mut out);
+    }
+    println!("{force_at:?}");
+    let f = |n: &str| force_at[n];
+    assert!(
+        f("sample-b") < f("sample-c") && f("sample-c") < f("sample-a"),
+        "{force_at:?}"
+    );
+}

@@ -417,7 +417,11 @@ fn the_shipped_exercises_and_a_test_exercise_load() {
     let exercise = world.exercise.unwrap();
     assert_eq!(exercise.targets.len(), 2);
     assert_eq!(exercise.targets[1].tool, Some(0));
-    for name in ["exercise_coordination.toml", "exercise_accurate_touch.toml"] {
+    for name in [
+        "exercise_coordination.toml",
+        "exercise_accurate_touch.toml",
+        "exercise_stiffness_ranking.toml",
+    ] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../worlds")
             .join(name);
@@ -498,4 +502,45 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
     );
     let (error, _, _) = refused(&world, None);
     assert_eq!(invalid_key_and_line(&error).0, "exercise.targets");
+}
+
+#[test]
+fn a_bad_ranking_exercise_names_the_samples_key_and_the_objects() {
+    let ranking = "\n[exercise]\nname = \"rank\"\nkind = \"stiffness-ranking\"\ntime_limit_s = 10.0\nsamples = [\"sheet\", \"liver\"]\n";
+    let world = format!("{GOOD_WORLD}{ranking}");
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        ("exercise.samples", line_of(&world, "samples = "))
+    );
+    assert!(
+        message.contains("liver") && message.contains("objects: sheet"),
+        "{message}"
+    );
+
+    // One sample is no ranking.
+    let world = format!("{GOOD_WORLD}{}", ranking.replace(", \"liver\"", ""));
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error).0,
+        "exercise.samples",
+        "{message}"
+    );
+
+    // Samples on a target exercise, and a ranking without samples.
+    let world = format!(
+        "{GOOD_WORLD}{}",
+        EXERCISE.replace(
+            "time_limit_s = 30.0",
+            "time_limit_s = 30.0\nsamples = [\"sheet\"]"
+        )
+    );
+    let (error, _, _) = refused(&world, None);
+    assert_eq!(invalid_key_and_line(&error).0, "exercise.samples");
+    let world = format!(
+        "{GOOD_WORLD}{}",
+        ranking.replace("samples = [\"sheet\", \"liver\"]\n", "")
+    );
+    let (error, _, _) = refused(&world, None);
+    assert_eq!(invalid_key_and_line(&error).0, "exercise.samples");
 }

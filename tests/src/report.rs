@@ -196,7 +196,7 @@ pub fn summary(report: &SessionReport) -> String {
     if let Some(e) = &report.exercise {
         let _ = writeln!(
             s,
-            "exercise `{}` ({}): {} - score {:.0}/100, {} of {} targets in {:.1} s{}; errors: {} wrong tool, {} off \
+            "exercise `{}` ({}): {} - score {:.0}/100, {} of {} {} in {:.1} s{}; errors: {} wrong tool, {} off \
              target, {} too deep; mean distance from the marks {:.1} mm, deepest press {:.1} mm",
             e.name,
             e.kind.as_str(),
@@ -210,6 +210,11 @@ pub fn summary(report: &SessionReport) -> String {
             e.score,
             e.targets_hit,
             e.targets_total,
+            if e.ranking.is_some() {
+                "pairs ranked right"
+            } else {
+                "targets"
+            },
             e.time_s,
             if e.timed_out { " (time ran out)" } else { "" },
             e.errors.wrong_tool,
@@ -218,6 +223,32 @@ pub fn summary(report: &SessionReport) -> String {
             e.mean_distance_mm,
             e.max_depth_mm
         );
+        if let Some(r) = &e.ranking {
+            let pairs: Vec<String> = r
+                .pairs
+                .iter()
+                .map(|p| {
+                    format!(
+                        "{} < {} ({:.2}x): {}",
+                        p.softer,
+                        p.firmer,
+                        p.stiffness_ratio,
+                        if p.correct { "right" } else { "wrong" }
+                    )
+                })
+                .collect();
+            let _ = writeln!(
+                s,
+                "  ranked {} (softest first; truth {}); pairs: {}",
+                if r.answer.is_empty() {
+                    "nothing".to_owned()
+                } else {
+                    r.answer.join(" < ")
+                },
+                r.truth.join(" < "),
+                pairs.join(", ")
+            );
+        }
     }
     for p in &report.participants {
         let m = &p.metrics;

@@ -10,6 +10,11 @@
 //! - within the next target's radius by another tool: a **wrong-tool** error;
 //! - anywhere else: an **off-target** error (tissue touched where it should not be).
 //!
+//! A stiffness-ranking exercise has samples instead of targets: every touch over a sample (inside its rest
+//! extent across the surface) is that sample's latest, and a touch over none is off target. The answer is the
+//! order of the samples' last touches (softest first); each pair of samples in the right order scores, and the
+//! report lists every pair with its stiffness ratio (success against the stiffness difference).
+//!
 //! While a touch that hit lasts, its depth is tracked: how far the tool's centre went below where it was when the
 //! touch began. Past the exercise's depth limit, the touch is a **too-deep** error (once per touch). When the time
 //! limit passes before the last hit, the remaining targets are missed. Score: 100 points shared among the targets
@@ -58,6 +63,32 @@ impl ExerciseErrors {
     }
 }
 
+/// One pair of samples in a ranking: did the trainee put the softer first?
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RankedPair {
+    /// The softer sample's name.
+    pub softer: String,
+    /// The firmer sample's name.
+    pub firmer: String,
+    /// Firmer over softer stiffness.
+    pub stiffness_ratio: f64,
+    /// Ranked right.
+    pub correct: bool,
+}
+
+/// A ranking's answer against the truth.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RankingResult {
+    /// The samples in the order of their last touches (touched ones only).
+    pub answer: Vec<String>,
+    /// The samples from softest to firmest.
+    pub truth: Vec<String>,
+    /// Every pair of samples with distinct stiffness.
+    pub pairs: Vec<RankedPair>,
+    /// Touches per sample, in world order.
+    pub touches: Vec<u32>,
+}
+
 /// How an exercise went.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ExerciseScore {
@@ -75,9 +106,9 @@ pub struct ExerciseScore {
     pub time_s: f64,
     /// The time limit passed first.
     pub timed_out: bool,
-    /// Targets hit, of `targets_total`.
+    /// Targets hit, of `targets_total` (a ranking: pairs ranked right, of all pairs).
     pub targets_hit: usize,
-    /// Targets in the exercise.
+    /// Targets in the exercise (a ranking: pairs of samples).
     pub targets_total: usize,
     /// Errors.
     pub errors: ExerciseErrors,
@@ -87,6 +118,8 @@ pub struct ExerciseScore {
     pub max_depth_mm: f64,
     /// The hits, in order.
     pub hits: Vec<TargetHit>,
+    /// A stiffness ranking's answer.
+    pub ranking: Option<RankingResult>,
 }
 
 /// A touch in progress that hit a target: its tool's starting height and the deepest it went.
@@ -109,13 +142,19 @@ pub struct ExerciseRun {
     hits: Vec<TargetHit>,
     errors: ExerciseErrors,
     open: Vec<Option<OpenTouch>>,
+    /// Per sample (ranking): the tick of its last touch, and its touches.
+    last_touch: Vec<Option<u64>>,
+    touches: Vec<u32>,
 }
 
 impl ExerciseRun {
     /// A run of `spec` over `tools` tools, ticks of `dt_s`.
     pub fn new(spec: ExerciseSpec, tools: usize, dt_s: f64) -> Self {
         let hits = Vec::with_capacity(spec.targets.len());
+        let samples = spec.samples.len();
         Self {
+            last_touch: vec![None; samples],
+            touches: vec![0; samples],
             spec,
             dt_s,
             started_tick: None,
@@ -164,6 +203,10 @@ impl ExerciseRun {
     }
 
     fn touch(&mut self, tick: u64, tool: usize, activity: &ToolActivity) {
+        if self.spec.kind == ExerciseKind::StiffnessRanking {
+            self.touch_sample(tick, activity);
+            return;
+        }
         let Some(next) = self.next_target() else {
             return;
         };
@@ -198,6 +241,66 @@ impl ExerciseRun {
         }
     }
 
+    fn touch_sample(&mut self, tick: u64, activity: &ToolActivity) {
+        if self.timed_out_tick.is_some() {
+            return;
+        }
+        let [x, y, _] = activity.tool_world_mm;
+        let over = self.spec.samples.iter().position(|s| {
+            (s.min_xy_mm[0]..=s.max_xy_mm[0]).contains(&x)
+                && (s.min_xy_mm[1]..=s.max_xy_mm[1]).contains(&y)
+        });
+        match over {
+            Some(s) => {
+                self.last_touch[s] = Some(tick);
+                self.touches[s] += 1;
+            }
+            None => self.errors.off_target += 1,
+        }
+    }
+
+    fn ranking(&self) -> RankingResult {
+        let samples = &self.spec.samples;
+        let mut answer: Vec<usize> = (0..samples.len())
+            .filter(|&s| self.last_touch[s].is_some())
+            .collect();
+        answer.sort_by_key(|&s| self.last_touch[s]);
+        let mut truth: Vec<usize> = (0..samples.len()).collect();
+        truth.sort_by(|&a, &b| {
+            samples[a]
+                .stiffness_n_per_mm
+                .total_cmp(&samples[b].stiffness_n_per_mm)
+        });
+        let mut pairs = Vec::new();
+        for (i, &soft) in truth.iter().enumerate() {
+            for &firm in &truth[i + 1..] {
+                let (ks, kf) = (
+                    samples[soft].stiffness_n_per_mm,
+                    samples[firm].stiffness_n_per_mm,
+                );
+                if kf <= ks {
+                    continue;
+                }
+                let correct = matches!(
+                    (self.last_touch[soft], self.last_touch[firm]),
+                    (Some(a), Some(b)) if a < b
+                );
+                pairs.push(RankedPair {
+                    softer: samples[soft].name.clone(),
+                    firmer: samples[firm].name.clone(),
+                    stiffness_ratio: f64::from(kf / ks),
+                    correct,
+                });
+            }
+        }
+        RankingResult {
+            answer: answer.iter().map(|&s| samples[s].name.clone()).collect(),
+            truth: truth.iter().map(|&s| samples[s].name.clone()).collect(),
+            pairs,
+            touches: self.touches.clone(),
+        }
+    }
+
     /// The end of tick `tick`, with every tool's activity: depths of open touches, and the clock.
     pub fn on_tick(&mut self, tick: u64, activities: &[ToolActivity]) {
         self.last_tick = tick;
@@ -219,7 +322,8 @@ impl ExerciseRun {
                 self.errors.too_deep += 1;
             }
         }
-        if self.finished_tick.is_none()
+        let open_ended = self.spec.kind == ExerciseKind::StiffnessRanking;
+        if (self.finished_tick.is_none() || open_ended)
             && self.timed_out_tick.is_none()
             && self.started_tick.is_some()
             && self.elapsed_s(tick) > self.spec.time_limit_s
@@ -230,15 +334,26 @@ impl ExerciseRun {
 
     /// The score so far.
     pub fn score(&self) -> ExerciseScore {
-        let total = self.spec.targets.len();
-        let hit = self.hits.len();
-        let completed = self.finished_tick.is_some();
+        let ranking = (self.spec.kind == ExerciseKind::StiffnessRanking).then(|| self.ranking());
+        let (total, hit, completed) = match &ranking {
+            // A ranking is complete when every sample has an answer; its "targets" are the pairs.
+            Some(r) => (
+                r.pairs.len(),
+                r.pairs.iter().filter(|p| p.correct).count(),
+                r.answer.len() == self.spec.samples.len(),
+            ),
+            None => (
+                self.spec.targets.len(),
+                self.hits.len(),
+                self.finished_tick.is_some(),
+            ),
+        };
         let errors = self.errors;
         let end_tick = self
             .finished_tick
             .or(self.timed_out_tick)
             .unwrap_or(self.last_tick);
-        let time_s = if self.timed_out_tick.is_some() && !completed {
+        let time_s = if self.timed_out_tick.is_some() && (!completed || ranking.is_some()) {
             self.spec.time_limit_s
         } else {
             self.elapsed_s(end_tick)
@@ -250,10 +365,10 @@ impl ExerciseRun {
             name: self.spec.name.clone(),
             kind: self.spec.kind,
             completed,
-            passed: completed && errors.total() == 0,
+            passed: completed && errors.total() == 0 && hit == total,
             score,
             time_s,
-            timed_out: self.timed_out_tick.is_some() && !completed,
+            timed_out: self.timed_out_tick.is_some() && (!completed || ranking.is_some()),
             targets_hit: hit,
             targets_total: total,
             errors,
@@ -264,6 +379,7 @@ impl ExerciseRun {
             },
             max_depth_mm: self.hits.iter().map(|h| h.max_depth_mm).fold(0.0, f64::max),
             hits: self.hits.clone(),
+            ranking,
         }
     }
 }
@@ -287,6 +403,7 @@ mod tests {
             time_limit_s: limit_s,
             depth_limit_mm: None,
             targets: vec![target(0.0), target(10.0)],
+            samples: Vec::new(),
         }
     }
 

@@ -13,6 +13,8 @@
 //! radius_mm = 5.0              # a touch this close (across the surface) hits it
 //! tool = "left-probe"          # coordination: the tool whose colour the target shows
 //! ```
+//!
+//! A `kind = "stiffness-ranking"` exercise names objects instead of targets: `samples = ["a", "b", "c"]`.
 
 use serde::{Deserialize, Serialize};
 
@@ -26,6 +28,10 @@ pub enum ExerciseKind {
     /// Touch marked points on deformable tissue without pressing deeper than a limit. Scored by accuracy
     /// (distance from the mark) and harm (presses too deep).
     AccurateTouch,
+    /// Press tissue samples of unknown stiffness and rank them: explore freely, then touch each sample once
+    /// more, softest first; the order of the last touches is the answer. Scored by the pairs ranked right,
+    /// against each pair's stiffness ratio (force sensitivity).
+    StiffnessRanking,
 }
 
 impl ExerciseKind {
@@ -34,6 +40,7 @@ impl ExerciseKind {
         match self {
             ExerciseKind::Coordination => "coordination",
             ExerciseKind::AccurateTouch => "accurate-touch",
+            ExerciseKind::StiffnessRanking => "stiffness-ranking",
         }
     }
 }
@@ -49,6 +56,21 @@ pub struct TargetSpec {
     pub tool: Option<usize>,
 }
 
+/// A tissue sample to rank (an object of the world).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SampleSpec {
+    /// The object's index in the world.
+    pub object: usize,
+    /// Its name.
+    pub name: String,
+    /// Its per-edge stiffness, N/mm (the truth the ranking is scored against).
+    pub stiffness_n_per_mm: f32,
+    /// Its rest extent across the surface, world x-y, mm: a touch there touches this sample.
+    pub min_xy_mm: [f32; 2],
+    /// Upper corner.
+    pub max_xy_mm: [f32; 2],
+}
+
 /// A validated `[exercise]` section.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ExerciseSpec {
@@ -60,6 +82,8 @@ pub struct ExerciseSpec {
     pub time_limit_s: f64,
     /// Deepest press allowed at a target, mm (accurate-touch).
     pub depth_limit_mm: Option<f32>,
-    /// Targets, in the order they must be touched.
+    /// Targets, in the order they must be touched (coordination, accurate-touch).
     pub targets: Vec<TargetSpec>,
+    /// Samples to rank (stiffness-ranking), in world order.
+    pub samples: Vec<SampleSpec>,
 }

@@ -99,7 +99,10 @@ pub(crate) struct ExerciseSection {
     pub time_limit_s: Spanned<f64>,
     #[serde(default)]
     pub depth_limit_mm: Option<Spanned<f32>>,
-    pub targets: Spanned<Vec<Spanned<TargetSection>>>,
+    #[serde(default)]
+    pub targets: Option<Spanned<Vec<Spanned<TargetSection>>>>,
+    #[serde(default)]
+    pub samples: Option<Spanned<Vec<String>>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -185,6 +188,9 @@ pub(crate) struct ObjectSection {
     /// `.obj` (a surface) or `.msh` (Gmsh MSH 4.1 tetrahedra: a volume).
     pub mesh: Spanned<String>,
     pub units: LengthUnit,
+    /// Where the mesh's origin sits in the world, mm (default: at the world origin).
+    #[serde(default)]
+    pub offset_mm: Option<Spanned<[f32; 3]>>,
     /// Turn an OBJ surface into a volume: `{ thickness_mm, layers }`.
     #[serde(default)]
     pub extrude: Option<Spanned<ExtrudeSection>>,

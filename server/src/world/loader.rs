@@ -6,11 +6,11 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 use toml::Spanned;
 
-use super::exercise_spec::{ExerciseKind, ExerciseSpec, TargetSpec};
+use super::exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 use super::extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 use super::file_format::{
     ExerciseSection, FixedSection, IntegratorName, LawSection, MaterialSection, ObjectSection,
-    ShapeSection, TieSection, ToolSection, WorldFile,
+    ShapeSection, TargetSection, TieSection, ToolSection, WorldFile,
 };
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
 use super::tet_mesh::load_msh_mesh;
@@ -341,7 +341,7 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         ties.push(cx.tie(i, tie, &objects)?);
     }
     let exercise = match &file.exercise {
-        Some(section) => Some(cx.exercise(section, &tools)?),
+        Some(section) => Some(cx.exercise(section, &tools, &objects)?),
         None => None,
     };
     Ok(World {
@@ -463,7 +463,21 @@ impl Context<'_> {
         for (f, selection) in object.fixed.iter().enumerate() {
             fixed.push(self.fixed(&key(&format!("fixed[{f}]")), selection)?);
         }
-        let (mesh, tets) = self.object_mesh(i, object, base)?;
+        let (mut mesh, tets) = self.object_mesh(i, object, base)?;
+        if let Some(at) = &object.offset_mm {
+            let offset = *at.get_ref();
+            self.check(
+                at,
+                &key("offset_mm"),
+                offset.iter().all(|c| c.is_finite() && c.abs() <= 1e6),
+                "must be finite and within a kilometre",
+            )?;
+            for p in &mut mesh.positions_mm {
+                for k in 0..3 {
+                    p[k] += offset[k];
+                }
+            }
+        }
         if let Some(at) = &object.material.tet_bulk_modulus_kpa
             && material.tet_bulk_modulus_n_per_mm2 > 0.0
             && tets.is_empty()
@@ -857,6 +871,7 @@ impl Context<'_> {
         &self,
         section: &Spanned<ExerciseSection>,
         tools: &[ToolSpec],
+        objects: &[ObjectSpec],
     ) -> Result<ExerciseSpec, WorldError> {
         let e = section.get_ref();
         let name = e.name.get_ref().clone();
@@ -879,16 +894,38 @@ impl Context<'_> {
                 "an accurate-touch exercise needs a depth limit",
             ));
         }
-        let list = e.targets.get_ref();
-        self.check(
-            &e.targets,
-            "exercise.targets",
-            !list.is_empty() && list.len() <= MAX_EXERCISE_TARGETS,
-            &format!(
-                "needs 1 to {MAX_EXERCISE_TARGETS} targets (got {})",
-                list.len()
-            ),
-        )?;
+        let samples = self.exercise_samples(section, objects)?;
+        let ranking = e.kind == ExerciseKind::StiffnessRanking;
+        let list: &[Spanned<TargetSection>] = match &e.targets {
+            Some(at) if ranking => {
+                return Err(self.invalid(
+                    at,
+                    "exercise.targets",
+                    "a stiffness-ranking exercise has samples, not targets",
+                ));
+            }
+            Some(at) => {
+                let list = at.get_ref();
+                self.check(
+                    at,
+                    "exercise.targets",
+                    !list.is_empty() && list.len() <= MAX_EXERCISE_TARGETS,
+                    &format!(
+                        "needs 1 to {MAX_EXERCISE_TARGETS} targets (got {})",
+                        list.len()
+                    ),
+                )?;
+                list
+            }
+            None if ranking => &[],
+            None => {
+                return Err(self.invalid(
+                    section,
+                    "exercise.targets",
+                    "missing: list the targets as [[exercise.targets]] tables",
+                ));
+            }
+        };
         let mut targets = Vec::with_capacity(list.len());
         for (i, target) in list.iter().enumerate() {
             let key = |k: &str| format!("exercise.targets[{i}].{k}");
@@ -943,7 +980,85 @@ impl Context<'_> {
             time_limit_s: limit,
             depth_limit_mm,
             targets,
+            samples,
         })
+    }
+
+    /// A ranking exercise's samples: at least two distinct objects of the world (none for other kinds).
+    fn exercise_samples(
+        &self,
+        section: &Spanned<ExerciseSection>,
+        objects: &[ObjectSpec],
+    ) -> Result<Vec<SampleSpec>, WorldError> {
+        let e = section.get_ref();
+        let ranking = e.kind == ExerciseKind::StiffnessRanking;
+        let Some(at) = &e.samples else {
+            if ranking {
+                return Err(self.invalid(
+                    section,
+                    "exercise.samples",
+                    "missing: name the objects to rank, e.g. samples = [\"a\", \"b\"]",
+                ));
+            }
+            return Ok(Vec::new());
+        };
+        self.check(
+            at,
+            "exercise.samples",
+            ranking,
+            "only a stiffness-ranking exercise has samples",
+        )?;
+        let names = at.get_ref();
+        self.check(
+            at,
+            "exercise.samples",
+            names.len() >= 2 && names.len() <= MAX_EXERCISE_TARGETS,
+            &format!(
+                "needs 2 to {MAX_EXERCISE_TARGETS} samples (got {})",
+                names.len()
+            ),
+        )?;
+        let mut samples: Vec<SampleSpec> = Vec::with_capacity(names.len());
+        for name in names {
+            let Some(object) = objects.iter().position(|o| &o.name == name) else {
+                return Err(self.invalid(
+                    at,
+                    "exercise.samples",
+                    format!(
+                        "no object named `{name}` (objects: {})",
+                        objects
+                            .iter()
+                            .map(|o| o.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ));
+            };
+            if samples.iter().any(|s| s.object == object) {
+                return Err(self.invalid(
+                    at,
+                    "exercise.samples",
+                    format!("`{name}` is named twice"),
+                ));
+            }
+            let spec = &objects[object];
+            let mut min = [f32::MAX; 2];
+            let mut max = [f32::MIN; 2];
+            for p in &spec.mesh.positions_mm {
+                for k in 0..2 {
+                    min[k] = min[k].min(p[k]);
+                    max[k] = max[k].max(p[k]);
+                }
+            }
+            samples.push(SampleSpec {
+                object,
+                name: name.clone(),
+                stiffness_n_per_mm: spec.material.stiffness_n_per_mm,
+                min_xy_mm: min,
+                max_xy_mm: max,
+            });
+        }
+        Ok(samples)
     }
 
     fn tool(&self, i: usize, tool: &ToolSection, base: &Path) -> Result<ToolSpec, WorldError> {
