@@ -21,7 +21,9 @@ pub mod writer;
 
 pub use reader::{ReadError, Recording, read_recording};
 pub use replay::{ReplayOutcome, replay, replay_observed};
-pub use tick_record::{DeviceTick, FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
+pub use tick_record::{
+    DeviceTick, FinalState, MAX_RECORDED_TOOLS, MAX_TICK_EVENTS, TickMessage, TickRecord,
+};
 pub use writer::{RecordError, RecordSummary, Recorder, RecorderTap};
 
 /// Version of the recording layout (channels and their payloads). A reader refuses other versions.
@@ -29,6 +31,9 @@ pub const FORMAT_VERSION: u32 = 1;
 
 /// Topic of the exact per-tick records.
 pub const TOPIC_TICKS: &str = "/sinew/ticks";
+
+/// Topic of the training events (JSON, a view: replay derives them again).
+pub const TOPIC_EVENTS: &str = "/sinew/events";
 
 /// Topic of the final tissue state.
 pub const TOPIC_FINAL: &str = "/sinew/final_state";

@@ -14,7 +14,8 @@ use sinew::harness::{
 use sinew::netns::role_binary;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerError, ServerNode};
-use sinew_server::recording::{ReadError, ReplayOutcome, read_recording, replay};
+use sinew_server::recording::{ReadError, ReplayOutcome, read_recording, replay, replay_observed};
+use sinew_server::training::{MetricsConfig, SessionObserver};
 
 fn temp(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("sinew-{}-{name}", std::process::id()))
@@ -120,6 +121,31 @@ fn a_recorded_two_surgeon_session_replays_bit_for_bit_and_damage_is_told() {
     );
     assert!(outcome.exact(), "{outcome:?}");
     check_report(&path, &outcome);
+
+    // The live session's training events are in the file, and the replay derives the same ones.
+    let mut observer =
+        SessionObserver::new(world.tools.len(), MetricsConfig::new(1.0 / world.tick_hz));
+    let mut replayed_events = Vec::new();
+    replay_observed(&recording, &world, |view| {
+        observer.observe(
+            view,
+            |e| replayed_events.push((e.tick, e.tool, e.kind.name().to_owned())),
+            |_, _| {},
+        );
+    })
+    .unwrap();
+    println!("events: {:?}", recording.events);
+    for tool in 0..2u8 {
+        assert!(
+            recording
+                .events
+                .iter()
+                .any(|(_, t, kind)| *t == tool && kind == "contact_begin"),
+            "tool {tool} has no contact in {:?}",
+            recording.events
+        );
+    }
+    assert_eq!(recording.events, replayed_events);
 
     // A replay on a different world diverges, and says so: the comparison can fail.
     let mut stiffer = world.clone();

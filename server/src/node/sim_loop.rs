@@ -23,6 +23,7 @@ use crate::recording::{FinalState, RecorderTap, TickRecord};
 use crate::server_tick::{PoseInput, ServerTick};
 use crate::sim::Sim;
 use crate::tissue::Vec3;
+use crate::training::{ExerciseRun, MetricsConfig, SessionObserver, TickView};
 
 /// Per-device counters kept by the sim thread.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -254,6 +255,16 @@ fn run(
     let mut local = SimReport::new(n);
     let mut buf = Vec::with_capacity(256);
     let mut frame_due = false;
+    // The training layer's events go into the recording (built here: no allocation in the loop).
+    let mut observer = recorder.as_ref().map(|_| {
+        let observer = SessionObserver::new(n, MetricsConfig::new(f64::from(tick_dt_s)));
+        match &world.exercise {
+            Some(spec) => {
+                observer.with_exercise(ExerciseRun::new(spec.clone(), n, f64::from(tick_dt_s)))
+            }
+            None => observer,
+        }
+    });
 
     while !shared.stop.load(Ordering::Acquire) {
         pacer.wait();
@@ -308,7 +319,17 @@ fn run(
             d.suppressed = tick.stream_counters(t).suppressed;
         }
         if let Some(tap) = recorder.as_mut() {
-            tap.offer(&TickRecord::new(local.ticks, &inputs, &limits, &commands));
+            let mut record = TickRecord::new(local.ticks, &inputs, &limits, &commands);
+            if let Some(observer) = observer.as_mut() {
+                let view = TickView {
+                    tick: local.ticks,
+                    active: tick.tools_active(),
+                    outputs: tick.outputs(),
+                    step: &report,
+                };
+                observer.observe(&view, |event| record.push_event(*event), |_, _| {});
+            }
+            tap.offer(&record);
         }
 
         let sim = tick.sim();

@@ -39,6 +39,30 @@ pub const FORCE_SCHEMA: &str = r#"{
   }
 }"#;
 
+/// JSON schema of `/sinew/events`.
+pub const EVENT_SCHEMA: &str = r#"{
+  "title": "sinew.SessionEvent",
+  "description": "A training event: an edge of a tool's activity (contact, grasp, cut, burn, harm, fault).",
+  "type": "object",
+  "properties": {
+    "tick": {"type": "integer", "description": "server tick"},
+    "tool": {"type": "integer", "description": "tool index in the world"},
+    "device": {"type": "string", "description": "the device bound to the tool"},
+    "kind": {"type": "string", "description": "joined, left, approach_begin, contact_begin, grasp_begin, harm_begin, tissue_fault, ..."}
+  }
+}"#;
+
+/// A training event as JSON.
+pub fn event_json(event: &crate::training::SessionEvent, device: &str) -> Result<String, String> {
+    serde_json::to_string(&json!({
+        "tick": event.tick,
+        "tool": event.tool,
+        "device": device,
+        "kind": event.kind.name(),
+    }))
+    .map_err(|e| e.to_string())
+}
+
 /// A pose as JSON.
 pub fn pose_json(pose: &DevicePose, age_s: f64, usable: bool) -> Result<String, String> {
     serde_json::to_string(&json!({

@@ -8,7 +8,7 @@ use thiserror::Error;
 
 use super::tick_record::{FinalState, TickMessage};
 use super::world_files::is_plain_relative;
-use super::{FORMAT_VERSION, TOPIC_FINAL, TOPIC_TICKS};
+use super::{FORMAT_VERSION, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_TICKS};
 use crate::world::{World, WorldError, load_world};
 
 /// Why a recording cannot be read (nothing of it is usable).
@@ -67,6 +67,8 @@ pub struct Recording {
     pub final_state: Option<FinalState>,
     /// Why reading stopped before the end, if it did (damage, truncation): the ticks before it are usable.
     pub damage: Option<String>,
+    /// The training events the live session recorded, as (tick, tool, kind name), in file order.
+    pub events: Vec<(u64, u8, String)>,
 }
 
 /// Read `path`. Errors only when nothing of it is usable; damage after a usable start is in
@@ -80,11 +82,7 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
         path: path.to_owned(),
         message,
     };
-    let records = mcap::read::ChunkFlattener::new_with_options(
-        &bytes,
-        mcap::read::Options::IgnoreEndMagic.into(),
-    )
-    .map_err(|e| not_a_recording(e.to_string()))?;
+    let mut records = Records::new(&bytes);
     let mut recording = Recording {
         path: path.to_owned(),
         metadata: BTreeMap::new(),
@@ -92,14 +90,16 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
         ticks: Vec::new(),
         final_state: None,
         damage: None,
+        events: Vec::new(),
     };
     let mut topics: HashMap<u16, String> = HashMap::new();
     let mut seen_metadata = false;
-    for record in records {
+    while let Some(record) = records.next() {
+        let offset = records.offset();
         let record = match record {
             Ok(record) => record,
             Err(e) if seen_metadata => {
-                recording.damage = Some(damage_at(&recording, &e.to_string()));
+                recording.damage = Some(damage_at(&recording, offset, &e.to_string()));
                 break;
             }
             Err(e) => return Err(not_a_recording(e.to_string())),
@@ -123,16 +123,32 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
                         Err(e) => {
                             recording.damage = Some(damage_at(
                                 &recording,
+                                offset,
                                 &format!("a tick record is corrupt ({e})"),
                             ));
                             break;
                         }
                     },
+                    Some(TOPIC_EVENTS) => {
+                        // A view: an unreadable one is skipped, never damage.
+                        if let Ok(value) = serde_json::from_slice::<serde_json::Value>(&data)
+                            && let (Some(tick), Some(tool), Some(kind)) = (
+                                value["tick"].as_u64(),
+                                value["tool"].as_u64(),
+                                value["kind"].as_str(),
+                            )
+                        {
+                            recording
+                                .events
+                                .push((tick, tool.min(255) as u8, kind.to_owned()));
+                        }
+                    }
                     Some(TOPIC_FINAL) => match postcard::from_bytes::<FinalState>(&data) {
                         Ok(state) => recording.final_state = Some(state),
                         Err(e) => {
                             recording.damage = Some(damage_at(
                                 &recording,
+                                offset,
                                 &format!("the final state is corrupt ({e})"),
                             ));
                             break;
@@ -153,14 +169,68 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
     Ok(recording)
 }
 
-fn damage_at(recording: &Recording, what: &str) -> String {
+/// The largest record or decompressed chunk read, bytes. The writer's chunks are about a megabyte; a corrupt
+/// length or size field must give an error, not an allocation of exabytes (which aborts the process).
+const RECORD_LENGTH_LIMIT: usize = 256 << 20;
+
+/// Every record of an MCAP file in order, chunks unpacked, with the end magic optional (a truncated file reads
+/// up to the cut) and every length bounded by [`RECORD_LENGTH_LIMIT`].
+struct Records<'a> {
+    buf: &'a [u8],
+    total: usize,
+    reader: mcap::sans_io::LinearReader,
+}
+
+impl<'a> Records<'a> {
+    /// Bytes of the file consumed so far (the reader reads a record or a chunk at a time, so an error lies
+    /// within the last one read).
+    fn offset(&self) -> usize {
+        self.total - self.buf.len()
+    }
+
+    fn new(buf: &'a [u8]) -> Self {
+        Self {
+            buf,
+            total: buf.len(),
+            reader: mcap::sans_io::LinearReader::new_with_options(
+                mcap::sans_io::LinearReaderOptions::default()
+                    .with_skip_end_magic(true)
+                    .with_record_length_limit(RECORD_LENGTH_LIMIT),
+            ),
+        }
+    }
+}
+
+impl Iterator for Records<'_> {
+    type Item = mcap::McapResult<mcap::records::Record<'static>>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while let Some(event) = self.reader.next_event() {
+            match event {
+                Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
+                    let len = need.min(self.buf.len());
+                    self.reader.insert(len).copy_from_slice(&self.buf[..len]);
+                    self.reader.notify_read(len);
+                    self.buf = &self.buf[len..];
+                }
+                Ok(mcap::sans_io::LinearReadEvent::Record { data, opcode }) => {
+                    return Some(mcap::parse_record(opcode, data).map(|r| r.into_owned()));
+                }
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        None
+    }
+}
+
+fn damage_at(recording: &Recording, offset: usize, what: &str) -> String {
     match recording.ticks.last() {
         Some(last) => format!(
-            "{what}; read {} ticks, the last complete one tick {}",
+            "{what} (near byte {offset}); read {} ticks, the last complete one tick {}",
             recording.ticks.len(),
             last.tick
         ),
-        None => format!("{what}; no tick could be read"),
+        None => format!("{what} (near byte {offset}); no tick could be read"),
     }
 }
 

@@ -5,9 +5,13 @@ use serde::{Deserialize, Serialize};
 use sinew_protocol::{DevicePose, ForceCommand};
 
 use crate::server_tick::PoseInput;
+use crate::training::SessionEvent;
 
 /// The most tools a recorded world may have (the record is a fixed array, copied through a bounded queue).
 pub const MAX_RECORDED_TOOLS: usize = 8;
+
+/// The most training events one tick records (more are counted in [`TickRecord::events_dropped`]).
+pub const MAX_TICK_EVENTS: usize = 16;
 
 /// One device's part of a tick: the pose the tick saw (with its age and whether the device could drive), the
 /// device's announced force limit, and the command the tick produced for it.
@@ -45,6 +49,11 @@ pub struct TickRecord {
     pub tools: u8,
     /// Per tool-bound device, in world order.
     pub devices: [DeviceTick; MAX_RECORDED_TOOLS],
+    /// The training layer's events of this tick (the first `event_count`): a view for Foxglove and the
+    /// instructor; replay derives them again and never reads these.
+    pub events: [Option<SessionEvent>; MAX_TICK_EVENTS],
+    /// Events past [`MAX_TICK_EVENTS`] this tick, not recorded.
+    pub events_dropped: u32,
 }
 
 impl TickRecord {
@@ -72,7 +81,22 @@ impl TickRecord {
             tick,
             tools: tools as u8,
             devices,
+            events: [None; MAX_TICK_EVENTS],
+            events_dropped: 0,
         }
+    }
+
+    /// Add one of the tick's events (counted as dropped past [`MAX_TICK_EVENTS`]).
+    pub fn push_event(&mut self, event: SessionEvent) {
+        match self.events.iter_mut().find(|slot| slot.is_none()) {
+            Some(slot) => *slot = Some(event),
+            None => self.events_dropped += 1,
+        }
+    }
+
+    /// The recorded events.
+    pub fn events(&self) -> impl Iterator<Item = &SessionEvent> {
+        self.events.iter().map_while(Option::as_ref)
     }
 
     /// The used entries.

@@ -26,7 +26,7 @@ use thiserror::Error;
 
 use super::tick_record::{FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
 use super::world_files::world_files;
-use super::{FORMAT_VERSION, TICKS_ENCODING, TOPIC_FINAL, TOPIC_TICKS};
+use super::{FORMAT_VERSION, TICKS_ENCODING, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_TICKS};
 use crate::world::World;
 
 /// Ticks the queue holds (a quarter second at 1 kHz) before it drops.
@@ -262,6 +262,9 @@ impl Recorder {
 struct Channels {
     ticks: u16,
     final_state: u16,
+    events: u16,
+    /// Per tool: its device id.
+    device_ids: Vec<String>,
     /// Per tool: (pose, force) JSON channels.
     devices: Vec<(u16, u16)>,
 }
@@ -284,6 +287,12 @@ impl Channels {
             "jsonschema",
             super::json_view::FORCE_SCHEMA.as_bytes(),
         )?;
+        let event_schema = out.add_schema(
+            "sinew.SessionEvent",
+            "jsonschema",
+            super::json_view::EVENT_SCHEMA.as_bytes(),
+        )?;
+        let events = out.add_channel(event_schema, TOPIC_EVENTS, "json", &none)?;
         let mut devices = Vec::with_capacity(world.tools.len());
         for tool in &world.tools {
             let mut metadata = BTreeMap::new();
@@ -305,6 +314,8 @@ impl Channels {
         Ok(Self {
             ticks,
             final_state,
+            events,
+            device_ids: world.tools.iter().map(|t| t.device_id.clone()).collect(),
             devices,
         })
     }
@@ -346,7 +357,10 @@ fn write_loop<W: std::io::Write + std::io::Seek>(
                         time_ns,
                         &mut sequence,
                         &mut bytes,
-                    );
+                    )
+                    .and_then(|()| {
+                        write_events(&mut out, &channels, &record, time_ns, &mut sequence)
+                    });
                     match result {
                         Ok(()) => summary.ticks += 1,
                         Err(e) => fail(&mut summary, e),
@@ -406,6 +420,24 @@ fn write_tick<W: std::io::Write + std::io::Seek>(
             let json = super::json_view::force_json(force)?;
             write_message(out, force_channel, sequence, time_ns, json.as_bytes())?;
         }
+    }
+    Ok(())
+}
+
+fn write_events<W: std::io::Write + std::io::Seek>(
+    out: &mut mcap::Writer<W>,
+    channels: &Channels,
+    record: &TickRecord,
+    time_ns: u64,
+    sequence: &mut u32,
+) -> Result<(), String> {
+    for event in record.events() {
+        let device = channels
+            .device_ids
+            .get(usize::from(event.tool))
+            .map_or("", String::as_str);
+        let json = super::json_view::event_json(event, device)?;
+        write_message(out, channels.events, sequence, time_ns, json.as_bytes())?;
     }
     Ok(())
 }
