@@ -3,10 +3,8 @@
 //! (`training::exercise`).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use sinew_protocol::DevicePose;
-use sinew_server::haptics::DeadbandParams;
-use sinew_server::server_tick::{PoseInput, ServerTick};
-use sinew_server::sim::Sim;
+mod common;
+
 use sinew_server::training::{
     ExerciseRun, ExerciseScore, MetricsConfig, SessionObserver, TickView,
 };
@@ -83,14 +81,8 @@ fn shipped(name: &str) -> World {
 
 /// Run `world`'s exercise with the two hands (world frame) until both are done, plus half a second.
 fn run(world: &World, left: &Hand, right: &Hand) -> ExerciseScore {
-    let sim = Sim::new(world).expect("builds");
     let dt_s = 1.0 / world.tick_hz;
-    let mut tick = ServerTick::new(
-        sim,
-        dt_s as f32,
-        world.pose_timeout_s,
-        DeadbandParams::default(),
-    );
+    let mut tick = common::server_tick(world);
     let spec = world.exercise.clone().expect("an exercise world");
     let mut observer = SessionObserver::new(2, MetricsConfig::new(dt_s))
         .with_exercise(ExerciseRun::new(spec, 2, dt_s));
@@ -105,16 +97,7 @@ fn run(world: &World, left: &Hand, right: &Hand) -> ExerciseScore {
         let t_s = k as f64 * dt_s;
         let pose = |hand: &Hand, origin: [f32; 3]| {
             let p = hand.position(t_s);
-            Some(PoseInput {
-                pose: DevicePose {
-                    seq: k + 1,
-                    position_mm: [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]],
-                    orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-                    ..DevicePose::default()
-                },
-                age_s: 0.0,
-                usable: true,
-            })
+            common::pose_at(k + 1, [0, 1, 2].map(|i| p[i] - origin[i]))
         };
         let inputs = [pose(left, origins[0]), pose(right, origins[1])];
         let step = tick.step(&inputs, &[None, None], &mut out);
@@ -130,6 +113,12 @@ fn run(world: &World, left: &Hand, right: &Hand) -> ExerciseScore {
     let score = observer.exercise().unwrap().score();
     println!("{score:?}");
     score
+}
+
+/// (wrong tool, off target, too deep).
+fn errors(score: &ExerciseScore) -> (u32, u32, u32) {
+    let e = score.errors;
+    (e.wrong_tool, e.off_target, e.too_deep)
 }
 
 fn hover(x: f32) -> [f32; 3] {
@@ -201,15 +190,7 @@ fn coordination_with_a_wrong_tool_and_an_off_target_touch_completes_but_fails_wi
         .touch(xy(2).0, xy(2).1, 1.5);
     let score = run(&world, &left, &right);
     assert!(score.completed && !score.passed, "{score:?}");
-    assert_eq!(
-        (
-            score.errors.wrong_tool,
-            score.errors.off_target,
-            score.errors.too_deep
-        ),
-        (1, 1, 0),
-        "{score:?}"
-    );
+    assert_eq!(errors(&score), (1, 1, 0), "{score:?}");
     assert_eq!(score.score, 80.0);
 }
 
@@ -251,15 +232,7 @@ fn accurate_touch_gentle_passes_and_a_deep_press_and_a_stray_touch_cost_20_point
     let (left, right) = gentle(6.0, true);
     let bad = run(&world, &left, &right);
     assert!(bad.completed && !bad.passed, "{bad:?}");
-    assert_eq!(
-        (
-            bad.errors.wrong_tool,
-            bad.errors.off_target,
-            bad.errors.too_deep
-        ),
-        (0, 1, 1),
-        "{bad:?}"
-    );
+    assert_eq!(errors(&bad), (0, 1, 1), "{bad:?}");
     assert_eq!(bad.score, 80.0);
     // The deep press went about 6 mm below its first touch (the coupling lags a little under the load).
     assert!(
@@ -329,8 +302,7 @@ fn stiffness_ranking_in_the_right_order_passes_and_one_swap_costs_a_pair_and_the
 #[test]
 fn the_ranking_samples_push_back_in_their_stiffness_order() {
     let world = shipped("exercise_stiffness_ranking.toml");
-    let sim = Sim::new(&world).unwrap();
-    let mut tick = ServerTick::new(sim, 0.001, world.pose_timeout_s, DeadbandParams::default());
+    let mut tick = common::server_tick(&world);
     let origin = world.tools[0].device_origin_in_world_mm;
     let mut force_at = std::collections::BTreeMap::new();
     for sample in &world.exercise.as_ref().unwrap().samples {
@@ -343,17 +315,8 @@ fn the_ranking_samples_push_back_in_their_stiffness_order() {
         let mut last = 0.0;
         for k in start..(hand.end().0 * 1000.0) as u64 {
             let p = hand.position(k as f64 * 0.001);
-            let input = PoseInput {
-                pose: DevicePose {
-                    seq: k + 1,
-                    position_mm: [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]],
-                    orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-                    ..DevicePose::default()
-                },
-                age_s: 0.0,
-                usable: true,
-            };
-            tick.step(&[Some(input), None], &[None, None], &mut out);
+            let input = common::pose_at(k + 1, [0, 1, 2].map(|i| p[i] - origin[i]));
+            tick.step(&[input, None], &[None, None], &mut out);
             last = tick.outputs()[0].force_world_n.z;
         }
         force_at.insert(sample.name.clone(), last);

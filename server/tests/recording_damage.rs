@@ -4,11 +4,9 @@
 //! (checked at every fourth place: a replay is as slow as the session).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use sinew_protocol::DevicePose;
-use sinew_server::haptics::DeadbandParams;
+mod common;
+
 use sinew_server::recording::{FinalState, Recorder, TickRecord, read_recording, replay};
-use sinew_server::server_tick::{PoseInput, ServerTick};
-use sinew_server::sim::Sim;
 use sinew_server::world::load_world;
 
 #[test]
@@ -17,28 +15,12 @@ fn scrambled_bytes_anywhere_give_an_error_or_an_exact_prefix_never_a_crash() {
     let world = load_world(&path).unwrap();
     let file = std::env::temp_dir().join(format!("sinew-damage-{}.mcap", std::process::id()));
     let (recorder, mut tap) = Recorder::start(&file, &world).unwrap();
-    let mut tick = ServerTick::new(
-        Sim::new(&world).unwrap(),
-        0.001,
-        world.pose_timeout_s,
-        DeadbandParams::default(),
-    );
+    let mut tick = common::server_tick(&world);
     let mut out = [None; 2];
     let ticks = 400u64;
     for k in 0..ticks {
         let depth = (k as f32 / 300.0).min(1.0) * 5.0;
-        let pose = |x: f32| {
-            Some(PoseInput {
-                pose: DevicePose {
-                    seq: k + 1,
-                    position_mm: [x, 0.0, 4.0 - depth],
-                    orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-                    ..DevicePose::default()
-                },
-                age_s: 0.0,
-                usable: true,
-            })
-        };
+        let pose = |x: f32| common::pose_at(k + 1, [x, 0.0, 4.0 - depth]);
         let inputs = [pose(0.0), pose(2.0)];
         tick.step(&inputs, &[None, None], &mut out);
         tap.offer(&TickRecord::new(k, &inputs, &[None, None], &out));

@@ -4,10 +4,8 @@
 //! harm rate above the threshold).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use sinew_protocol::DevicePose;
-use sinew_server::haptics::DeadbandParams;
-use sinew_server::server_tick::{PoseInput, ServerTick};
-use sinew_server::sim::Sim;
+mod common;
+
 use sinew_server::training::{
     EventKind, MetricsConfig, MetricsSummary, SessionEvent, SessionObserver, SkillState, TickView,
 };
@@ -21,14 +19,8 @@ fn session(
 ) -> (MetricsSummary, Vec<SessionEvent>, Vec<SkillState>) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let world = load_world(&path).expect("pad world loads");
-    let sim = Sim::new(&world).expect("pad builds");
     let dt_s = 1.0 / world.tick_hz;
-    let mut tick = ServerTick::new(
-        sim,
-        dt_s as f32,
-        world.pose_timeout_s,
-        DeadbandParams::default(),
-    );
+    let mut tick = common::server_tick(&world);
     let mut observer = SessionObserver::new(2, MetricsConfig::new(dt_s));
     let mut out = [None; 2];
     let mut events = Vec::new();
@@ -36,16 +28,7 @@ fn session(
     let ticks = (seconds / dt_s).round() as u64;
     for k in 0..ticks {
         let t_s = k as f64 * dt_s;
-        let left = script(t_s).map(|position_mm| PoseInput {
-            pose: DevicePose {
-                seq: k + 1,
-                position_mm,
-                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-                ..DevicePose::default()
-            },
-            age_s: 0.0,
-            usable: true,
-        });
+        let left = script(t_s).and_then(|position_mm| common::pose_at(k + 1, position_mm));
         let step = tick.step(&[left, None], &[None, None], &mut out);
         let view = TickView {
             tick: k,

@@ -300,6 +300,46 @@ fn plot_error<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("drawing the report: {e:?}")
 }
 
+/// A chart's legend, in the report's style.
+fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(position)
+        .label_font(("sans-serif", 14))
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(plot_error)
+}
+
+/// A chart's grid and axis names, in the report's style.
+fn axes<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    x_desc: &str,
+    y_desc: &str,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(plot_error)
+}
+
 fn draw_force(
     path: &Path,
     report: &SessionReport,
@@ -321,13 +361,7 @@ fn draw_force(
         .y_label_area_size(55)
         .build_cartesian_2d(0.0..t_max, 0.0..f_max)
         .map_err(plot_error)?;
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("force (N)")
-        .label_style(("sans-serif", 14))
-        .draw()
-        .map_err(plot_error)?;
+    axes(&mut chart, "time (s)", "force (N)")?;
     for (p, s) in report.participants.iter().zip(series) {
         let colour = COLOURS[p.tool % COLOURS.len()];
         chart
@@ -349,14 +383,7 @@ fn draw_force(
         .map_err(plot_error)?
         .label("harm threshold")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], BLACK.mix(0.5)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font(("sans-serif", 14))
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(plot_error)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present().map_err(plot_error)
 }
 
@@ -384,13 +411,7 @@ fn draw_paths(path: &Path, report: &SessionReport, series: &[Series]) -> anyhow:
         .y_label_area_size(55)
         .build_cartesian_2d(cx - half..cx + half, cy - half..cy + half)
         .map_err(plot_error)?;
-    chart
-        .configure_mesh()
-        .x_desc("x (mm)")
-        .y_desc("y (mm)")
-        .label_style(("sans-serif", 14))
-        .draw()
-        .map_err(plot_error)?;
+    axes(&mut chart, "x (mm)", "y (mm)")?;
     for (p, s) in report.participants.iter().zip(series) {
         let colour = COLOURS[p.tool % COLOURS.len()];
         chart
@@ -413,14 +434,7 @@ fn draw_paths(path: &Path, report: &SessionReport, series: &[Series]) -> anyhow:
                 .map_err(plot_error)?;
         }
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font(("sans-serif", 14))
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(plot_error)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present().map_err(plot_error)
 }
 
@@ -471,12 +485,6 @@ fn draw_states(path: &Path, report: &SessionReport) -> anyhow::Result<()> {
             .label(p.device.clone())
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], colour.filled()));
     }
-    chart
-        .configure_series_labels()
-        .label_font(("sans-serif", 14))
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(plot_error)?;
+    legend(&mut chart, SeriesLabelPosition::MiddleRight)?;
     root.present().map_err(plot_error)
 }

@@ -84,3 +84,30 @@ pub fn write_sheet_world(prefix: &str, text: &str, nx: usize, ny: usize) -> Path
     std::fs::write(&path, text).unwrap();
     path
 }
+
+/// A server tick over `world` at its tick rate, with the default deadband.
+pub fn server_tick(world: &sinew_server::world::World) -> sinew_server::server_tick::ServerTick {
+    sinew_server::server_tick::ServerTick::new(
+        sinew_server::sim::Sim::new(world).expect("the world builds"),
+        (1.0 / world.tick_hz) as f32,
+        world.pose_timeout_s,
+        sinew_server::haptics::DeadbandParams::default(),
+    )
+}
+
+/// A fresh, usable pose number `seq` at `position_device_mm`, upright.
+pub fn pose_at(
+    seq: u64,
+    position_device_mm: [f32; 3],
+) -> Option<sinew_server::server_tick::PoseInput> {
+    Some(sinew_server::server_tick::PoseInput {
+        pose: sinew_protocol::DevicePose {
+            seq,
+            position_mm: position_device_mm,
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            ..sinew_protocol::DevicePose::default()
+        },
+        age_s: 0.0,
+        usable: true,
+    })
+}
