@@ -32,7 +32,7 @@ pub use device_slots::{DeviceSlot, DeviceSlots};
 pub use frame_exchange::FrameExchange;
 pub use publish_loop::ReplicationState;
 pub use session::open_session;
-pub use sim_loop::SimReport;
+pub use sim_loop::{DeviceReport, LiveTraining, SimReport};
 
 use crate::sim::Sim;
 use crate::world::World;
@@ -252,6 +252,12 @@ impl ServerHandle {
             .lock()
             .map(|r| r.tick_time.clone())
             .unwrap_or_default()
+    }
+
+    /// What the sim thread reported last (at most 100 ticks old; final once stopped): per device its
+    /// counters and the training layer's live view, and the exercise's running score.
+    pub fn sim_report(&self) -> Option<SimReport> {
+        self.shared.report.lock().ok().map(|r| r.clone())
     }
 
     /// This run's instance id (the sender in every message it publishes).

@@ -18,7 +18,7 @@ pub mod skill_state;
 
 pub use events::{EventDetector, EventKind, SessionEvent, ToolActivity};
 pub use exercise::{
-    ExerciseErrors, ExerciseRun, ExerciseScore, RankedPair, RankingResult, TargetHit,
+    ExerciseErrors, ExerciseRun, ExerciseScore, LiveScore, RankedPair, RankingResult, TargetHit,
 };
 pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
 pub use observer::{SessionObserver, TickView};

@@ -301,6 +301,34 @@ fn summarize(running: &Running) -> DemoSummary {
         v.deltas_applied,
         v.gaps
     );
+    if let Some(report) = running.server.sim_report() {
+        for (id, d) in devices.iter().map(|d| &d.0).zip(&report.devices) {
+            let t = d.training;
+            println!(
+                "training, {id}: now {}, {} touches for {:.1} s, tip path {:.0} mm, peak force {:.2} N, harm {:.3} N s",
+                t.state.name(),
+                t.contacts,
+                t.contact_time_s,
+                t.path_length_mm,
+                t.peak_force_n,
+                t.harm_n_s
+            );
+        }
+        if let Some(e) = report.exercise {
+            println!(
+                "exercise: score {:.0}/100, {} of {}{}, errors {} (wrong tool {}, off target {}, too deep {}), {:.1} s",
+                e.score,
+                e.hits,
+                e.total,
+                if e.completed { ", completed" } else { "" },
+                e.errors.total(),
+                e.errors.wrong_tool,
+                e.errors.off_target,
+                e.errors.too_deep,
+                e.time_s
+            );
+        }
+    }
     match replica {
         Some(e) => println!(
             "viewer replica error: {:.4} mm at frame {} (bound {:.4} mm: half a quantum plus f32 rounding)",

@@ -13,7 +13,7 @@ use sinew::harness::{
 };
 use sinew::netns::role_binary;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
-use sinew_server::node::{ServerConfig, ServerError, ServerNode};
+use sinew_server::node::{ServerConfig, ServerError, ServerNode, SimReport};
 use sinew_server::recording::{ReadError, ReplayOutcome, read_recording, replay, replay_observed};
 use sinew_server::training::{MetricsConfig, SessionObserver};
 
@@ -34,8 +34,8 @@ fn config(endpoint: &str, record: Option<PathBuf>) -> ServerConfig {
 }
 
 /// Record about three seconds of the demo's two surgeons (one presses and strokes, one presses and holds);
-/// returns the file.
-fn record_session(name: &str) -> PathBuf {
+/// returns the file and the sim thread's final report (with the training layer's live view).
+fn record_session(name: &str) -> (PathBuf, SimReport) {
     let path = temp(name);
     let endpoint = free_loopback_endpoint().unwrap();
     let mut server = ServerNode::start(
@@ -66,13 +66,13 @@ fn record_session(name: &str) -> PathBuf {
     assert!(summary.final_state);
     assert_eq!(summary.dropped, 0, "the queue dropped ticks: {summary:?}");
     assert!(summary.ticks > 2000, "{summary:?}");
-    path
+    (path, server.sim_report().expect("the sim thread's report"))
 }
 
 #[test]
 fn a_recorded_two_surgeon_session_replays_bit_for_bit_and_damage_is_told() {
     let _serial = serial();
-    let path = record_session("session.mcap");
+    let (path, live) = record_session("session.mcap");
     let size = std::fs::metadata(&path).unwrap().len();
     let recording = read_recording(&path).unwrap();
     assert!(recording.damage.is_none(), "{:?}", recording.damage);
@@ -120,7 +120,7 @@ fn a_recorded_two_surgeon_session_replays_bit_for_bit_and_damage_is_told() {
         "the strongest recorded force is {strongest} N"
     );
     assert!(outcome.exact(), "{outcome:?}");
-    check_report(&path, &outcome);
+    check_report(&path, &outcome, &live);
 
     // The live session's training events are in the file, and the replay derives the same ones.
     let mut observer =
@@ -232,7 +232,7 @@ fn an_unwritable_recording_path_is_refused_before_anything_starts() {
 /// `sinew report` on the recording: the files are written, the figures have each participant's colour, the
 /// metrics describe the scripted session (left presses and strokes, right presses and holds), and the time per
 /// skill state adds up to the session.
-fn check_report(path: &std::path::Path, outcome: &ReplayOutcome) {
+fn check_report(path: &std::path::Path, outcome: &ReplayOutcome, live: &SimReport) {
     let out = temp("report");
     let run = std::process::Command::new(role_binary("sinew").unwrap())
         .arg("report")
@@ -271,6 +271,13 @@ fn check_report(path: &std::path::Path, outcome: &ReplayOutcome) {
             (in_states - outcome.sim_s).abs() < 1e-6,
             "{device}: {in_states} s in states"
         );
+        // The live training view the server kept while the session ran is what the replay measured, exactly.
+        let seen = live.devices[p].training;
+        println!("{device} live: {seen:?}");
+        assert_eq!(seen.contacts as f64, metric(p, "contacts"), "{device}");
+        assert_eq!(seen.contact_time_s, metric(p, "contact_time_s"), "{device}");
+        assert_eq!(seen.path_length_mm, metric(p, "path_length_mm"), "{device}");
+        assert_eq!(seen.peak_force_n, metric(p, "peak_force_n"), "{device}");
     }
     // Left strokes +-8 mm along x while right holds still: left's tip travels much further.
     assert!(

@@ -23,7 +23,9 @@ use crate::recording::{FinalState, RecorderTap, TickRecord};
 use crate::server_tick::{PoseInput, ServerTick};
 use crate::sim::Sim;
 use crate::tissue::Vec3;
-use crate::training::{ExerciseRun, MetricsConfig, SessionObserver, TickView};
+use crate::training::{
+    ExerciseRun, LiveScore, MetricsConfig, SessionObserver, SkillState, TickView,
+};
 
 /// Per-device counters kept by the sim thread.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -40,6 +42,25 @@ pub struct DeviceReport {
     pub moderated: bool,
     /// Ticks on which its model was within the deadband and nothing was sent.
     pub suppressed: u64,
+    /// The training layer's view of the participant (`crate::training`), live.
+    pub training: LiveTraining,
+}
+
+/// One participant as the training layer sees it, live (a copy: no allocation).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LiveTraining {
+    /// Current skill state.
+    pub state: SkillState,
+    /// Touches so far.
+    pub contacts: u64,
+    /// Time in contact, s.
+    pub contact_time_s: f64,
+    /// Instrument tip path, mm.
+    pub path_length_mm: f64,
+    /// Largest force on the tool, N.
+    pub peak_force_n: f64,
+    /// Force above the harm threshold, integrated, N s.
+    pub harm_n_s: f64,
 }
 
 /// What the sim thread reports (copied out every 100 ticks without blocking).
@@ -57,6 +78,8 @@ pub struct SimReport {
     pub tick_time: LatencyHistogram,
     /// Per tool-bound device.
     pub devices: Vec<DeviceReport>,
+    /// The world's exercise, scored live (None: the world is not an exercise).
+    pub exercise: Option<LiveScore>,
 }
 
 impl SimReport {
@@ -69,6 +92,7 @@ impl SimReport {
             sim_time_s: 0.0,
             tick_time: LatencyHistogram::new(),
             devices: vec![DeviceReport::default(); tools],
+            exercise: None,
         }
     }
 
@@ -80,6 +104,7 @@ impl SimReport {
         self.sim_time_s = other.sim_time_s;
         self.tick_time.copy_from(&other.tick_time);
         self.devices.copy_from_slice(&other.devices);
+        self.exercise = other.exercise;
     }
 }
 
@@ -255,16 +280,17 @@ fn run(
     let mut local = SimReport::new(n);
     let mut buf = Vec::with_capacity(256);
     let mut frame_due = false;
-    // The training layer's events go into the recording (built here: no allocation in the loop).
-    let mut observer = recorder.as_ref().map(|_| {
-        let observer = SessionObserver::new(n, MetricsConfig::new(f64::from(tick_dt_s)));
+    // The training layer watches every tick: live metrics and score in the report, events into the recording
+    // (built here: no allocation in the loop).
+    let mut observer = {
+        // The tick in seconds as the report and replay count it (f64, not the f32 step).
+        let dt_s = 1.0 / world.tick_hz;
+        let observer = SessionObserver::new(n, MetricsConfig::new(dt_s));
         match &world.exercise {
-            Some(spec) => {
-                observer.with_exercise(ExerciseRun::new(spec.clone(), n, f64::from(tick_dt_s)))
-            }
+            Some(spec) => observer.with_exercise(ExerciseRun::new(spec.clone(), n, dt_s)),
             None => observer,
         }
-    });
+    };
 
     while !shared.stop.load(Ordering::Acquire) {
         pacer.wait();
@@ -318,18 +344,18 @@ fn run(
         for (t, d) in local.devices.iter_mut().enumerate() {
             d.suppressed = tick.stream_counters(t).suppressed;
         }
+        let view = TickView {
+            tick: local.ticks,
+            active: tick.tools_active(),
+            outputs: tick.outputs(),
+            step: &report,
+        };
         if let Some(tap) = recorder.as_mut() {
             let mut record = TickRecord::new(local.ticks, &inputs, &limits, &commands);
-            if let Some(observer) = observer.as_mut() {
-                let view = TickView {
-                    tick: local.ticks,
-                    active: tick.tools_active(),
-                    outputs: tick.outputs(),
-                    step: &report,
-                };
-                observer.observe(&view, |event| record.push_event(*event), |_, _| {});
-            }
+            observer.observe(&view, |event| record.push_event(*event), |_, _| {});
             tap.offer(&record);
+        } else {
+            observer.observe(&view, |_| {}, |_, _| {});
         }
 
         let sim = tick.sim();
@@ -341,12 +367,16 @@ fn run(
         local.overruns = pacer.overruns();
         local.sim_time_s = sim.time_s();
         local.tick_time.record(start.elapsed());
+        if local.ticks.is_multiple_of(100) {
+            live_training(&observer, &mut local);
+        }
         if local.ticks.is_multiple_of(100)
             && let Ok(mut shared_report) = shared.report.try_lock()
         {
             shared_report.copy_from(&local);
         }
     }
+    live_training(&observer, &mut local);
     if let Ok(mut shared_report) = shared.report.lock() {
         shared_report.copy_from(&local);
     }
@@ -367,4 +397,23 @@ fn run(
                 .collect(),
         });
     }
+}
+
+/// Copy the training layer's live view into the report (no allocation).
+fn live_training(observer: &SessionObserver, local: &mut SimReport) {
+    for (t, device) in local.devices.iter_mut().enumerate() {
+        let (Some(machine), Some(metrics)) = (observer.machine(t), observer.metrics(t)) else {
+            continue;
+        };
+        let m = metrics.summary();
+        device.training = LiveTraining {
+            state: machine.state(),
+            contacts: m.contacts,
+            contact_time_s: m.contact_time_s,
+            path_length_mm: m.path_length_mm,
+            peak_force_n: m.peak_force_n,
+            harm_n_s: m.harm_n_s,
+        };
+    }
+    local.exercise = observer.exercise().map(ExerciseRun::live);
 }

@@ -122,6 +122,25 @@ pub struct ExerciseScore {
     pub ranking: Option<RankingResult>,
 }
 
+/// The running score, without the lists (no allocation: read on the sim thread).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct LiveScore {
+    /// Every target hit (a ranking: every sample answered).
+    pub completed: bool,
+    /// 0-100 so far.
+    pub score: f64,
+    /// Targets hit (a ranking: pairs in the right order so far).
+    pub hits: usize,
+    /// Targets (a ranking: pairs).
+    pub total: usize,
+    /// Errors so far.
+    pub errors: ExerciseErrors,
+    /// Time on the exercise's clock, s.
+    pub time_s: f64,
+    /// The time limit passed.
+    pub timed_out: bool,
+}
+
 /// A touch in progress that hit a target: its tool's starting height and the deepest it went.
 #[derive(Debug, Clone, Copy)]
 struct OpenTouch {
@@ -329,6 +348,53 @@ impl ExerciseRun {
             && self.elapsed_s(tick) > self.spec.time_limit_s
         {
             self.timed_out_tick = Some(tick);
+        }
+    }
+
+    /// The running score, without allocating.
+    pub fn live(&self) -> LiveScore {
+        let (hits, total, completed) = if self.spec.kind == ExerciseKind::StiffnessRanking {
+            let samples = &self.spec.samples;
+            let (mut right, mut pairs) = (0, 0);
+            for (a, sa) in samples.iter().enumerate() {
+                for (b, sb) in samples.iter().enumerate() {
+                    if sa.stiffness_n_per_mm < sb.stiffness_n_per_mm {
+                        pairs += 1;
+                        if matches!((self.last_touch[a], self.last_touch[b]), (Some(x), Some(y)) if x < y)
+                        {
+                            right += 1;
+                        }
+                    }
+                }
+            }
+            (right, pairs, self.last_touch.iter().all(Option::is_some))
+        } else {
+            (
+                self.hits.len(),
+                self.spec.targets.len(),
+                self.finished_tick.is_some(),
+            )
+        };
+        let errors = self.errors;
+        let timed_out = self.timed_out_tick.is_some();
+        let end_tick = self
+            .finished_tick
+            .or(self.timed_out_tick)
+            .unwrap_or(self.last_tick);
+        LiveScore {
+            completed,
+            score: (100.0 * hits as f64 / total.max(1) as f64
+                - POINTS_PER_ERROR * f64::from(errors.total()))
+            .max(0.0),
+            hits,
+            total,
+            errors,
+            time_s: if timed_out && !completed {
+                self.spec.time_limit_s
+            } else {
+                self.elapsed_s(end_tick)
+            },
+            timed_out,
         }
     }
 

@@ -18,9 +18,12 @@ use serde::{Deserialize, Serialize};
 use super::events::{EventKind, SessionEvent};
 
 /// A surgical state.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize, Deserialize,
+)]
 pub enum SkillState {
     /// No device drives the tool, or it is far from tissue.
+    #[default]
     Idle,
     /// Tissue lies within the tool's look-ahead.
     Approach,
