@@ -213,11 +213,30 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
                 last_refused_instance: rng.u64(..),
                 wrong_tool_instance: rng.u64(..),
                 wrong_tool_asked: text(rng),
+                force_limit_n: rng.f32() * 5.0,
+                training: TrainingStats {
+                    skill_state: text(rng),
+                    contacts: rng.u64(..),
+                    contact_time_s: rng.f32() * 100.0,
+                    path_length_mm: rng.f32() * 1000.0,
+                    peak_force_n: rng.f32() * 3.0,
+                    harm_n_s: rng.f32(),
+                },
             })
             .collect(),
         server_id: text(rng),
         foreign_server_messages: rng.u64(..),
         foreign_server_instance: rng.u64(..),
+        exercise: rng.bool().then(|| ExerciseStats {
+            kind: text(rng),
+            score: rng.f32() * 100.0,
+            hits: rng.u32(..),
+            total: rng.u32(..),
+            errors: rng.u32(..),
+            time_s: rng.f32() * 60.0,
+            completed: rng.bool(),
+            timed_out: rng.bool(),
+        }),
     }
 }
 

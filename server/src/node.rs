@@ -30,7 +30,7 @@ use zenoh::Wait;
 
 pub use device_slots::{DeviceSlot, DeviceSlots};
 pub use frame_exchange::FrameExchange;
-pub use publish_loop::ReplicationState;
+pub use publish_loop::{ReplicationState, exercise_stats, training_stats};
 pub use session::open_session;
 pub use sim_loop::{DeviceReport, LiveTraining, SimReport};
 

@@ -121,8 +121,13 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     let summary = summarize(&running);
     if let Some(path) = &options.png {
         let replica = running.viewer.replica();
-        let stats = sinew_viewer::render_png(&replica, path, 1024, 768)
-            .with_context(|| format!("rendering {}", path.display()))?;
+        let overlay = sinew_viewer::InstructorOverlay::build(
+            &replica,
+            running.viewer.server_stats().as_ref(),
+        );
+        let stats =
+            sinew_viewer::render_png_with_overlay(&replica, Some(&overlay), path, 1024, 768)
+                .with_context(|| format!("rendering {}", path.display()))?;
         println!(
             "viewer replica rendered to {} ({:.0} ms)",
             path.display(),

@@ -2,7 +2,8 @@
 //!
 //! Owns: the scene replica and its delta rules ([`replica`]), the zenoh client that keeps it in sync
 //! ([`client`], with its shared state machine in `sync_state`), the viewer's counters ([`viewer_stats`]), and
-//! drawing: offscreen PNG ([`render`]) and an interactive window ([`window`]), both through [`scene_view`].
+//! drawing: offscreen PNG ([`render`]) and an interactive window ([`window`]), both through [`scene_view`], with
+//! the instructor's overlay ([`instructor_overlay`]) over either.
 //!
 //! Must not: depend on the server crate, write to the scene, or run physics. The replica is plain data and is
 //! usable (and tested) without zenoh or a GPU.
@@ -12,6 +13,7 @@ mod bounded_queue;
 pub mod camera_framing;
 pub mod client;
 pub mod error;
+pub mod instructor_overlay;
 pub mod network_config;
 mod rate_meter;
 pub mod render;
@@ -24,7 +26,11 @@ pub mod window;
 pub use camera_framing::{CameraFraming, frame_replica};
 pub use client::{ViewerClient, ViewerConfig, ViewerHandle};
 pub use error::ViewerError;
-pub use render::{RenderStats, render_image, render_image_framed, render_png, render_sequence};
+pub use instructor_overlay::{ForceArrow, InstructorOverlay};
+pub use render::{
+    RenderStats, SceneFrame, render_frames, render_image, render_image_framed, render_png,
+    render_png_with_overlay, render_sequence,
+};
 pub use replica::{DeltaOutcome, ReplicaError, ReplicaObject, SceneReplica};
 pub use viewer_stats::{DecodeErrorCounts, ViewerStats};
 pub use window::{display_available, run_window, run_window_until};

@@ -9,8 +9,8 @@ use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Parser};
 use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
 use sinew_viewer::{
-    ViewerClient, ViewerConfig, ViewerError, ViewerHandle, ViewerStats, display_available,
-    render_png, run_window,
+    InstructorOverlay, ViewerClient, ViewerConfig, ViewerError, ViewerHandle, ViewerStats,
+    display_available, render_png_with_overlay, run_window,
 };
 
 /// Watch a Sinew scene: replicate it from the server's mesh deltas and draw it.
@@ -269,7 +269,8 @@ fn run_png(viewer: &ViewerHandle, args: &Args, path: &Path, endpoints: &str) -> 
     }
     std::thread::sleep(seconds(args.after_s, "after-s")?);
     let replica = viewer.replica();
-    let stats = render_png(&replica, path, args.width, args.height)
+    let overlay = InstructorOverlay::build(&replica, viewer.server_stats().as_ref());
+    let stats = render_png_with_overlay(&replica, Some(&overlay), path, args.width, args.height)
         .with_context(|| format!("rendering scene `{}` to {}", args.scene, path.display()))?;
     println!(
         "wrote {} ({}x{}, {} objects, {} triangles, {} tools, {} covered pixels, frame {}, {:.0} ms)",

@@ -16,6 +16,7 @@ use kiss3d::window::OffscreenSurface;
 
 use crate::camera_framing::{CameraFraming, frame_replica};
 use crate::error::ViewerError;
+use crate::instructor_overlay::{InstructorOverlay, draw_overlay};
 use crate::replica::SceneReplica;
 use crate::scene_view::{BACKGROUND_RGB, SceneView, add_lights, configure_window, make_camera};
 
@@ -65,11 +66,37 @@ pub fn render_image_framed(
         .ok_or_else(|| ViewerError::Render("renderer returned no frame".to_owned()))
 }
 
+/// One frame to render: a replica and, if wanted, the instructor's overlay drawn over it.
+#[derive(Debug, Clone, Copy)]
+pub struct SceneFrame<'a> {
+    /// The scene.
+    pub replica: &'a SceneReplica,
+    /// Text and force arrows over it.
+    pub overlay: Option<&'a InstructorOverlay>,
+}
+
 /// Render successive states of one scene from a fixed viewpoint with one surface: the first frame builds the
 /// meshes, later frames update their vertices in place (the interactive window's path), so a sequence is
 /// cheaper than separate renders. Returns one image per replica, in order.
 pub fn render_sequence(
     replicas: &[&SceneReplica],
+    framing: &CameraFraming,
+    width: u32,
+    height: u32,
+) -> Result<Vec<(RgbImage, RenderStats)>, ViewerError> {
+    let frames: Vec<SceneFrame<'_>> = replicas
+        .iter()
+        .map(|replica| SceneFrame {
+            replica,
+            overlay: None,
+        })
+        .collect();
+    render_frames(&frames, framing, width, height)
+}
+
+/// As [`render_sequence`], each frame with its overlay if it has one.
+pub fn render_frames(
+    frames: &[SceneFrame<'_>],
     framing: &CameraFraming,
     width: u32,
     height: u32,
@@ -82,7 +109,7 @@ pub fn render_sequence(
         let thread = std::thread::Builder::new()
             .name(name.to_owned())
             .spawn_scoped(scope, || {
-                render_on_this_thread(replicas, framing, width, height)
+                render_on_this_thread(frames, framing, width, height)
             })
             .map_err(|source| ViewerError::Thread { name, source })?;
         thread.join().map_err(|payload| {
@@ -103,7 +130,21 @@ pub fn render_png(
     width: u32,
     height: u32,
 ) -> Result<RenderStats, ViewerError> {
-    let (image, stats) = render_image(replica, width, height)?;
+    render_png_with_overlay(replica, None, path, width, height)
+}
+
+/// Render `replica` offscreen with the instructor's overlay, if given, and write it to `path` as PNG.
+pub fn render_png_with_overlay(
+    replica: &SceneReplica,
+    overlay: Option<&InstructorOverlay>,
+    path: &Path,
+    width: u32,
+    height: u32,
+) -> Result<RenderStats, ViewerError> {
+    let frame = SceneFrame { replica, overlay };
+    let (image, stats) = render_frames(&[frame], &frame_replica(replica), width, height)?
+        .pop()
+        .ok_or_else(|| ViewerError::Render("renderer returned no frame".to_owned()))?;
     image.save(path).map_err(|source| ViewerError::Image {
         path: path.to_owned(),
         source,
@@ -124,7 +165,7 @@ pub fn covered_pixels(image: &RgbImage) -> u64 {
 }
 
 fn render_on_this_thread(
-    replicas: &[&SceneReplica],
+    frames: &[SceneFrame<'_>],
     framing: &CameraFraming,
     width: u32,
     height: u32,
@@ -137,10 +178,14 @@ fn render_on_this_thread(
         add_lights(&mut scene);
         let mut view = SceneView::new();
         let mut camera = make_camera(framing);
-        let mut frames = Vec::with_capacity(replicas.len());
-        for replica in replicas {
+        let font = kiss3d::text::Font::default();
+        let mut images = Vec::with_capacity(frames.len());
+        for frame in frames {
             let started = Instant::now();
-            view.sync(&mut scene, replica);
+            view.sync(&mut scene, frame.replica);
+            if let Some(overlay) = frame.overlay {
+                draw_overlay(surface.window_mut(), overlay, &font);
+            }
             let image = surface.render_image_3d(&mut scene, &mut camera).await;
             let counts = view.counts();
             let stats = RenderStats {
@@ -152,12 +197,13 @@ fn render_on_this_thread(
                 covered_pixels: covered_pixels(&image),
                 render_ms: started.elapsed().as_secs_f64() * 1e3,
             };
-            frames.push((image, stats));
+            images.push((image, stats));
         }
         // Nodes before the surface: dropping the surface resets kiss3d's thread-local managers.
         drop(view);
         drop(scene);
+        drop(font);
         drop(surface);
-        frames
+        images
     })
 }

@@ -1,7 +1,8 @@
 //! Interactive window: draws the live replica of a running viewer until the window closes.
 //!
 //! Owns: the on-screen render loop (kiss3d 0.47 `Window`, orbit camera: left-drag rotates, right-drag pans,
-//! scroll zooms). Each frame it copies the replica's new positions into the GPU meshes if the replica moved.
+//! scroll zooms). Each frame it copies the replica's new positions into the GPU meshes if the replica moved,
+//! and draws the instructor's overlay (participants, force arrows, live score) over the scene.
 //!
 //! Must not: run anywhere but the process's main thread (winit's rule on Linux), or be called without a
 //! display: kiss3d panics when it cannot open a window, so the display variables are checked first and any
@@ -15,6 +16,7 @@ use kiss3d::window::Window;
 use crate::camera_framing::frame_replica;
 use crate::client::ViewerHandle;
 use crate::error::{ViewerError, panic_detail};
+use crate::instructor_overlay::{InstructorOverlay, draw_overlay};
 use crate::replica::SceneReplica;
 use crate::scene_view::{SceneView, add_lights, configure_window, make_camera};
 
@@ -69,10 +71,14 @@ async fn window_loop(
     let mut camera = make_camera(&viewer.with_replica(frame_replica));
     let mut framed_on_objects = false;
     let mut drawn_revision = None;
+    let font = kiss3d::text::Font::default();
+    let mut overlay = InstructorOverlay::default();
     while window.render_3d(&mut scene, &mut camera).await {
         if stop() {
             break;
         }
+        // kiss3d draws text and lines for one frame only: queue the overlay for the next one every time.
+        draw_overlay(&mut window, &overlay, &font);
         // Copy the replica out only when it moved, and update the GPU meshes outside the viewer's lock so
         // the zenoh callbacks never wait on normal recomputation.
         let revision = viewer.with_replica(SceneReplica::revision);
@@ -81,6 +87,7 @@ async fn window_loop(
         }
         let replica = viewer.replica();
         drawn_revision = Some(replica.revision());
+        overlay = InstructorOverlay::build(&replica, viewer.server_stats().as_ref());
         let rebuilt = view.sync(&mut scene, &replica);
         // Frame the camera once, when the first snapshot brings objects; then the user drives it.
         if rebuilt && !replica.objects().is_empty() && !framed_on_objects {

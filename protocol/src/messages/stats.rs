@@ -69,6 +69,50 @@ pub struct DeviceStats {
     pub wrong_tool_instance: u64,
     /// The tool that refused instance asked for.
     pub wrong_tool_asked: String,
+    /// The force limit the holding device announced in its hello, newtons (0: no hello yet). What a viewer
+    /// scales the force it draws against.
+    pub force_limit_n: f32,
+    /// The training layer's view of this participant (what an instructor watches).
+    pub training: TrainingStats,
+}
+
+/// One participant as the training layer sees it, live (server -> anyone, in [`DeviceStats`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct TrainingStats {
+    /// Current surgical (skill) state: `idle`, `approach`, `contact`, `grasping`, `pulling`, `cutting`,
+    /// `cauterizing`, `releasing` (suturing adds more; an unknown name is shown as it is).
+    pub skill_state: String,
+    /// Touches so far.
+    pub contacts: u64,
+    /// Time in contact, seconds.
+    pub contact_time_s: f32,
+    /// Instrument tip path, mm.
+    pub path_length_mm: f32,
+    /// Largest force on the tool, newtons.
+    pub peak_force_n: f32,
+    /// Force above the harm threshold, integrated, newton seconds.
+    pub harm_n_s: f32,
+}
+
+/// The running exercise, scored live (server -> anyone, in [`ServerStats`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct ExerciseStats {
+    /// The exercise kind: `coordination`, `accurate-touch`, `stiffness-ranking`.
+    pub kind: String,
+    /// Score so far, 0-100.
+    pub score: f32,
+    /// Targets hit (a ranking: pairs in the right order so far).
+    pub hits: u32,
+    /// Targets (a ranking: pairs).
+    pub total: u32,
+    /// Errors so far.
+    pub errors: u32,
+    /// Time on the exercise's clock, seconds.
+    pub time_s: f32,
+    /// Every target hit.
+    pub completed: bool,
+    /// The time limit passed.
+    pub timed_out: bool,
 }
 
 /// Server health, published at 1 Hz on `sinew/<scene>/stats`.
@@ -110,6 +154,8 @@ pub struct ServerStats {
     pub foreign_server_messages: u64,
     /// The latest other server instance heard (0: none).
     pub foreign_server_instance: u64,
+    /// The world's exercise, scored live (None: the world is not an exercise).
+    pub exercise: Option<ExerciseStats>,
 }
 
 impl Message for ServerStats {
@@ -121,6 +167,22 @@ impl Message for ServerStats {
         )?;
         if !self.sim_time_s.is_finite() {
             return Err(("sim_time_s", "not finite"));
+        }
+        for device in &self.devices {
+            let t = &device.training;
+            check::finite(
+                "devices.training",
+                &[
+                    device.force_limit_n,
+                    t.contact_time_s,
+                    t.path_length_mm,
+                    t.peak_force_n,
+                    t.harm_n_s,
+                ],
+            )?;
+        }
+        if let Some(exercise) = &self.exercise {
+            check::finite("exercise", &[exercise.score, exercise.time_s])?;
         }
         Ok(())
     }

@@ -8,7 +8,8 @@ use std::time::{Duration, Instant};
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::rt::Pacer;
 use sinew_protocol::{
-    DeviceStats, MeshDelta, SceneSnapshot, ServerStats, ToolInfo, ToolShape, ToolStates, encode,
+    DeviceStats, ExerciseStats, MeshDelta, SceneSnapshot, ServerStats, ToolInfo, ToolShape,
+    ToolStates, TrainingStats, encode,
 };
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
@@ -17,7 +18,8 @@ use super::{ServerError, Shared};
 use crate::replication::ObjectReplication;
 use crate::sim::Sim;
 use crate::tissue::Vec3;
-use crate::world::{ToolShapeSpec, World};
+use crate::training::LiveScore;
+use crate::world::{ExerciseKind, ToolShapeSpec, World};
 
 /// What has been replicated: per-object quantized state, tool states, counters. Guarded by a mutex shared
 /// by the publish thread and the snapshot queryable (never by the sim thread).
@@ -149,8 +151,16 @@ pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
                     .lock()
                     .map(|a| a.clone())
                     .unwrap_or_default(),
+                force_limit_n: slot.hello_max_force_n().unwrap_or(0.0),
+                training: training_stats(&d.training),
             })
             .collect();
+        stats.exercise = shared
+            .world
+            .exercise
+            .as_ref()
+            .zip(report.exercise.as_ref())
+            .map(|(spec, live)| exercise_stats(spec.kind, live));
     }
     if let Ok(replication) = shared.replication.lock() {
         stats.deltas_sent = replication.deltas_sent;
@@ -163,6 +173,33 @@ pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
             .sum();
     }
     stats
+}
+
+/// The wire form of a participant's live training view.
+pub fn training_stats(live: &super::LiveTraining) -> TrainingStats {
+    TrainingStats {
+        skill_state: live.state.name().to_owned(),
+        contacts: live.contacts,
+        contact_time_s: live.contact_time_s as f32,
+        path_length_mm: live.path_length_mm as f32,
+        peak_force_n: live.peak_force_n as f32,
+        harm_n_s: live.harm_n_s as f32,
+    }
+}
+
+/// The wire form of an exercise's running score.
+pub fn exercise_stats(kind: ExerciseKind, live: &LiveScore) -> ExerciseStats {
+    let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    ExerciseStats {
+        kind: kind.as_str().to_owned(),
+        score: live.score as f32,
+        hits: count(live.hits),
+        total: count(live.total),
+        errors: live.errors.total(),
+        time_s: live.time_s as f32,
+        completed: live.completed,
+        timed_out: live.timed_out,
+    }
 }
 
 pub(super) fn spawn(
