@@ -32,7 +32,7 @@ pub use device_slots::{DeviceSlot, DeviceSlots};
 pub use frame_exchange::FrameExchange;
 pub use publish_loop::{ReplicationState, exercise_stats, training_stats};
 pub use session::open_session;
-pub use sim_loop::{DeviceReport, LiveTraining, SimReport};
+pub use sim_loop::{DeviceReport, LiveTraining, ReplayProgress, SimReport};
 
 use crate::sim::Sim;
 use crate::world::World;
@@ -55,6 +55,9 @@ pub enum ServerError {
     /// The recording could not start (nothing was started).
     #[error(transparent)]
     Record(#[from] crate::recording::RecordError),
+    /// A replay was asked for with a bad speed, or while recording.
+    #[error("cannot publish the replay: {0}")]
+    Replay(String),
     /// Another server is already live for this scene.
     #[error(
         "another server is already live for scene `{scene}` ({found}): refusing to start a second one. \
@@ -90,7 +93,22 @@ pub struct ServerConfig {
     pub panic_at_tick: Option<u64>,
     /// Record every tick's inputs and force commands, with the world, to this MCAP file (`--record`).
     pub record: Option<std::path::PathBuf>,
+    /// Run a recording instead of the devices (`sinew replay --publish`): its ticks' inputs drive the tissue,
+    /// no force is sent to anyone, and the sim thread stops after the last tick.
+    pub replay: Option<ReplayFeed>,
 }
+
+/// A recording's ticks to publish, at a speed.
+#[derive(Debug, Clone)]
+pub struct ReplayFeed {
+    /// The recorded ticks, from tick 0 (the world must be the recording's).
+    pub ticks: Vec<crate::recording::TickMessage>,
+    /// Simulated seconds per wall second (1: as recorded); at most [`MAX_REPLAY_SPEED`].
+    pub speed: f64,
+}
+
+/// The fastest a published replay may be asked to run (it runs as fast as the tick allows).
+pub const MAX_REPLAY_SPEED: f64 = 64.0;
 
 impl Default for ServerConfig {
     fn default() -> Self {
@@ -101,6 +119,7 @@ impl Default for ServerConfig {
             emulation: EmulationConfig::default(),
             panic_at_tick: None,
             record: None,
+            replay: None,
         }
     }
 }
@@ -135,6 +154,19 @@ pub struct ServerNode;
 impl ServerNode {
     /// Build the sim, open zenoh, declare everything, start the threads.
     pub fn start(world: World, config: ServerConfig) -> Result<ServerHandle, ServerError> {
+        if let Some(feed) = &config.replay {
+            if !(feed.speed.is_finite() && feed.speed > 0.0 && feed.speed <= MAX_REPLAY_SPEED) {
+                return Err(ServerError::Replay(format!(
+                    "speed {} is not in (0, {MAX_REPLAY_SPEED}]",
+                    feed.speed
+                )));
+            }
+            if config.record.is_some() {
+                return Err(ServerError::Replay(
+                    "a replay is not recorded again (its recording already exists)".to_owned(),
+                ));
+            }
+        }
         let sim = Sim::new(&world)?;
         // Before zenoh: an unwritable path is refused with nothing started.
         let recording = match &config.record {
@@ -200,6 +232,7 @@ impl ServerNode {
                 emulation: config.emulation,
                 panic_at_tick: config.panic_at_tick,
                 recorder: tap,
+                replay: config.replay,
             },
         )?;
         let publish_thread = publish_loop::spawn(&session, shared.clone())?;
@@ -258,6 +291,11 @@ impl ServerHandle {
     /// counters and the training layer's live view, and the exercise's running score.
     pub fn sim_report(&self) -> Option<SimReport> {
         self.shared.report.lock().ok().map(|r| r.clone())
+    }
+
+    /// A published replay's progress (None: a live session). `finished` once the last recorded tick ran.
+    pub fn replay_progress(&self) -> Option<ReplayProgress> {
+        self.shared.report.lock().ok().and_then(|r| r.replay)
     }
 
     /// This run's instance id (the sender in every message it publishes).

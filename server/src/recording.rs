@@ -9,9 +9,10 @@
 //!
 //! - [`writer`]: the recorder thread and the sim thread's tap into it;
 //! - [`reader`]: reads a recording back, with its world, tolerating a truncated or damaged end;
-//! - [`replay`]: re-runs it and compares;
+//! - [`replay`]: re-runs it and compares; [`debrief`]: the replayed scene as a viewer would hold it;
 //! - [`tick_record`], [`json_view`], [`world_files`]: what is recorded, its Foxglove view, the world's files.
 
+pub mod debrief;
 pub mod json_view;
 pub mod reader;
 pub mod replay;
@@ -19,8 +20,9 @@ pub mod tick_record;
 pub mod world_files;
 pub mod writer;
 
+pub use debrief::DebriefFrames;
 pub use reader::{ReadError, Recording, read_recording};
-pub use replay::{ReplayOutcome, replay, replay_observed};
+pub use replay::{ReplayOutcome, replay, replay_inspected, replay_observed};
 pub use tick_record::{
     DeviceTick, FinalState, MAX_RECORDED_TOOLS, MAX_TICK_EVENTS, TickMessage, TickRecord,
 };

@@ -21,5 +21,5 @@ pub use exercise::{
     ExerciseErrors, ExerciseRun, ExerciseScore, LiveScore, RankedPair, RankingResult, TargetHit,
 };
 pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
-pub use observer::{SessionObserver, TickView};
+pub use observer::{LiveTraining, SessionObserver, TickView};
 pub use skill_state::{SkillMachine, SkillState, Transition};

@@ -92,6 +92,51 @@ pub fn start_server_recording(
     ServerNode::start(world, config).context("starting the server")
 }
 
+/// Record `duration` of the demo's two surgeons on the shipped pad (left presses and strokes, right presses
+/// and holds; real zenoh on loopback, the server recording into `path`); returns what the recorder wrote and
+/// the sim thread's final report (with the training layer's live view).
+pub fn record_two_surgeons(
+    path: &Path,
+    duration: Duration,
+) -> anyhow::Result<(
+    sinew_server::recording::RecordSummary,
+    sinew_server::node::SimReport,
+)> {
+    let endpoint = free_loopback_endpoint()?;
+    let config = ServerConfig {
+        network: NetworkOptions {
+            listen: with_udp_twin(&endpoint),
+            ..NetworkOptions::default()
+        },
+        spin_native_accuracy_ns: 0,
+        record: Some(path.to_owned()),
+        ..ServerConfig::default()
+    };
+    let mut server = ServerNode::start(load_shipped_world("pad.toml")?, config)
+        .context("starting the recording server")?;
+    let (left_script, right_script) = surgeon_scripts();
+    let left = start_sim_device("pad", "left", left_script, &endpoint, Pacing::Sleep)?;
+    let right = start_sim_device("pad", "right", right_script, &endpoint, Pacing::Sleep)?;
+    anyhow::ensure!(
+        wait_until(Duration::from_secs(10), || {
+            server.stats().devices.iter().all(|d| d.active)
+        }),
+        "the two devices did not drive their tools within 10 s"
+    );
+    std::thread::sleep(duration);
+    drop(left);
+    drop(right);
+    server.stop();
+    let summary = server
+        .record_summary()
+        .cloned()
+        .context("the server wrote no recording summary")?;
+    let report = server
+        .sim_report()
+        .context("the sim thread left no report")?;
+    Ok((summary, report))
+}
+
 /// Start a server on the shipped `worlds/pad.toml`, listening on a fresh loopback port; returns that endpoint
 /// (for the other roles to connect to) and the server.
 pub fn start_pad_server(pacing: Pacing) -> anyhow::Result<(String, ServerHandle)> {

@@ -7,10 +7,12 @@
 //! joined by emulated links), [`scenarios`] (the latency-moderated mode's acceptance runs on the drill,
 //! shared by the tests and the `latency_table` bench), [`netns`] (a lab of network namespaces joined by a real
 //! path with delay, jitter and loss), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
-//! [`report`] (`sinew report`: a recording's training report) and [`figure_font`] (the font figures use).
+//! [`report`] (`sinew report`: a recording's training report), [`debrief`] (`sinew replay --publish` and
+//! `--png-every`: the instructor's debrief of a recording) and [`figure_font`] (the font figures use).
 //! Must not: contain role logic; everything here calls the role crates' public APIs.
 #![warn(missing_docs)]
 
+pub mod debrief;
 pub mod demo;
 pub mod drill;
 pub mod figure_font;

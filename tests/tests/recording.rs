@@ -7,10 +7,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_sim_device, surgeon_scripts,
-    wait_until,
-};
+use sinew::harness::{free_loopback_endpoint, load_shipped_world, record_two_surgeons, serial};
 use sinew::netns::role_binary;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerError, ServerNode, SimReport};
@@ -33,40 +30,16 @@ fn config(endpoint: &str, record: Option<PathBuf>) -> ServerConfig {
     }
 }
 
-/// Record about three seconds of the demo's two surgeons (one presses and strokes, one presses and holds);
-/// returns the file and the sim thread's final report (with the training layer's live view).
+/// Record about three seconds of the demo's two surgeons; returns the file and the sim thread's final report.
 fn record_session(name: &str) -> (PathBuf, SimReport) {
     let path = temp(name);
-    let endpoint = free_loopback_endpoint().unwrap();
-    let mut server = ServerNode::start(
-        load_shipped_world("pad.toml").unwrap(),
-        config(&endpoint, Some(path.clone())),
-    )
-    .unwrap();
-    let (left_script, right_script) = surgeon_scripts();
-    let left = start_sim_device("pad", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
-    let right = start_sim_device("pad", "right", right_script, &endpoint, Pacing::Sleep).unwrap();
-    assert!(
-        wait_until(Duration::from_secs(10), || {
-            let stats = server.stats();
-            stats.devices.iter().all(|d| d.active)
-        }),
-        "both devices drive their tools"
-    );
-    std::thread::sleep(Duration::from_secs(3));
-    drop(left);
-    drop(right);
-    server.stop();
-    let summary = server
-        .record_summary()
-        .cloned()
-        .expect("a recording summary");
+    let (summary, report) = record_two_surgeons(&path, Duration::from_secs(3)).unwrap();
     println!("recorded: {summary:?}");
     assert!(summary.error.is_none(), "{summary:?}");
     assert!(summary.final_state);
     assert_eq!(summary.dropped, 0, "the queue dropped ticks: {summary:?}");
     assert!(summary.ticks > 2000, "{summary:?}");
-    (path, server.sim_report().expect("the sim thread's report"))
+    (path, report)
 }
 
 #[test]

@@ -182,6 +182,8 @@ fn render_on_this_thread(
         let mut images = Vec::with_capacity(frames.len());
         for frame in frames {
             let started = Instant::now();
+            // Each frame may be its own replica object, whose revision says nothing about the last one's.
+            view.invalidate();
             view.sync(&mut scene, frame.replica);
             if let Some(overlay) = frame.overlay {
                 draw_overlay(surface.window_mut(), overlay, &font);

@@ -191,6 +191,13 @@ impl SceneView {
         rebuild
     }
 
+    /// Forget which replica state the nodes show, so the next [`Self::sync`] writes every position and tool
+    /// (the layout is kept). For drawing a different replica object, whose revision counter is its own.
+    pub fn invalidate(&mut self) {
+        self.revision = None;
+        self.snapshot_revision = None;
+    }
+
     /// What is drawn.
     pub fn counts(&self) -> SceneViewCounts {
         let layout = self.layout.as_ref();

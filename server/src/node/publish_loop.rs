@@ -151,7 +151,10 @@ pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
                     .lock()
                     .map(|a| a.clone())
                     .unwrap_or_default(),
-                force_limit_n: slot.hello_max_force_n().unwrap_or(0.0),
+                force_limit_n: d
+                    .force_limit_n
+                    .or_else(|| slot.hello_max_force_n())
+                    .unwrap_or(0.0),
                 training: training_stats(&d.training),
             })
             .collect();

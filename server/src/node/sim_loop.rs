@@ -23,9 +23,8 @@ use crate::recording::{FinalState, RecorderTap, TickRecord};
 use crate::server_tick::{PoseInput, ServerTick};
 use crate::sim::Sim;
 use crate::tissue::Vec3;
-use crate::training::{
-    ExerciseRun, LiveScore, MetricsConfig, SessionObserver, SkillState, TickView,
-};
+pub use crate::training::LiveTraining;
+use crate::training::{ExerciseRun, LiveScore, MetricsConfig, SessionObserver, TickView};
 
 /// Per-device counters kept by the sim thread.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -42,25 +41,25 @@ pub struct DeviceReport {
     pub moderated: bool,
     /// Ticks on which its model was within the deadband and nothing was sent.
     pub suppressed: u64,
+    /// The force limit the device announced (recorded, in a replay), N.
+    pub force_limit_n: Option<f32>,
     /// The training layer's view of the participant (`crate::training`), live.
     pub training: LiveTraining,
 }
 
-/// One participant as the training layer sees it, live (a copy: no allocation).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct LiveTraining {
-    /// Current skill state.
-    pub state: SkillState,
-    /// Touches so far.
-    pub contacts: u64,
-    /// Time in contact, s.
-    pub contact_time_s: f64,
-    /// Instrument tip path, mm.
-    pub path_length_mm: f64,
-    /// Largest force on the tool, N.
-    pub peak_force_n: f64,
-    /// Force above the harm threshold, integrated, N s.
-    pub harm_n_s: f64,
+/// How far a published replay has got ([`super::ReplayFeed`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReplayProgress {
+    /// Ticks in the recording.
+    pub ticks_total: u64,
+    /// Ticks re-run so far.
+    pub ticks_done: u64,
+    /// Force commands compared with the recorded ones.
+    pub forces_compared: u64,
+    /// Of those, how many differed in any bit.
+    pub force_mismatches: u64,
+    /// Every recorded tick was re-run (or the recording had a gap there: see `ticks_done`).
+    pub finished: bool,
 }
 
 /// What the sim thread reports (copied out every 100 ticks without blocking).
@@ -80,6 +79,8 @@ pub struct SimReport {
     pub devices: Vec<DeviceReport>,
     /// The world's exercise, scored live (None: the world is not an exercise).
     pub exercise: Option<LiveScore>,
+    /// A published replay's progress (None: a live session).
+    pub replay: Option<ReplayProgress>,
 }
 
 impl SimReport {
@@ -93,6 +94,7 @@ impl SimReport {
             tick_time: LatencyHistogram::new(),
             devices: vec![DeviceReport::default(); tools],
             exercise: None,
+            replay: None,
         }
     }
 
@@ -105,6 +107,7 @@ impl SimReport {
         self.tick_time.copy_from(&other.tick_time);
         self.devices.copy_from_slice(&other.devices);
         self.exercise = other.exercise;
+        self.replay = other.replay;
     }
 }
 
@@ -118,6 +121,8 @@ pub(super) struct SimThreadOptions {
     pub panic_at_tick: Option<u64>,
     /// Where every tick is recorded, if it is.
     pub recorder: Option<RecorderTap>,
+    /// Inputs from a recording instead of the devices (a published replay), if any.
+    pub replay: Option<super::ReplayFeed>,
 }
 
 pub(super) fn spawn(
@@ -126,14 +131,15 @@ pub(super) fn spawn(
     sim: Sim,
     options: SimThreadOptions,
 ) -> Result<JoinHandle<()>, ServerError> {
-    let SimThreadOptions {
-        spin_native_accuracy_ns,
-        emulation,
-        panic_at_tick,
-        recorder,
-    } = options;
+    let emulation = options.emulation;
     let mut outlets = Vec::with_capacity(sim.tools.len());
-    for tool in &sim.tools {
+    // A replay sends no force to anyone: a device holding a recorded id must not feel the recording.
+    let tools = if options.replay.is_some() {
+        &[][..]
+    } else {
+        &sim.tools[..]
+    };
+    for tool in tools {
         let publisher = session
             .declare_publisher(shared.keys.device_force(&tool.device_id)?)
             .congestion_control(CongestionControl::Drop)
@@ -154,16 +160,7 @@ pub(super) fn spawn(
     }
     std::thread::Builder::new()
         .name("sinew-sim".into())
-        .spawn(move || {
-            supervise(
-                &shared,
-                sim,
-                &mut outlets,
-                spin_native_accuracy_ns,
-                panic_at_tick,
-                recorder,
-            )
-        })
+        .spawn(move || supervise(&shared, sim, &mut outlets, options))
         .map_err(|e| ServerError::Thread(e.to_string()))
 }
 
@@ -190,25 +187,10 @@ impl ForceOutlet {
 type LastSent = Vec<Option<(u64, u64, u64, u64)>>;
 
 /// Run the ticks; if they panic, zero every device, record the failure and stop the server.
-fn supervise(
-    shared: &Shared,
-    sim: Sim,
-    outlets: &mut [ForceOutlet],
-    spin_native_accuracy_ns: u32,
-    panic_at_tick: Option<u64>,
-    recorder: Option<RecorderTap>,
-) {
+fn supervise(shared: &Shared, sim: Sim, outlets: &mut [ForceOutlet], options: SimThreadOptions) {
     let mut last_sent: LastSent = vec![None; sim.tools.len()];
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        run(
-            shared,
-            sim,
-            outlets,
-            &mut last_sent,
-            spin_native_accuracy_ns,
-            panic_at_tick,
-            recorder,
-        );
+        run(shared, sim, outlets, &mut last_sent, options);
     }));
     let Err(payload) = outcome else {
         return;
@@ -253,16 +235,22 @@ fn run(
     sim: Sim,
     outlets: &mut [ForceOutlet],
     last_sent: &mut LastSent,
-    spin_native_accuracy_ns: u32,
-    panic_at_tick: Option<u64>,
-    mut recorder: Option<RecorderTap>,
+    options: SimThreadOptions,
 ) {
+    let SimThreadOptions {
+        spin_native_accuracy_ns,
+        emulation: _,
+        panic_at_tick,
+        mut recorder,
+        replay,
+    } = options;
     let world = &shared.world;
     let n = sim.tools.len();
     let tick_dt_s = (1.0 / world.tick_hz) as f32;
     let ticks_per_frame = (world.tick_hz / world.publish_hz).round().max(1.0) as u64;
+    let speed = replay.as_ref().map_or(1.0, |feed| feed.speed);
     let mut pacer = Pacer::new(
-        Duration::from_secs_f64(1.0 / world.tick_hz),
+        Duration::from_secs_f64(1.0 / (world.tick_hz * speed)),
         spin_native_accuracy_ns,
     );
     let mut tick = ServerTick::new(
@@ -278,6 +266,10 @@ fn run(
     let mut limits: Vec<Option<f32>> = vec![None; n];
     let mut commands: Vec<Option<ForceCommand>> = vec![None; n];
     let mut local = SimReport::new(n);
+    local.replay = replay.as_ref().map(|feed| ReplayProgress {
+        ticks_total: feed.ticks.len() as u64,
+        ..ReplayProgress::default()
+    });
     let mut buf = Vec::with_capacity(256);
     let mut frame_due = false;
     // The training layer watches every tick: live metrics and score in the report, events into the recording
@@ -295,7 +287,22 @@ fn run(
     while !shared.stop.load(Ordering::Acquire) {
         pacer.wait();
         let start = Instant::now();
+        // A published replay takes each tick's inputs from the recording, and ends with it.
+        let recorded = match &replay {
+            Some(feed) => match feed.ticks.get(local.ticks as usize) {
+                Some(record) if record.tick == local.ticks && record.devices.len() == n => {
+                    Some(record)
+                }
+                _ => break,
+            },
+            None => None,
+        };
         for t in 0..n {
+            if let Some(record) = recorded {
+                inputs[t] = record.devices[t].pose_input();
+                limits[t] = record.devices[t].max_force_n;
+                continue;
+            }
             let Some(slot) = shared.slots.get(t) else {
                 continue;
             };
@@ -319,9 +326,22 @@ fn run(
         let report = tick.step(&inputs, &limits, &mut commands);
         local.faults += u64::from(report.faults);
 
+        if let (Some(record), Some(progress)) = (recorded, local.replay.as_mut()) {
+            for (device, replayed) in record.devices.iter().zip(&commands) {
+                if device.force.is_none() && replayed.is_none() {
+                    continue;
+                }
+                progress.forces_compared += 1;
+                if !crate::recording::replay::same_bits(device, replayed) {
+                    progress.force_mismatches += 1;
+                }
+            }
+            progress.ticks_done += 1;
+        }
         for t in 0..n {
             let d = &mut local.devices[t];
             d.active = inputs[t].is_some_and(|i| i.usable && i.age_s < world.pose_timeout_s);
+            d.force_limit_n = limits[t];
             let Some(command) = &mut commands[t] else {
                 continue;
             };
@@ -377,6 +397,11 @@ fn run(
         }
     }
     live_training(&observer, &mut local);
+    if let Some(progress) = local.replay.as_mut() {
+        progress.finished = true;
+        // The last state reaches the viewers even when the replay ended between two frames.
+        let _ = shared.frames.try_offer(tick.sim(), tick.outputs());
+    }
     if let Ok(mut shared_report) = shared.report.lock() {
         shared_report.copy_from(&local);
     }
@@ -402,18 +427,9 @@ fn run(
 /// Copy the training layer's live view into the report (no allocation).
 fn live_training(observer: &SessionObserver, local: &mut SimReport) {
     for (t, device) in local.devices.iter_mut().enumerate() {
-        let (Some(machine), Some(metrics)) = (observer.machine(t), observer.metrics(t)) else {
-            continue;
-        };
-        let m = metrics.summary();
-        device.training = LiveTraining {
-            state: machine.state(),
-            contacts: m.contacts,
-            contact_time_s: m.contact_time_s,
-            path_length_mm: m.path_length_mm,
-            peak_force_n: m.peak_force_n,
-            harm_n_s: m.harm_n_s,
-        };
+        if let Some(live) = observer.live(t) {
+            device.training = live;
+        }
     }
     local.exercise = observer.exercise().map(ExerciseRun::live);
 }

@@ -52,6 +52,15 @@ pub fn replay_observed(
     world: &World,
     mut observe: impl FnMut(&TickView<'_>),
 ) -> Result<ReplayOutcome, SimBuildError> {
+    replay_inspected(recording, world, |view, _| observe(view))
+}
+
+/// [`replay`], showing `inspect` every re-run tick and the tick itself (its tissue, for pictures).
+pub fn replay_inspected(
+    recording: &Recording,
+    world: &World,
+    mut inspect: impl FnMut(&TickView<'_>, &ServerTick),
+) -> Result<ReplayOutcome, SimBuildError> {
     let sim = Sim::new(world)?;
     let n = sim.tools.len();
     let mut tick = ServerTick::new(
@@ -74,12 +83,15 @@ pub fn replay_observed(
             limits[t] = device.max_force_n;
         }
         let step = tick.step(&inputs, &limits, &mut out);
-        observe(&TickView {
-            tick: record.tick,
-            active: tick.tools_active(),
-            outputs: tick.outputs(),
-            step: &step,
-        });
+        inspect(
+            &TickView {
+                tick: record.tick,
+                active: tick.tools_active(),
+                outputs: tick.outputs(),
+                step: &step,
+            },
+            &tick,
+        );
         for (t, (device, replayed)) in record.devices.iter().zip(&out).enumerate() {
             if device.force.is_none() && replayed.is_none() {
                 continue;
@@ -123,7 +135,10 @@ pub fn replay_observed(
 
 /// The recorded and replayed commands are the same to the bit (the device instance is the node's stamp, not
 /// the tick's output, and is left out).
-fn same_bits(device: &DeviceTick, replayed: &Option<sinew_protocol::ForceCommand>) -> bool {
+pub(crate) fn same_bits(
+    device: &DeviceTick,
+    replayed: &Option<sinew_protocol::ForceCommand>,
+) -> bool {
     let strip = |c: &Option<sinew_protocol::ForceCommand>| {
         c.map(|mut c| {
             c.device_instance = 0;

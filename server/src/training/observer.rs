@@ -9,7 +9,7 @@ use crate::sim::{StepReport, ToolOutput};
 use super::events::{EventDetector, SessionEvent, ToolActivity};
 use super::exercise::ExerciseRun;
 use super::metrics::{MetricsConfig, ParticipantMetrics};
-use super::skill_state::{SkillMachine, Transition};
+use super::skill_state::{SkillMachine, SkillState, Transition};
 
 /// What one server tick shows the training layer.
 #[derive(Debug, Clone, Copy)]
@@ -32,6 +32,23 @@ pub struct SessionObserver {
     metrics: Vec<ParticipantMetrics>,
     activity: Vec<ToolActivity>,
     exercise: Option<ExerciseRun>,
+}
+
+/// One participant as the training layer sees it, live (a copy: no allocation).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LiveTraining {
+    /// Current skill state.
+    pub state: SkillState,
+    /// Touches so far.
+    pub contacts: u64,
+    /// Time in contact, s.
+    pub contact_time_s: f64,
+    /// Instrument tip path, mm.
+    pub path_length_mm: f64,
+    /// Largest force on the tool, N.
+    pub peak_force_n: f64,
+    /// Force above the harm threshold, integrated, N s.
+    pub harm_n_s: f64,
 }
 
 impl SessionObserver {
@@ -107,7 +124,21 @@ impl SessionObserver {
         self.activity.get(t)
     }
 
-    /// Tool `t`'s skill machine.
+    /// Participant `t` as an instructor sees it now (a copy: no allocation).
+    pub fn live(&self, t: usize) -> Option<LiveTraining> {
+        let (machine, metrics) = (self.machine(t)?, self.metrics(t)?);
+        let m = metrics.summary();
+        Some(LiveTraining {
+            state: machine.state(),
+            contacts: m.contacts,
+            contact_time_s: m.contact_time_s,
+            path_length_mm: m.path_length_mm,
+            peak_force_n: m.peak_force_n,
+            harm_n_s: m.harm_n_s,
+        })
+    }
+
+    /// Participant `t`'s skill-state machine.
     pub fn machine(&self, t: usize) -> Option<&SkillMachine> {
         self.machines.get(t)
     }

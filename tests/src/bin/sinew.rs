@@ -51,10 +51,37 @@ enum Command {
         record: Option<PathBuf>,
     },
     /// Re-run a recording (`sinew-server --record FILE`) through the simulation on virtual time and check that
-    /// every force command and the final tissue come out bit for bit as recorded.
+    /// every force command and the final tissue come out bit for bit as recorded. With `--publish`, replay it
+    /// on zenoh for viewers to watch (the instructor's debrief); with `--png-every N`, write a frame with the
+    /// instructor's overlay every N ticks.
     Replay {
         /// The recording (MCAP).
         file: PathBuf,
+        /// Republish the session on zenoh as its scene, paced at `--speed`, for any viewer
+        /// (`sinew-viewer --scene SCENE --connect ENDPOINT`). No force is sent to any device.
+        #[arg(long, conflicts_with = "png_every")]
+        publish: bool,
+        /// Simulated seconds per wall second when publishing (1 = as recorded).
+        #[arg(long, default_value_t = 1.0, requires = "publish")]
+        speed: f64,
+        /// Where the published replay listens (TCP, and UDP on the same port).
+        #[arg(long, default_value = DEFAULT_ENDPOINT, requires = "publish")]
+        listen: String,
+        /// Keep publishing the final state this long after the replay ends, seconds.
+        #[arg(long, default_value_t = 2.0, requires = "publish")]
+        linger_s: f64,
+        /// Write a PNG with the instructor's overlay every N ticks (offline; no zenoh).
+        #[arg(long)]
+        png_every: Option<u64>,
+        /// Where the frames go (default: the recording's name with `-frames`).
+        #[arg(long, requires = "png_every")]
+        out: Option<PathBuf>,
+        /// Frame width, pixels.
+        #[arg(long, default_value_t = 1024, requires = "png_every")]
+        width: u32,
+        /// Frame height, pixels.
+        #[arg(long, default_value_t = 768, requires = "png_every")]
+        height: u32,
     },
     /// A training report of a recording: replays it with the training layer watching and writes
     /// report.json (metrics, time per skill state, events per participant), force.png, path_top.png,
@@ -102,7 +129,35 @@ fn main() -> anyhow::Result<()> {
                 record,
             })?;
         }
-        Command::Replay { file } => replay(&file)?,
+        Command::Replay {
+            file,
+            publish,
+            speed,
+            listen,
+            linger_s,
+            png_every,
+            out,
+            width,
+            height,
+        } => {
+            if publish {
+                anyhow::ensure!(
+                    linger_s.is_finite() && linger_s >= 0.0,
+                    "--linger-s must be zero or positive"
+                );
+                publish_replay(&file, speed, listen, Duration::from_secs_f64(linger_s))?;
+            } else if let Some(every_ticks) = png_every {
+                let options = sinew::debrief::FrameOptions {
+                    every_ticks,
+                    out: out.unwrap_or_else(|| sinew::debrief::default_frames_dir(&file)),
+                    width,
+                    height,
+                };
+                replay_frames(&file, &options)?;
+            } else {
+                replay(&file)?;
+            }
+        }
         Command::Report { file, out } => {
             let out = out.unwrap_or_else(|| {
                 let stem = file
@@ -118,7 +173,13 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
-fn replay(file: &std::path::Path) -> anyhow::Result<()> {
+/// Read a recording and its world (written out to a temporary directory and loaded from there).
+fn read_with_world(
+    file: &std::path::Path,
+) -> anyhow::Result<(
+    sinew_server::recording::Recording,
+    sinew_server::world::World,
+)> {
     use anyhow::Context;
     let recording = sinew_server::recording::read_recording(file)?;
     if let Some(damage) = &recording.damage {
@@ -131,7 +192,75 @@ fn replay(file: &std::path::Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let world = recording.load_world(&dir);
     let _ = std::fs::remove_dir_all(&dir);
-    let world = world?;
+    Ok((recording, world?))
+}
+
+fn publish_replay(
+    file: &std::path::Path,
+    speed: f64,
+    listen: String,
+    linger: Duration,
+) -> anyhow::Result<()> {
+    let (recording, world) = read_with_world(file)?;
+    println!(
+        "replaying {} as scene `{}` on {listen} at {speed}x: watch with `sinew-viewer --scene {} --connect {listen}`",
+        file.display(),
+        world.scene,
+        world.scene
+    );
+    let options = sinew::debrief::PublishOptions {
+        endpoint: listen,
+        speed,
+        linger,
+    };
+    let done = sinew::debrief::publish(&recording, world, &options, |p, stats| {
+        let score = stats
+            .and_then(|s| s.exercise.as_ref())
+            .map(|e| format!(", exercise score {:.0}", e.score))
+            .unwrap_or_default();
+        println!(
+            "tick {}/{}: {} force commands compared, {} differing{score}",
+            p.ticks_done, p.ticks_total, p.forces_compared, p.force_mismatches
+        );
+    })?;
+    anyhow::ensure!(
+        done.force_mismatches == 0 && done.ticks_done == done.ticks_total,
+        "the published replay differed from the recording ({} of {} commands, {} of {} ticks re-run)",
+        done.force_mismatches,
+        done.forces_compared,
+        done.ticks_done,
+        done.ticks_total
+    );
+    println!("published replay finished: every force command as recorded");
+    Ok(())
+}
+
+fn replay_frames(
+    file: &std::path::Path,
+    options: &sinew::debrief::FrameOptions,
+) -> anyhow::Result<()> {
+    let (recording, world) = read_with_world(file)?;
+    let summary = sinew::debrief::write_frames(&recording, &world, options)?;
+    println!(
+        "{} frames of {} ticks written to {} ({}x{}, one every {} ticks)",
+        summary.files.len(),
+        summary.outcome.ticks,
+        options.out.display(),
+        options.width,
+        options.height,
+        options.every_ticks
+    );
+    anyhow::ensure!(
+        summary.outcome.exact(),
+        "the replay is not bit-exact ({} force commands differ): the frames may not show the session",
+        summary.outcome.force_mismatches
+    );
+    Ok(())
+}
+
+fn replay(file: &std::path::Path) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let (recording, world) = read_with_world(file)?;
     let started = std::time::Instant::now();
     let outcome = sinew_server::recording::replay(&recording, &world)
         .with_context(|| format!("building the recorded world of {}", file.display()))?;
