@@ -118,6 +118,16 @@ impl SceneKeys {
         ))
     }
 
+    /// Every key of the scene (`sinew/<scene>/**`): what a recorder taps.
+    pub fn everything(&self) -> String {
+        format!("{}/**", self.prefix)
+    }
+
+    /// Every presence token, of any role.
+    pub fn every_presence(&self) -> String {
+        format!("{}/presence/**", self.prefix)
+    }
+
     /// Every presence token of one role.
     pub fn all_presence(&self, role: crate::Role) -> String {
         format!("{}/presence/{}/*", self.prefix, role.key_segment())

@@ -145,6 +145,8 @@ pub(crate) struct Shared {
     pub(crate) unknown_hello_log: Throttle,
     /// Other servers heard publishing for this scene.
     pub(crate) foreign_servers: inbound::ForeignServers,
+    /// Ticks run so far (the recording's clock for what it hears on the wire).
+    pub(crate) ticks_run: std::sync::atomic::AtomicU64,
 }
 
 /// Starts a server.
@@ -212,6 +214,7 @@ impl ServerNode {
             server_id: config.server_id.clone(),
             unknown_hello_log: Throttle::new(10_000_000_000),
             foreign_servers: inbound::ForeignServers::new(instance),
+            ticks_run: std::sync::atomic::AtomicU64::new(0),
             world,
         });
         let token = session
@@ -222,6 +225,29 @@ impl ServerNode {
         let (recorder, tap) = match recording {
             Some((recorder, tap)) => (Some(recorder), Some(tap)),
             None => (None, None),
+        };
+        // What the scene publishes (deltas, tool states, stats, hellos, presence) goes into the recording too,
+        // stamped with the tick it was heard at.
+        let wire_tap = match &recorder {
+            Some(recorder) => {
+                let ticks = shared.clone();
+                let tick_ns = (1e9 / shared.world.tick_hz).round() as u64;
+                Some(crate::recording::WireTap::start(
+                    &session,
+                    &keys,
+                    crate::recording::TapScope {
+                        poses_and_forces: false,
+                    },
+                    Arc::new(move || {
+                        ticks
+                            .ticks_run
+                            .load(Ordering::Relaxed)
+                            .saturating_mul(tick_ns)
+                    }),
+                    recorder.wire_sink(),
+                )?)
+            }
+            None => None,
         };
         let sim_thread = sim_loop::spawn(
             &session,
@@ -244,6 +270,7 @@ impl ServerNode {
             inbound: Some(inbound),
             token: Some(token),
             recorder,
+            wire_tap,
             record_summary: None,
         })
     }
@@ -258,6 +285,7 @@ pub struct ServerHandle {
     inbound: Option<inbound::Inbound>,
     token: Option<zenoh::liveliness::LivelinessToken>,
     recorder: Option<crate::recording::Recorder>,
+    wire_tap: Option<crate::recording::WireTap>,
     record_summary: Option<crate::recording::RecordSummary>,
 }
 
@@ -358,13 +386,20 @@ impl ServerHandle {
         }
         // The sim thread handed over its last tick and the final state (or dropped its tap in a panic): the
         // writer finishes the file.
+        let wire_dropped = self
+            .wire_tap
+            .take()
+            .map_or(0, crate::recording::WireTap::stop);
         if let Some(recorder) = self.recorder.take() {
-            let summary = recorder.join();
+            let mut summary = recorder.join();
+            summary.wire_dropped = wire_dropped;
             match &summary.error {
                 None => tracing::info!(
                     file = %summary.path.display(),
                     ticks = summary.ticks,
                     dropped = summary.dropped,
+                    wire = summary.wire_items,
+                    wire_dropped = summary.wire_dropped,
                     final_state = summary.final_state,
                     "recording finished"
                 ),

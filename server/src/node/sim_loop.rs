@@ -384,6 +384,7 @@ fn run(
             frame_due = false;
         }
         local.ticks += 1;
+        shared.ticks_run.store(local.ticks, Ordering::Relaxed);
         local.overruns = pacer.overruns();
         local.sim_time_s = sim.time_s();
         local.tick_time.record(start.elapsed());

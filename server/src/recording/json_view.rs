@@ -100,3 +100,56 @@ pub fn force_json(force: &ForceCommand) -> Result<String, String> {
     }))
     .map_err(|e| e.to_string())
 }
+
+/// JSON schema of `/sinew/tools` (the serde form of [`sinew_protocol::ToolStates`]).
+pub const TOOLS_SCHEMA: &str = r#"{
+  "title": "sinew.ToolStates",
+  "description": "Every tool's pose and the force the tissue exerts on it, as published to viewers (world frame, mm, N).",
+  "type": "object",
+  "properties": {
+    "frame": {"type": "integer", "description": "publish frame"},
+    "sim_time_s": {"type": "number", "description": "simulated time, s"},
+    "tools": {"type": "array", "items": {"type": "object", "properties": {
+      "tool": {"type": "integer"},
+      "position_mm": {"type": "array", "items": {"type": "number"}},
+      "orientation_xyzw": {"type": "array", "items": {"type": "number"}},
+      "force_n": {"type": "array", "items": {"type": "number"}},
+      "active": {"type": "boolean"},
+      "in_contact": {"type": "boolean"}
+    }}}
+  }
+}"#;
+
+/// JSON schema of `/sinew/stats` (the serde form of [`sinew_protocol::ServerStats`]).
+pub const STATS_SCHEMA: &str = r#"{
+  "title": "sinew.ServerStats",
+  "description": "Server health at 1 Hz: tick time, per device its round trip (last_round_trip_us), mode, force limit and training view; the exercise's live score.",
+  "type": "object"
+}"#;
+
+/// JSON schema of `/sinew/presence`.
+pub const PRESENCE_SCHEMA: &str = r#"{
+  "title": "sinew.Presence",
+  "description": "A participant's presence token appeared (joined) or went away.",
+  "type": "object",
+  "properties": {
+    "key": {"type": "string"},
+    "role": {"type": "string", "description": "server, haptic or viewer"},
+    "id": {"type": "string"},
+    "joined": {"type": "boolean"}
+  }
+}"#;
+
+/// A presence change as JSON: the key `sinew/<scene>/presence/<role>/<id>` split into role and id.
+pub fn presence_json(key: &str, joined: bool) -> Result<String, String> {
+    let mut tail = key.rsplit('/');
+    let id = tail.next().unwrap_or_default();
+    let role = tail.next().unwrap_or_default();
+    serde_json::to_string(&json!({
+        "key": key,
+        "role": role,
+        "id": id,
+        "joined": joined,
+    }))
+    .map_err(|e| e.to_string())
+}

@@ -8,7 +8,7 @@ use thiserror::Error;
 
 use super::tick_record::{FinalState, TickMessage};
 use super::world_files::is_plain_relative;
-use super::{FORMAT_VERSION, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_TICKS};
+use super::{FORMAT_VERSION, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_PRESENCE, TOPIC_TICKS};
 use crate::world::{World, WorldError, load_world};
 
 /// Why a recording cannot be read (nothing of it is usable).
@@ -42,6 +42,16 @@ pub enum ReadError {
         /// This build's.
         expected: String,
     },
+    /// Written by `sinew-recorder`: what was published, not the tick inputs a replay needs.
+    #[error(
+        "`{path}` was written by sinew-recorder: it holds what the scene published (open it in Foxglove; `sinew \
+         info` lists it), not the tick inputs a replay or a report needs; record with `sinew-server --record` or \
+         `sinew demo --record` for those"
+    )]
+    WireOnly {
+        /// The file.
+        path: PathBuf,
+    },
     /// The world it carries does not load.
     #[error("`{path}`: the world it carries does not load: {source}")]
     World {
@@ -69,11 +79,47 @@ pub struct Recording {
     pub damage: Option<String>,
     /// The training events the live session recorded, as (tick, tool, kind name), in file order.
     pub events: Vec<(u64, u8, String)>,
+    /// Messages per topic, every channel (the exact ones, the views, and each zenoh key heard).
+    pub topic_counts: BTreeMap<String, u64>,
+    /// Participant presence changes heard, as (log time ns, presence key, joined), in file order.
+    pub presence: Vec<(u64, String, bool)>,
+}
+
+impl Recording {
+    /// The recording's kind: [`super::KIND_SESSION`] or [`super::KIND_WIRE`] (files from before kinds existed
+    /// are sessions).
+    pub fn kind(&self) -> &str {
+        self.metadata
+            .get("kind")
+            .map_or(super::KIND_SESSION, String::as_str)
+    }
+}
+
+/// Read any Sinew recording, a session or `sinew-recorder`'s (which has no ticks and no world): its metadata,
+/// what each topic holds and the presence changes. Errors as [`read_recording`] does, except for the world.
+pub fn survey(path: &Path) -> Result<Recording, ReadError> {
+    read_any(path)
 }
 
 /// Read `path`. Errors only when nothing of it is usable; damage after a usable start is in
 /// [`Recording::damage`].
 pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
+    let recording = read_any(path)?;
+    if recording.kind() == super::KIND_WIRE {
+        return Err(ReadError::WireOnly {
+            path: path.to_owned(),
+        });
+    }
+    if recording.files.is_empty() {
+        return Err(ReadError::NotARecording {
+            path: path.to_owned(),
+            message: "it carries no world file".to_owned(),
+        });
+    }
+    Ok(recording)
+}
+
+fn read_any(path: &Path) -> Result<Recording, ReadError> {
     let bytes = std::fs::read(path).map_err(|e| ReadError::Read {
         path: path.to_owned(),
         message: e.to_string(),
@@ -91,6 +137,8 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
         final_state: None,
         damage: None,
         events: Vec::new(),
+        topic_counts: BTreeMap::new(),
+        presence: Vec::new(),
     };
     let mut topics: HashMap<u16, String> = HashMap::new();
     let mut seen_metadata = false;
@@ -117,6 +165,9 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
                 topics.insert(channel.id, channel.topic);
             }
             mcap::records::Record::Message { header, data } => {
+                if let Some(topic) = topics.get(&header.channel_id) {
+                    *recording.topic_counts.entry(topic.clone()).or_default() += 1;
+                }
                 match topics.get(&header.channel_id).map(String::as_str) {
                     Some(TOPIC_TICKS) => match postcard::from_bytes::<TickMessage>(&data) {
                         Ok(tick) => recording.ticks.push(tick),
@@ -143,6 +194,17 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
                                 .push((tick, tool.min(255) as u8, kind.to_owned()));
                         }
                     }
+                    Some(TOPIC_PRESENCE) => {
+                        // A view: an unreadable one is skipped, never damage.
+                        if let Ok(value) = serde_json::from_slice::<serde_json::Value>(&data)
+                            && let (Some(key), Some(joined)) =
+                                (value["key"].as_str(), value["joined"].as_bool())
+                        {
+                            recording
+                                .presence
+                                .push((header.log_time, key.to_owned(), joined));
+                        }
+                    }
                     Some(TOPIC_FINAL) => match postcard::from_bytes::<FinalState>(&data) {
                         Ok(state) => recording.final_state = Some(state),
                         Err(e) => {
@@ -162,9 +224,6 @@ pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
     }
     if !seen_metadata {
         return Err(not_a_recording("no `sinew` metadata record".to_owned()));
-    }
-    if recording.files.is_empty() {
-        return Err(not_a_recording("it carries no world file".to_owned()));
     }
     Ok(recording)
 }

@@ -10,23 +10,31 @@
 //! - `/sinew/ticks` (postcard, [`TickMessage`]): every tick's inputs and force commands, exactly (replay);
 //! - `/sinew/<device>/pose` and `/sinew/<device>/force` (JSON, with JSON schemas): the same, for Foxglove;
 //! - `/sinew/final_state` (postcard, [`FinalState`]): every node position when the recording ended;
+//! - what the scene published, as published ([`super::wire_tap`]): each zenoh key its own channel
+//!   (`x-sinew-wire`: envelope and postcard body), with JSON views of tool states (`/sinew/tools`), stats with
+//!   every device's round trip (`/sinew/stats`) and participant presence (`/sinew/presence`);
 //! - attachments: the world file and every mesh file it names, so a recording replays on its own;
-//! - metadata `sinew`: recording format, protocol version, scene, tick rate.
+//! - metadata `sinew`: recording format, kind (`session`, or `wire` for `sinew-recorder`'s files, which hold
+//!   only what was published), protocol version, scene, tick rate.
 
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 
 use thiserror::Error;
 
 use super::tick_record::{FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
+use super::wire_tap::{WIRE_QUEUE, WireItem, WireSink};
 use super::world_files::world_files;
-use super::{FORMAT_VERSION, TICKS_ENCODING, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_TICKS};
+use super::{
+    FORMAT_VERSION, TICKS_ENCODING, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_PRESENCE, TOPIC_STATS,
+    TOPIC_TICKS, TOPIC_TOOLS, WIRE_ENCODING,
+};
 use crate::world::World;
 
 /// Ticks the queue holds (a quarter second at 1 kHz) before it drops.
@@ -71,9 +79,12 @@ pub enum RecordError {
 
 /// What goes through the queue.
 #[derive(Debug)]
-enum Item {
+pub(super) enum Item {
     Tick(Box<TickRecord>),
     Final(FinalState),
+    Wire(WireItem),
+    /// The session is over: finish the file, whatever still holds a sender.
+    End,
 }
 
 /// The sim thread's end of the recorder.
@@ -131,6 +142,10 @@ pub struct RecordSummary {
     pub final_state: bool,
     /// Why the recording stopped early (a write failed), if it did.
     pub error: Option<String>,
+    /// Wire messages and presence changes written.
+    pub wire_items: u64,
+    /// Wire messages and presence changes dropped because the writer fell behind (set by the tap's owner).
+    pub wire_dropped: u64,
 }
 
 /// The recorder thread's handle.
@@ -139,7 +154,14 @@ pub struct Recorder {
     thread: Option<JoinHandle<RecordSummary>>,
     dropped: Arc<AtomicU64>,
     failed: Arc<AtomicBool>,
+    queue: SyncSender<Item>,
+    wire_in_flight: Arc<AtomicUsize>,
 }
+
+/// A session recording (`sinew-server --record`): tick inputs, the world, and the wire.
+pub const KIND_SESSION: &str = "session";
+/// A recording of what was published only (`sinew-recorder`): not replayable.
+pub const KIND_WIRE: &str = "wire";
 
 impl Recorder {
     /// Create `path`, write the world into it, and start the writer thread. Fails (and creates nothing more)
@@ -153,38 +175,14 @@ impl Recorder {
         }
         let files = world_files(&world.source)
             .map_err(|(path, message)| RecordError::WorldFile { path, message })?;
-        let file = File::create(path).map_err(|e| RecordError::Create {
-            path: path.to_owned(),
-            message: e.to_string(),
-        })?;
-        let write_error = |e: mcap::McapError| RecordError::Write {
-            path: path.to_owned(),
-            message: e.to_string(),
-        };
-        let mut out = mcap::WriteOptions::new()
-            .compression(Some(mcap::Compression::Zstd))
-            // Compress on this thread: helper threads would compete with the 1 kHz loops for the cores.
-            .compression_threads(0)
-            .profile("sinew")
-            .create(BufWriter::new(file))
-            .map_err(write_error)?;
         let mut metadata = BTreeMap::new();
-        metadata.insert("format_version".to_owned(), FORMAT_VERSION.to_string());
-        metadata.insert(
-            "protocol_version".to_owned(),
-            sinew_protocol::PROTOCOL_VERSION.to_string(),
-        );
-        metadata.insert("scene".to_owned(), world.scene.clone());
+        metadata.insert("kind".to_owned(), KIND_SESSION.to_owned());
         metadata.insert("tick_hz".to_owned(), world.tick_hz.to_string());
         metadata.insert(
             "world_file".to_owned(),
             files.first().map(|f| f.name.clone()).unwrap_or_default(),
         );
-        out.write_metadata(&mcap::records::Metadata {
-            name: "sinew".to_owned(),
-            metadata,
-        })
-        .map_err(write_error)?;
+        let mut out = open_file(path, &world.scene, metadata)?;
         for file in &files {
             out.attach(&mcap::Attachment {
                 log_time: 0,
@@ -193,18 +191,46 @@ impl Recorder {
                 media_type: file.media_type.to_owned(),
                 data: std::borrow::Cow::Borrowed(&file.data),
             })
-            .map_err(write_error)?;
+            .map_err(write_error(path))?;
         }
-        let channels = Channels::add(&mut out, world).map_err(write_error)?;
-
-        let (queue, items) = sync_channel(QUEUE_TICKS);
+        let channels = Channels::add(&mut out, Some(world)).map_err(write_error(path))?;
+        let tick_ns = (1e9 / world.tick_hz).round() as u64;
         let (give_back, returned) = sync_channel(QUEUE_TICKS + 1);
+        let recorder = Self::spawn(path, out, channels, tick_ns, Some(give_back))?;
         let boxes = (0..QUEUE_TICKS)
             .map(|_| Box::new(TickRecord::new(0, &[], &[], &[])))
             .collect();
+        let tap = RecorderTap {
+            queue: recorder.queue.clone(),
+            dropped: recorder.dropped.clone(),
+            boxes,
+            returned,
+        };
+        Ok((recorder, tap))
+    }
+
+    /// Create `path` for a recording of what scene `scene` publishes, and start the writer thread
+    /// (`sinew-recorder`): hand it items through [`Self::wire_sink`].
+    pub fn start_wire(path: &Path, scene: &str) -> Result<Recorder, RecordError> {
+        let mut metadata = BTreeMap::new();
+        metadata.insert("kind".to_owned(), KIND_WIRE.to_owned());
+        let mut out = open_file(path, scene, metadata)?;
+        let channels = Channels::add(&mut out, None).map_err(write_error(path))?;
+        Self::spawn(path, out, channels, 0, None)
+    }
+
+    fn spawn(
+        path: &Path,
+        out: mcap::Writer<BufWriter<File>>,
+        channels: Channels,
+        tick_ns: u64,
+        give_back: Option<SyncSender<Box<TickRecord>>>,
+    ) -> Result<Recorder, RecordError> {
+        // Room for every tick box, every wire item and the final state: neither kind crowds the other out.
+        let (queue, items) = sync_channel(QUEUE_TICKS + WIRE_QUEUE + 2);
         let dropped = Arc::new(AtomicU64::new(0));
         let failed = Arc::new(AtomicBool::new(false));
-        let tick_ns = (1e9 / world.tick_hz).round() as u64;
+        let wire_in_flight = Arc::new(AtomicUsize::new(0));
         let summary = RecordSummary {
             path: path.to_owned(),
             ..RecordSummary::default()
@@ -212,31 +238,34 @@ impl Recorder {
         let thread = {
             let dropped = dropped.clone();
             let failed = failed.clone();
+            let in_flight = wire_in_flight.clone();
             std::thread::Builder::new()
                 .name("sinew-recorder".into())
                 .spawn(move || {
-                    write_loop(
-                        out, channels, items, give_back, tick_ns, summary, &dropped, &failed,
-                    )
+                    let shared = WriterShared {
+                        dropped: &dropped,
+                        failed: &failed,
+                        wire_in_flight: &in_flight,
+                    };
+                    write_loop(out, channels, items, give_back, tick_ns, summary, &shared)
                 })
                 .map_err(|e| RecordError::Create {
                     path: path.to_owned(),
                     message: format!("spawning the recorder thread: {e}"),
                 })?
         };
-        Ok((
-            Recorder {
-                thread: Some(thread),
-                dropped: dropped.clone(),
-                failed,
-            },
-            RecorderTap {
-                queue,
-                dropped,
-                boxes,
-                returned,
-            },
-        ))
+        Ok(Recorder {
+            thread: Some(thread),
+            dropped,
+            failed,
+            queue,
+            wire_in_flight,
+        })
+    }
+
+    /// A new hand-off for a wire tap into this recording.
+    pub fn wire_sink(&self) -> WireSink {
+        WireSink::new(self.queue.clone(), self.wire_in_flight.clone())
     }
 
     /// Ticks dropped so far.
@@ -249,8 +278,10 @@ impl Recorder {
         self.failed.load(Ordering::Relaxed)
     }
 
-    /// Wait for the file to be finished (after the tap was finished or dropped).
+    /// Finish the file and wait for it (after the tap was finished or dropped; wire items handed over later
+    /// are not written).
     pub fn join(mut self) -> RecordSummary {
+        let _ = self.queue.send(Item::End);
         self.thread
             .take()
             .and_then(|t| t.join().ok())
@@ -258,11 +289,55 @@ impl Recorder {
     }
 }
 
+fn write_error(path: &Path) -> impl Fn(mcap::McapError) -> RecordError + '_ {
+    move |e| RecordError::Write {
+        path: path.to_owned(),
+        message: e.to_string(),
+    }
+}
+
+/// Create the file and write its `sinew` metadata (format, protocol, scene, and `extra`).
+fn open_file(
+    path: &Path,
+    scene: &str,
+    extra: BTreeMap<String, String>,
+) -> Result<mcap::Writer<BufWriter<File>>, RecordError> {
+    let file = File::create(path).map_err(|e| RecordError::Create {
+        path: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    let mut out = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        // Compress on this thread: helper threads would compete with the 1 kHz loops for the cores.
+        .compression_threads(0)
+        .profile("sinew")
+        .create(BufWriter::new(file))
+        .map_err(write_error(path))?;
+    let mut metadata = extra;
+    metadata.insert("format_version".to_owned(), FORMAT_VERSION.to_string());
+    metadata.insert(
+        "protocol_version".to_owned(),
+        sinew_protocol::PROTOCOL_VERSION.to_string(),
+    );
+    metadata.insert("scene".to_owned(), scene.to_owned());
+    out.write_metadata(&mcap::records::Metadata {
+        name: "sinew".to_owned(),
+        metadata,
+    })
+    .map_err(write_error(path))?;
+    Ok(out)
+}
+
 /// Channel ids.
 struct Channels {
     ticks: u16,
     final_state: u16,
     events: u16,
+    tools_json: u16,
+    stats_json: u16,
+    presence_json: u16,
+    /// One channel per zenoh key heard, added as keys appear.
+    wire: BTreeMap<String, u16>,
     /// Per tool: its device id.
     device_ids: Vec<String>,
     /// Per tool: (pose, force) JSON channels.
@@ -272,7 +347,7 @@ struct Channels {
 impl Channels {
     fn add<W: std::io::Write + std::io::Seek>(
         out: &mut mcap::Writer<W>,
-        world: &World,
+        world: Option<&World>,
     ) -> Result<Self, mcap::McapError> {
         let none = BTreeMap::new();
         let ticks = out.add_channel(0, TOPIC_TICKS, TICKS_ENCODING, &none)?;
@@ -293,8 +368,28 @@ impl Channels {
             super::json_view::EVENT_SCHEMA.as_bytes(),
         )?;
         let events = out.add_channel(event_schema, TOPIC_EVENTS, "json", &none)?;
-        let mut devices = Vec::with_capacity(world.tools.len());
-        for tool in &world.tools {
+        let mut json_channel = |name: &str, schema: &str, topic: &str| {
+            let schema = out.add_schema(name, "jsonschema", schema.as_bytes())?;
+            out.add_channel(schema, topic, "json", &none)
+        };
+        let tools_json = json_channel(
+            "sinew.ToolStates",
+            super::json_view::TOOLS_SCHEMA,
+            TOPIC_TOOLS,
+        )?;
+        let stats_json = json_channel(
+            "sinew.ServerStats",
+            super::json_view::STATS_SCHEMA,
+            TOPIC_STATS,
+        )?;
+        let presence_json = json_channel(
+            "sinew.Presence",
+            super::json_view::PRESENCE_SCHEMA,
+            TOPIC_PRESENCE,
+        )?;
+        let tools = world.map_or(&[][..], |w| &w.tools[..]);
+        let mut devices = Vec::with_capacity(tools.len());
+        for tool in tools {
             let mut metadata = BTreeMap::new();
             metadata.insert("tool".to_owned(), tool.name.clone());
             let pose = out.add_channel(
@@ -315,23 +410,37 @@ impl Channels {
             ticks,
             final_state,
             events,
-            device_ids: world.tools.iter().map(|t| t.device_id.clone()).collect(),
+            tools_json,
+            stats_json,
+            presence_json,
+            wire: BTreeMap::new(),
+            device_ids: tools.iter().map(|t| t.device_id.clone()).collect(),
             devices,
         })
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The counters the writer thread shares with its handle.
+struct WriterShared<'a> {
+    dropped: &'a AtomicU64,
+    failed: &'a AtomicBool,
+    wire_in_flight: &'a AtomicUsize,
+}
+
 fn write_loop<W: std::io::Write + std::io::Seek>(
     mut out: mcap::Writer<W>,
-    channels: Channels,
+    mut channels: Channels,
     items: Receiver<Item>,
-    give_back: SyncSender<Box<TickRecord>>,
+    give_back: Option<SyncSender<Box<TickRecord>>>,
     tick_ns: u64,
     mut summary: RecordSummary,
-    dropped: &AtomicU64,
-    failed: &AtomicBool,
+    shared: &WriterShared<'_>,
 ) -> RecordSummary {
+    let WriterShared {
+        dropped,
+        failed,
+        wire_in_flight,
+    } = *shared;
     let mut sequence = 0u32;
     let mut bytes = Vec::with_capacity(4096);
     let fail = |summary: &mut RecordSummary, what: String| {
@@ -366,8 +475,20 @@ fn write_loop<W: std::io::Write + std::io::Seek>(
                         Err(e) => fail(&mut summary, e),
                     }
                 }
-                let _ = give_back.try_send(record);
+                if let Some(give_back) = &give_back {
+                    let _ = give_back.try_send(record);
+                }
             }
+            Item::Wire(item) => {
+                wire_in_flight.fetch_sub(1, Ordering::AcqRel);
+                if summary.error.is_none() {
+                    match write_wire(&mut out, &mut channels, &item, &mut sequence) {
+                        Ok(()) => summary.wire_items += 1,
+                        Err(e) => fail(&mut summary, e),
+                    }
+                }
+            }
+            Item::End => break,
             Item::Final(state) => {
                 if summary.error.is_none() {
                     let time_ns = state.ticks.saturating_mul(tick_ns);
@@ -422,6 +543,71 @@ fn write_tick<W: std::io::Write + std::io::Seek>(
         }
     }
     Ok(())
+}
+
+fn write_wire<W: std::io::Write + std::io::Seek>(
+    out: &mut mcap::Writer<W>,
+    channels: &mut Channels,
+    item: &WireItem,
+    sequence: &mut u32,
+) -> Result<(), String> {
+    match item {
+        WireItem::Sample {
+            key,
+            log_time_ns,
+            payload,
+        } => {
+            let channel = match channels.wire.get(key) {
+                Some(&id) => id,
+                None => {
+                    let mut metadata = BTreeMap::new();
+                    metadata.insert(
+                        "format".to_owned(),
+                        "sinew wire envelope: u16 LE protocol version, u8 message kind, u64 LE sender, \
+                         postcard body"
+                            .to_owned(),
+                    );
+                    let id = out
+                        .add_channel(0, key, WIRE_ENCODING, &metadata)
+                        .map_err(|e| e.to_string())?;
+                    channels.wire.insert(key.clone(), id);
+                    id
+                }
+            };
+            write_message(out, channel, sequence, *log_time_ns, payload)?;
+            // JSON views of the low-rate messages an instructor reads in Foxglove.
+            let view = if key.ends_with("/tools") {
+                sinew_protocol::decode::<sinew_protocol::ToolStates>(payload)
+                    .ok()
+                    .map(|m| (channels.tools_json, serde_json::to_vec(&m)))
+            } else if key.ends_with("/stats") {
+                sinew_protocol::decode::<sinew_protocol::ServerStats>(payload)
+                    .ok()
+                    .map(|m| (channels.stats_json, serde_json::to_vec(&m)))
+            } else {
+                None
+            };
+            if let Some((channel, json)) = view {
+                let json = json.map_err(|e| e.to_string())?;
+                write_message(out, channel, sequence, *log_time_ns, &json)?;
+            }
+            Ok(())
+        }
+        WireItem::Presence {
+            key,
+            joined,
+            log_time_ns,
+        } => {
+            let json = super::json_view::presence_json(key, *joined)?;
+            write_message(
+                out,
+                channels.presence_json,
+                sequence,
+                *log_time_ns,
+                json.as_bytes(),
+            )
+        }
+    }
 }
 
 fn write_events<W: std::io::Write + std::io::Seek>(

@@ -83,6 +83,12 @@ enum Command {
         #[arg(long, default_value_t = 768, requires = "png_every")]
         height: u32,
     },
+    /// What a recording holds: its metadata, messages per topic, ticks, presence changes, damage. Reads
+    /// `sinew-recorder`'s files too.
+    Info {
+        /// The recording (MCAP).
+        file: PathBuf,
+    },
     /// A training report of a recording: replays it with the training layer watching and writes
     /// report.json (metrics, time per skill state, events per participant), force.png, path_top.png,
     /// states.png and summary.txt into a directory.
@@ -158,6 +164,7 @@ fn main() -> anyhow::Result<()> {
                 replay(&file)?;
             }
         }
+        Command::Info { file } => info(&file)?,
         Command::Report { file, out } => {
             let out = out.unwrap_or_else(|| {
                 let stem = file
@@ -169,6 +176,45 @@ fn main() -> anyhow::Result<()> {
             print!("{}", sinew::report::summary(&report));
             println!("report written to {}", out.display());
         }
+    }
+    Ok(())
+}
+
+fn info(file: &std::path::Path) -> anyhow::Result<()> {
+    let recording = sinew_server::recording::survey(file)?;
+    println!(
+        "{}: a Sinew recording of kind `{}`",
+        file.display(),
+        recording.kind()
+    );
+    for (key, value) in &recording.metadata {
+        println!("  {key}: {value}");
+    }
+    for (name, data) in &recording.files {
+        println!("  attached: {name} ({} bytes)", data.len());
+    }
+    println!(
+        "  ticks: {}{}",
+        recording.ticks.len(),
+        if recording.final_state.is_some() {
+            ", with the final tissue state"
+        } else {
+            ""
+        }
+    );
+    println!("  messages per topic:");
+    for (topic, count) in &recording.topic_counts {
+        println!("    {topic}: {count}");
+    }
+    for (time_ns, key, joined) in &recording.presence {
+        println!(
+            "  {:.3} s: {key} {}",
+            *time_ns as f64 * 1e-9,
+            if *joined { "joined" } else { "left" }
+        );
+    }
+    if let Some(damage) = &recording.damage {
+        println!("  damaged: {damage}");
     }
     Ok(())
 }
