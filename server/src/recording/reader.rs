@@ -254,6 +254,9 @@ impl<'a> Records<'a> {
             reader: mcap::sans_io::LinearReader::new_with_options(
                 mcap::sans_io::LinearReaderOptions::default()
                     .with_skip_end_magic(true)
+                    // A chunk whose bytes were changed is damage as a whole, before any of its records is
+                    // used: a change inside a message no channel decodes would otherwise pass unseen.
+                    .with_prevalidate_chunk_crcs(true)
                     .with_record_length_limit(RECORD_LENGTH_LIMIT),
             ),
         }
