@@ -240,7 +240,7 @@ impl Recorder {
             let failed = failed.clone();
             let in_flight = wire_in_flight.clone();
             std::thread::Builder::new()
-                .name("sinew-recorder".into())
+                .name("sinew-mcap-writer".into())
                 .spawn(move || {
                     let shared = WriterShared {
                         dropped: &dropped,
