@@ -7,7 +7,10 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use sinew::harness::{free_loopback_endpoint, load_shipped_world, record_two_surgeons, serial};
+use sinew::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, record_two_surgeons, serial,
+    start_sim_device, surgeon_scripts, wait_until,
+};
 use sinew::netns::role_binary;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerError, ServerNode, SimReport};
@@ -242,6 +245,69 @@ fn an_unwritable_recording_path_is_refused_before_anything_starts() {
 /// `sinew report` on the recording: the files are written, the figures have each participant's colour, the
 /// metrics describe the scripted session (left presses and strokes, right presses and holds), and the time per
 /// skill state adds up to the session.
+#[test]
+fn a_disk_that_fills_stops_the_recording_not_the_session() {
+    let _serial = serial();
+    let endpoint = free_loopback_endpoint().unwrap();
+    // A device that is full from the start: refused at start, by name.
+    let err = ServerNode::start(
+        load_shipped_world("pad.toml").unwrap(),
+        config(&endpoint, Some(PathBuf::from("/dev/full"))),
+    )
+    .unwrap_err();
+    assert!(matches!(err, ServerError::Record(_)), "{err}");
+    assert!(err.to_string().contains("/dev/full"), "{err}");
+
+    // A disk that fills during the session: a 512 kB tmpfs (the world's files take 210 kB of it). Needs root,
+    // as the network-namespace lab does.
+    let dir = temp("full-disk");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=512k", "tmpfs"])
+        .arg(&dir)
+        .status()
+        .unwrap();
+    assert!(
+        mounted.success(),
+        "mounting a small tmpfs needs root (CI runs as root)"
+    );
+    let path = dir.join("session.mcap");
+    let mut server = ServerNode::start(
+        load_shipped_world("pad.toml").unwrap(),
+        config(&endpoint, Some(path)),
+    )
+    .unwrap();
+    let (left_script, _) = surgeon_scripts();
+    let left = start_sim_device("pad", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
+    assert!(wait_until(Duration::from_secs(10), || server
+        .stats()
+        .devices[0]
+        .active));
+    // 300 kB of recording fills in about a second at this rate; then the session must go on for another two.
+    std::thread::sleep(Duration::from_secs(2));
+    let before = server.stats();
+    std::thread::sleep(Duration::from_secs(1));
+    let after = server.stats();
+    assert!(
+        after.ticks > before.ticks + 500,
+        "the session stopped ticking"
+    );
+    assert!(
+        after.devices[0].forces_sent > before.devices[0].forces_sent + 300,
+        "the device stopped getting forces"
+    );
+    assert!(server.failure().is_none());
+    drop(left);
+    server.stop();
+    let _ = std::process::Command::new("umount").arg(&dir).status();
+    let _ = std::fs::remove_dir_all(&dir);
+    let summary = server.record_summary().cloned().unwrap();
+    println!("recording to a filling disk: {summary:?}");
+    assert!(summary.ticks > 100, "{summary:?}");
+    let error = summary.error.expect("the failed write is reported");
+    assert!(error.contains("space"), "{error}");
+}
+
 fn check_report(path: &std::path::Path, outcome: &ReplayOutcome, live: &SimReport) {
     let out = temp("report");
     let run = std::process::Command::new(role_binary("sinew").unwrap())

@@ -292,8 +292,20 @@ impl Recorder {
 fn write_error(path: &Path) -> impl Fn(mcap::McapError) -> RecordError + '_ {
     move |e| RecordError::Write {
         path: path.to_owned(),
-        message: e.to_string(),
+        message: describe(&e),
     }
+}
+
+/// An error with its causes (mcap's I/O error hides the system's reason, such as "No space left on device").
+fn describe(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut source = error.source();
+    while let Some(cause) = source {
+        text.push_str(": ");
+        text.push_str(&cause.to_string());
+        source = cause.source();
+    }
+    text
 }
 
 /// Create the file and write its `sinew` metadata (format, protocol, scene, and `extra`).
@@ -514,7 +526,7 @@ fn write_loop<W: std::io::Write + std::io::Seek>(
     if summary.error.is_none()
         && let Err(e) = out.finish()
     {
-        fail(&mut summary, e.to_string());
+        fail(&mut summary, describe(&e));
     }
     summary.dropped = dropped.load(Ordering::Relaxed);
     summary
@@ -569,7 +581,7 @@ fn write_wire<W: std::io::Write + std::io::Seek>(
                     );
                     let id = out
                         .add_channel(0, key, WIRE_ENCODING, &metadata)
-                        .map_err(|e| e.to_string())?;
+                        .map_err(|e| describe(&e))?;
                     channels.wire.insert(key.clone(), id);
                     id
                 }
@@ -645,5 +657,5 @@ fn write_message<W: std::io::Write + std::io::Seek>(
         },
         data,
     )
-    .map_err(|e| e.to_string())
+    .map_err(|e| describe(&e))
 }
