@@ -3,7 +3,8 @@
 Layout (protocol/WIRE.md): `[version u16 LE][kind u8][sender u64 LE][postcard body]`. Postcard writes unsigned
 integers wider than a byte as LEB128 varints, floats as little-endian IEEE 754, bools as one byte, strings and
 vectors as a varint length then the items, fixed arrays as their items, options and enums as a varint tag then
-the value, structs as their fields in order. Each message class lists its fields in wire order in `FIELDS`.
+the value, structs as their fields in order. Each message is a dataclass whose fields, in declaration order,
+carry their wire type (`wire_field`).
 """
 
 from __future__ import annotations
@@ -119,7 +120,7 @@ def _write(t: Any, value: Any, out: bytearray) -> None:
         for name, ft in t[1][tag][1]:
             _write(ft, value[name], out)
     else:
-        for name, ft in t.FIELDS:
+        for name, ft in _wire_fields(t):
             _write(ft, getattr(value, name), out)
 
 
@@ -166,7 +167,16 @@ def _read(t: Any, r: _Reader) -> Any:
         for fname, ft in variant_fields:
             value[fname] = _read(ft, r)
         return value
-    return t(**{name: _read(ft, r) for name, ft in t.FIELDS})
+    return t(**{name: _read(ft, r) for name, ft in _wire_fields(t)})
+
+
+def wire_field(wire_type: Any, **kwargs: Any) -> Any:
+    """A dataclass field with its wire type: a message's fields are written in declaration order."""
+    return field(metadata={"wire": wire_type}, **kwargs)
+
+
+def _wire_fields(cls: Any) -> List[tuple]:
+    return [(f.name, f.metadata["wire"]) for f in fields(cls)]
 
 
 V3 = ("arr", "f32", 3)
@@ -181,78 +191,42 @@ class DevicePose:
     """Hapticserver -> server, 1 kHz, on sinew/<scene>/device/<id>/pose. Device frame, mm, mm/s, rad."""
 
     KIND = KIND_DEVICE_POSE
-    seq: int = 0
-    device_time_ns: int = 0
-    position_mm: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    orientation_xyzw: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 1.0])
-    linear_velocity_mm_s: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    buttons: int = 0
-    jaw_angle_rad: float = 0.0
-    round_trip_us: int = 0
-    render_mode: int = RENDER_DIRECT
-
-
-DevicePose.FIELDS = [
-    ("seq", "u64"),
-    ("device_time_ns", "u64"),
-    ("position_mm", V3),
-    ("orientation_xyzw", Q4),
-    ("linear_velocity_mm_s", V3),
-    ("buttons", "u32"),
-    ("jaw_angle_rad", "f32"),
-    ("round_trip_us", "u32"),
-    ("render_mode", "u32"),  # enum RenderMode: its tag is a varint
-]
+    seq: int = wire_field("u64", default=0)
+    device_time_ns: int = wire_field("u64", default=0)
+    position_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    orientation_xyzw: List[float] = wire_field(Q4, default_factory=lambda: [0.0, 0.0, 0.0, 1.0])
+    linear_velocity_mm_s: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    buttons: int = wire_field("u32", default=0)
+    jaw_angle_rad: float = wire_field("f32", default=0.0)
+    round_trip_us: int = wire_field("u32", default=0)
+    render_mode: int = wire_field("u32", default=RENDER_DIRECT)  # enum RenderMode: its tag is a varint
 
 
 @dataclass
 class ContactPlane:
     """A unilateral plane of the local model: pushes out along `normal` below `offset_mm`."""
 
-    normal: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    offset_mm: float = 0.0
-    stiffness_n_per_mm: float = 0.0
-    damping_n_s_per_mm: float = 0.0
-
-
-ContactPlane.FIELDS = [
-    ("normal", V3),
-    ("offset_mm", "f32"),
-    ("stiffness_n_per_mm", "f32"),
-    ("damping_n_s_per_mm", "f32"),
-]
+    normal: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    offset_mm: float = wire_field("f32", default=0.0)
+    stiffness_n_per_mm: float = wire_field("f32", default=0.0)
+    damping_n_s_per_mm: float = wire_field("f32", default=0.0)
 
 
 @dataclass
 class LocalModel:
     """The tissue near the tool: f = f0 - K (x - x0) - D v within the radius, plus planes (WIRE.md)."""
 
-    server_time_ns: int = 0
-    in_contact: bool = False
-    x0_mm: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    f0_n: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    stiffness_n_per_mm: List[float] = field(default_factory=lambda: [0.0] * 6)
-    damping_n_s_per_mm: List[float] = field(default_factory=lambda: [0.0] * 6)
-    radius_mm: float = 0.0
-    fade_mm: float = 0.0
-    planes: List[ContactPlane] = field(default_factory=lambda: [ContactPlane() for _ in range(4)])
-    plane_count: int = 0
-    energy_allowance_mj: float = 0.0
-
-
-LocalModel.FIELDS = [
-    ("server_time_ns", "u64"),
-    ("in_contact", "bool"),
-    ("x0_mm", V3),
-    ("f0_n", V3),
-    ("stiffness_n_per_mm", SYM3),
-    ("damping_n_s_per_mm", SYM3),
-    ("radius_mm", "f32"),
-    ("fade_mm", "f32"),
-    ("planes", ("arr", ContactPlane, 4)),
-    ("plane_count", "u8"),
-    ("energy_allowance_mj", "f32"),
-]
+    server_time_ns: int = wire_field("u64", default=0)
+    in_contact: bool = wire_field("bool", default=False)
+    x0_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    f0_n: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    stiffness_n_per_mm: List[float] = wire_field(SYM3, default_factory=lambda: [0.0] * 6)
+    damping_n_s_per_mm: List[float] = wire_field(SYM3, default_factory=lambda: [0.0] * 6)
+    radius_mm: float = wire_field("f32", default=0.0)
+    fade_mm: float = wire_field("f32", default=0.0)
+    planes: List[ContactPlane] = wire_field(("arr", ContactPlane, 4), default_factory=lambda: [ContactPlane() for _ in range(4)])
+    plane_count: int = wire_field("u8", default=0)
+    energy_allowance_mj: float = wire_field("f32", default=0.0)
 
 
 @dataclass
@@ -260,25 +234,14 @@ class ForceCommand:
     """Server -> hapticserver on sinew/<scene>/device/<id>/force. `local_model` None is ForceMode::Direct."""
 
     KIND = KIND_FORCE_COMMAND
-    seq: int = 0
-    echo_pose_seq: int = 0
-    echo_device_time_ns: int = 0
-    force_n: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    local_model: Optional[LocalModel] = None
-    in_contact: bool = False
-    device_instance: int = 0
-
-
-ForceCommand.FIELDS = [
-    ("seq", "u64"),
-    ("echo_pose_seq", "u64"),
-    ("echo_device_time_ns", "u64"),
-    ("force_n", V3),
+    seq: int = wire_field("u64", default=0)
+    echo_pose_seq: int = wire_field("u64", default=0)
+    echo_device_time_ns: int = wire_field("u64", default=0)
+    force_n: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
     # enum ForceMode { Direct = 0, LocalModel(LocalModel) = 1 }: the same bytes as an option.
-    ("local_model", ("opt", LocalModel)),
-    ("in_contact", "bool"),
-    ("device_instance", "u64"),
-]
+    local_model: Optional[LocalModel] = wire_field(("opt", LocalModel), default=None)
+    in_contact: bool = wire_field("bool", default=False)
+    device_instance: int = wire_field("u64", default=0)
 
 
 @dataclass
@@ -286,20 +249,11 @@ class ParticipantHello:
     """Any participant -> everyone on sinew/<scene>/hello/<role>/<id>, on start and every second."""
 
     KIND = KIND_PARTICIPANT_HELLO
-    participant_id: str = ""
-    role: int = ROLE_HAPTIC
-    device_model: str = ""
-    max_force_n: float = 0.0
-    tool: str = ""
-
-
-ParticipantHello.FIELDS = [
-    ("participant_id", "str"),
-    ("role", "u32"),  # enum Role: 0 Server, 1 Haptic, 2 Viewer
-    ("device_model", "str"),
-    ("max_force_n", "f32"),
-    ("tool", "str"),
-]
+    participant_id: str = wire_field("str", default="")
+    role: int = wire_field("u32", default=ROLE_HAPTIC)  # enum Role: 0 Server, 1 Haptic, 2 Viewer
+    device_model: str = wire_field("str", default="")
+    max_force_n: float = wire_field("f32", default=0.0)
+    tool: str = wire_field("str", default="")
 
 
 @dataclass
@@ -307,42 +261,23 @@ class MeshDelta:
     """Server -> viewers: the changed vertices of one object, quantized against its snapshot bounds."""
 
     KIND = KIND_MESH_DELTA
-    object: int = 0
-    frame: int = 0
-    prev_frame: int = 0
-    indices: List[int] = field(default_factory=list)
-    positions_q: List[List[int]] = field(default_factory=list)
-
-
-MeshDelta.FIELDS = [
-    ("object", "u16"),
-    ("frame", "u64"),
-    ("prev_frame", "u64"),
-    ("indices", ("vec", "u32")),
-    ("positions_q", ("vec", ("arr", "u16", 3))),
-]
+    object: int = wire_field("u16", default=0)
+    frame: int = wire_field("u64", default=0)
+    prev_frame: int = wire_field("u64", default=0)
+    indices: List[int] = wire_field(("vec", "u32"), default_factory=list)
+    positions_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
 
 
 @dataclass
 class ToolState:
     """One tool, world frame: position, orientation, the tissue's force on it."""
 
-    tool: int = 0
-    position_mm: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    orientation_xyzw: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 1.0])
-    force_n: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    active: bool = False
-    in_contact: bool = False
-
-
-ToolState.FIELDS = [
-    ("tool", "u16"),
-    ("position_mm", V3),
-    ("orientation_xyzw", Q4),
-    ("force_n", V3),
-    ("active", "bool"),
-    ("in_contact", "bool"),
-]
+    tool: int = wire_field("u16", default=0)
+    position_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    orientation_xyzw: List[float] = wire_field(Q4, default_factory=lambda: [0.0, 0.0, 0.0, 1.0])
+    force_n: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    active: bool = wire_field("bool", default=False)
+    in_contact: bool = wire_field("bool", default=False)
 
 
 @dataclass
@@ -350,44 +285,29 @@ class ToolStates:
     """Server -> viewers on sinew/<scene>/tools, every publish frame."""
 
     KIND = KIND_TOOL_STATES
-    frame: int = 0
-    sim_time_s: float = 0.0
-    tools: List[ToolState] = field(default_factory=list)
-
-
-ToolStates.FIELDS = [("frame", "u64"), ("sim_time_s", "f64"), ("tools", ("vec", ToolState))]
+    frame: int = wire_field("u64", default=0)
+    sim_time_s: float = wire_field("f64", default=0.0)
+    tools: List[ToolState] = wire_field(("vec", ToolState), default_factory=list)
 
 
 @dataclass
 class QuantBounds:
-    min_mm: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    max_mm: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    min_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    max_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
 
     def dequantize(self, q: List[int]) -> List[float]:
         return [self.min_mm[a] + q[a] / 65535.0 * (self.max_mm[a] - self.min_mm[a]) for a in range(3)]
 
 
-QuantBounds.FIELDS = [("min_mm", V3), ("max_mm", V3)]
-
-
 @dataclass
 class ObjectSnapshot:
-    object: int = 0
-    name: str = ""
-    bounds: QuantBounds = field(default_factory=QuantBounds)
-    triangles: List[List[int]] = field(default_factory=list)
-    positions_q: List[List[int]] = field(default_factory=list)
-    frame: int = 0
+    object: int = wire_field("u16", default=0)
+    name: str = wire_field("str", default="")
+    bounds: QuantBounds = wire_field(QuantBounds, default_factory=QuantBounds)
+    triangles: List[List[int]] = wire_field(("vec", ("arr", "u32", 3)), default_factory=list)
+    positions_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
+    frame: int = wire_field("u64", default=0)
 
-
-ObjectSnapshot.FIELDS = [
-    ("object", "u16"),
-    ("name", "str"),
-    ("bounds", QuantBounds),
-    ("triangles", ("vec", ("arr", "u32", 3))),
-    ("positions_q", ("vec", ("arr", "u16", 3))),
-    ("frame", "u64"),
-]
 
 TOOL_SHAPE = (
     "variants",
@@ -401,13 +321,10 @@ TOOL_SHAPE = (
 
 @dataclass
 class ToolInfo:
-    tool: int = 0
-    name: str = ""
-    device_id: str = ""
-    shape: dict = field(default_factory=lambda: {"kind": "sphere", "radius_mm": 1.0})
-
-
-ToolInfo.FIELDS = [("tool", "u16"), ("name", "str"), ("device_id", "str"), ("shape", TOOL_SHAPE)]
+    tool: int = wire_field("u16", default=0)
+    name: str = wire_field("str", default="")
+    device_id: str = wire_field("str", default="")
+    shape: dict = wire_field(TOOL_SHAPE, default_factory=lambda: {"kind": "sphere", "radius_mm": 1.0})
 
 
 @dataclass
@@ -415,118 +332,64 @@ class SceneSnapshot:
     """Server -> querier: the reply to a query on sinew/<scene>/snapshot."""
 
     KIND = KIND_SCENE_SNAPSHOT
-    scene: str = ""
-    frame: int = 0
-    objects: List[ObjectSnapshot] = field(default_factory=list)
-    tools: List[ToolInfo] = field(default_factory=list)
-    tool_states: ToolStates = field(default_factory=ToolStates)
-
-
-SceneSnapshot.FIELDS = [
-    ("scene", "str"),
-    ("frame", "u64"),
-    ("objects", ("vec", ObjectSnapshot)),
-    ("tools", ("vec", ToolInfo)),
-    ("tool_states", ToolStates),
-]
+    scene: str = wire_field("str", default="")
+    frame: int = wire_field("u64", default=0)
+    objects: List[ObjectSnapshot] = wire_field(("vec", ObjectSnapshot), default_factory=list)
+    tools: List[ToolInfo] = wire_field(("vec", ToolInfo), default_factory=list)
+    tool_states: ToolStates = wire_field(ToolStates, default_factory=ToolStates)
 
 
 @dataclass
 class RejectCounts:
-    malformed: int = 0
-    wrong_version: int = 0
-    invalid: int = 0
-    unknown_device: int = 0
-    duplicate_device: int = 0
-    wrong_tool: int = 0
-    no_hello: int = 0
-
-
-RejectCounts.FIELDS = [(f, "u64") for f in RejectCounts.__dataclass_fields__]
+    malformed: int = wire_field("u64", default=0)
+    wrong_version: int = wire_field("u64", default=0)
+    invalid: int = wire_field("u64", default=0)
+    unknown_device: int = wire_field("u64", default=0)
+    duplicate_device: int = wire_field("u64", default=0)
+    wrong_tool: int = wire_field("u64", default=0)
+    no_hello: int = wire_field("u64", default=0)
 
 
 @dataclass
 class TrainingStats:
-    skill_state: str = ""
-    contacts: int = 0
-    contact_time_s: float = 0.0
-    path_length_mm: float = 0.0
-    peak_force_n: float = 0.0
-    harm_n_s: float = 0.0
-
-
-TrainingStats.FIELDS = [
-    ("skill_state", "str"),
-    ("contacts", "u64"),
-    ("contact_time_s", "f32"),
-    ("path_length_mm", "f32"),
-    ("peak_force_n", "f32"),
-    ("harm_n_s", "f32"),
-]
+    skill_state: str = wire_field("str", default="")
+    contacts: int = wire_field("u64", default=0)
+    contact_time_s: float = wire_field("f32", default=0.0)
+    path_length_mm: float = wire_field("f32", default=0.0)
+    peak_force_n: float = wire_field("f32", default=0.0)
+    harm_n_s: float = wire_field("f32", default=0.0)
 
 
 @dataclass
 class DeviceStats:
-    device_id: str = ""
-    active: bool = False
-    poses_received: int = 0
-    forces_sent: int = 0
-    last_round_trip_us: int = 0
-    max_force_n: float = 0.0
-    moderated: bool = False
-    forces_suppressed: int = 0
-    tool: str = ""
-    holder_instance: int = 0
-    duplicates_refused: int = 0
-    last_refused_instance: int = 0
-    wrong_tool_instance: int = 0
-    wrong_tool_asked: str = ""
-    force_limit_n: float = 0.0
-    training: TrainingStats = field(default_factory=TrainingStats)
-
-
-DeviceStats.FIELDS = [
-    ("device_id", "str"),
-    ("active", "bool"),
-    ("poses_received", "u64"),
-    ("forces_sent", "u64"),
-    ("last_round_trip_us", "u32"),
-    ("max_force_n", "f32"),
-    ("moderated", "bool"),
-    ("forces_suppressed", "u64"),
-    ("tool", "str"),
-    ("holder_instance", "u64"),
-    ("duplicates_refused", "u64"),
-    ("last_refused_instance", "u64"),
-    ("wrong_tool_instance", "u64"),
-    ("wrong_tool_asked", "str"),
-    ("force_limit_n", "f32"),
-    ("training", TrainingStats),
-]
+    device_id: str = wire_field("str", default="")
+    active: bool = wire_field("bool", default=False)
+    poses_received: int = wire_field("u64", default=0)
+    forces_sent: int = wire_field("u64", default=0)
+    last_round_trip_us: int = wire_field("u32", default=0)
+    max_force_n: float = wire_field("f32", default=0.0)
+    moderated: bool = wire_field("bool", default=False)
+    forces_suppressed: int = wire_field("u64", default=0)
+    tool: str = wire_field("str", default="")
+    holder_instance: int = wire_field("u64", default=0)
+    duplicates_refused: int = wire_field("u64", default=0)
+    last_refused_instance: int = wire_field("u64", default=0)
+    wrong_tool_instance: int = wire_field("u64", default=0)
+    wrong_tool_asked: str = wire_field("str", default="")
+    force_limit_n: float = wire_field("f32", default=0.0)
+    training: TrainingStats = wire_field(TrainingStats, default_factory=TrainingStats)
 
 
 @dataclass
 class ExerciseStats:
-    kind: str = ""
-    score: float = 0.0
-    hits: int = 0
-    total: int = 0
-    errors: int = 0
-    time_s: float = 0.0
-    completed: bool = False
-    timed_out: bool = False
-
-
-ExerciseStats.FIELDS = [
-    ("kind", "str"),
-    ("score", "f32"),
-    ("hits", "u32"),
-    ("total", "u32"),
-    ("errors", "u32"),
-    ("time_s", "f32"),
-    ("completed", "bool"),
-    ("timed_out", "bool"),
-]
+    kind: str = wire_field("str", default="")
+    score: float = wire_field("f32", default=0.0)
+    hits: int = wire_field("u32", default=0)
+    total: int = wire_field("u32", default=0)
+    errors: int = wire_field("u32", default=0)
+    time_s: float = wire_field("f32", default=0.0)
+    completed: bool = wire_field("bool", default=False)
+    timed_out: bool = wire_field("bool", default=False)
 
 
 @dataclass
@@ -534,44 +397,24 @@ class ServerStats:
     """Server -> anyone on sinew/<scene>/stats, once a second."""
 
     KIND = KIND_SERVER_STATS
-    sim_time_s: float = 0.0
-    ticks: int = 0
-    tick_p50_us: float = 0.0
-    tick_p99_us: float = 0.0
-    tick_max_us: float = 0.0
-    overruns: int = 0
-    sim_faults: int = 0
-    deltas_sent: int = 0
-    delta_bytes_sent: int = 0
-    snapshots_served: int = 0
-    quantization_clamps: int = 0
-    rejected: RejectCounts = field(default_factory=RejectCounts)
-    devices: List[DeviceStats] = field(default_factory=list)
-    server_id: str = ""
-    foreign_server_messages: int = 0
-    foreign_server_instance: int = 0
-    exercise: Optional[ExerciseStats] = None
+    sim_time_s: float = wire_field("f64", default=0.0)
+    ticks: int = wire_field("u64", default=0)
+    tick_p50_us: float = wire_field("f32", default=0.0)
+    tick_p99_us: float = wire_field("f32", default=0.0)
+    tick_max_us: float = wire_field("f32", default=0.0)
+    overruns: int = wire_field("u64", default=0)
+    sim_faults: int = wire_field("u64", default=0)
+    deltas_sent: int = wire_field("u64", default=0)
+    delta_bytes_sent: int = wire_field("u64", default=0)
+    snapshots_served: int = wire_field("u64", default=0)
+    quantization_clamps: int = wire_field("u64", default=0)
+    rejected: RejectCounts = wire_field(RejectCounts, default_factory=RejectCounts)
+    devices: List[DeviceStats] = wire_field(("vec", DeviceStats), default_factory=list)
+    server_id: str = wire_field("str", default="")
+    foreign_server_messages: int = wire_field("u64", default=0)
+    foreign_server_instance: int = wire_field("u64", default=0)
+    exercise: Optional[ExerciseStats] = wire_field(("opt", ExerciseStats), default=None)
 
-
-ServerStats.FIELDS = [
-    ("sim_time_s", "f64"),
-    ("ticks", "u64"),
-    ("tick_p50_us", "f32"),
-    ("tick_p99_us", "f32"),
-    ("tick_max_us", "f32"),
-    ("overruns", "u64"),
-    ("sim_faults", "u64"),
-    ("deltas_sent", "u64"),
-    ("delta_bytes_sent", "u64"),
-    ("snapshots_served", "u64"),
-    ("quantization_clamps", "u64"),
-    ("rejected", RejectCounts),
-    ("devices", ("vec", DeviceStats)),
-    ("server_id", "str"),
-    ("foreign_server_messages", "u64"),
-    ("foreign_server_instance", "u64"),
-    ("exercise", ("opt", ExerciseStats)),
-]
 
 MESSAGES = {
     cls.KIND: cls
@@ -620,7 +463,3 @@ def decode(payload: bytes, expected: Any = None):
         raise DecodeError(f"{len(payload) - reader.at} bytes left over after the body")
     return sender, message
 
-
-def message_fields(message: Any) -> List[str]:
-    """The field names of a message, in wire order."""
-    return [f.name for f in fields(message)]
