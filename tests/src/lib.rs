@@ -8,7 +8,8 @@
 //! shared by the tests and the `latency_table` bench), [`netns`] (a lab of network namespaces joined by a real
 //! path with delay, jitter and loss), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
 //! [`report`] (`sinew report`: a recording's training report), [`debrief`] (`sinew replay --publish` and
-//! `--png-every`: the instructor's debrief of a recording) and [`figure_font`] (the font figures use).
+//! `--png-every`: the instructor's debrief of a recording), [`fuzz`] (generated bad input for the decoders, the
+//! world loader and the recording reader) and [`figure_font`] (the font figures use).
 //! Must not: contain role logic; everything here calls the role crates' public APIs.
 #![warn(missing_docs)]
 
@@ -16,6 +17,7 @@ pub mod debrief;
 pub mod demo;
 pub mod drill;
 pub mod figure_font;
+pub mod fuzz;
 pub mod harness;
 pub mod netem;
 pub mod netns;
