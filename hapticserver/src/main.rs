@@ -11,7 +11,7 @@ use hapticserver::{
     Device, HandPreset, HapticConfig, HapticServer, ModePolicy, ScriptKind, ScriptOptions,
     SimDevice, parse_vec3_mm, sim_device::sim_device_model,
 };
-use sinew_protocol::network::{DEFAULT_DEVICE_ENDPOINTS, NetworkOptions};
+use sinew_protocol::network::NetworkOptions;
 
 /// Device backends this build can drive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -54,19 +54,10 @@ struct Args {
     /// Surface point to press at (or hold), device frame, mm: x,y,z.
     #[arg(long, value_parser = parse_vec3_mm, allow_hyphen_values = true)]
     at_mm: Option<[f32; 3]>,
-    /// zenoh endpoint to connect to (repeatable). Give the server's TCP and UDP endpoints: one transport with
-    /// two links, reliable messages on TCP, poses and forces on UDP (a lost packet never holds later forces).
-    #[arg(long, default_values_t = DEFAULT_DEVICE_ENDPOINTS.map(str::to_owned))]
-    connect: Vec<String>,
-    /// zenoh endpoint to listen on (repeatable; default none).
-    #[arg(long)]
-    listen: Vec<String>,
-    /// zenoh config file (JSON5), loaded before the flags above.
-    #[arg(long)]
-    zenoh_config: Option<std::path::PathBuf>,
-    /// zenoh mode: peer (default) or client (through a zenohd router).
-    #[arg(long)]
-    zenoh_mode: Option<String>,
+    /// zenoh endpoints and mode. Give the server's TCP and UDP endpoints: one transport with two links,
+    /// reliable messages on TCP, poses and forces on UDP (a lost packet never holds later forces).
+    #[command(flatten)]
+    network: sinew_protocol::cli::NetworkArgs,
     /// Loop rate, Hz.
     #[arg(long, default_value_t = 1000)]
     rate_hz: u32,
@@ -153,12 +144,7 @@ fn main() -> Result<()> {
         PassivityArg::Observe => hapticserver::PassivityMode::Observe,
         PassivityArg::Control => hapticserver::PassivityMode::Control,
     };
-    config.network = NetworkOptions {
-        config_file: args.zenoh_config.clone(),
-        listen: args.listen.clone(),
-        connect: args.connect.clone(),
-        mode: args.zenoh_mode.clone(),
-    };
+    config.network = args.network.options(NetworkOptions::device_default());
     let mut handle = HapticServer::start(config).with_context(|| {
         format!(
             "starting hapticserver `{}` in scene `{}`",

@@ -2,9 +2,54 @@
 //! anyone who links it without clap).
 //!
 //! Owns: the `--emulate-*` flags, which turn into an [`EmulationConfig`] on what the role publishes (a
-//! server's force commands, a hapticserver's poses).
+//! server's force commands, a hapticserver's poses), and the zenoh flags ([`NetworkArgs`]), which turn into
+//! [`NetworkOptions`] over the role's defaults.
 
+use crate::network::NetworkOptions;
 use crate::rt::EmulationConfig;
+
+/// `--connect`, `--listen`, `--zenoh-config`, `--zenoh-mode`: `#[command(flatten)]` them into a role's arguments.
+#[derive(Debug, Clone, PartialEq, Eq, Default, clap::Args)]
+pub struct NetworkArgs {
+    /// zenoh endpoint to connect to (repeatable) [default, unless --zenoh-config is given: a device connects to
+    /// the server's TCP and UDP endpoints at 127.0.0.1:7447, a viewer or recorder to the TCP one, a server to none].
+    #[arg(long, value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
+    /// zenoh endpoint to listen on (repeatable) [default, unless --zenoh-config is given: a server listens on
+    /// tcp/127.0.0.1:7447 and udp/127.0.0.1:7447 (devices get one transport with two links: reliable messages on
+    /// TCP, poses and forces on UDP), the other roles on none].
+    #[arg(long, value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+    /// zenoh config file (JSON5), loaded first; --connect, --listen and --zenoh-mode override it.
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<std::path::PathBuf>,
+    /// zenoh mode: peer (default) or client (through a zenohd router).
+    #[arg(long, value_name = "MODE")]
+    pub zenoh_mode: Option<String>,
+}
+
+impl NetworkArgs {
+    /// The options these flags ask for: each endpoint list as given, or else the role's default (none when a
+    /// config file is given, whose endpoints then apply).
+    pub fn options(&self, role_default: NetworkOptions) -> NetworkOptions {
+        let with_file = self.zenoh_config.is_some();
+        let pick = |given: &[String], default: Vec<String>| {
+            if !given.is_empty() {
+                given.to_vec()
+            } else if with_file {
+                Vec::new()
+            } else {
+                default
+            }
+        };
+        NetworkOptions {
+            config_file: self.zenoh_config.clone(),
+            listen: pick(&self.listen, role_default.listen),
+            connect: pick(&self.connect, role_default.connect),
+            mode: self.zenoh_mode.clone(),
+        }
+    }
+}
 
 /// `--emulate-delay-ms`, `--emulate-jitter-ms`, `--emulate-loss`, `--emulate-seed`: `#[command(flatten)]` them
 /// into a role's arguments.
@@ -49,6 +94,47 @@ mod tests {
     struct Role {
         #[command(flatten)]
         emulation: EmulationArgs,
+    }
+
+    #[derive(Debug, Parser)]
+    struct Net {
+        #[command(flatten)]
+        network: NetworkArgs,
+    }
+
+    #[test]
+    fn network_flags_override_the_role_default_and_a_config_file_replaces_it() {
+        let parse = |args: &[&str]| Net::try_parse_from(args).unwrap().network;
+        let server = NetworkOptions::server_default;
+        let bare = parse(&["role"]).options(server());
+        assert_eq!(bare.listen, server().listen);
+        assert!(bare.connect.is_empty() && bare.config_file.is_none() && bare.mode.is_none());
+        let given = parse(&[
+            "role",
+            "--listen",
+            "tcp/0.0.0.0:7447",
+            "--connect",
+            "tcp/r:7447",
+        ])
+        .options(server());
+        assert_eq!(given.listen, vec!["tcp/0.0.0.0:7447"]);
+        assert_eq!(given.connect, vec!["tcp/r:7447"]);
+        let file = parse(&[
+            "role",
+            "--zenoh-config",
+            "z.json5",
+            "--zenoh-mode",
+            "client",
+        ])
+        .options(NetworkOptions::device_default());
+        assert!(file.listen.is_empty() && file.connect.is_empty());
+        assert_eq!(file.mode.as_deref(), Some("client"));
+        assert_eq!(
+            parse(&["role"])
+                .options(NetworkOptions::device_default())
+                .connect,
+            NetworkOptions::device_default().connect
+        );
     }
 
     #[test]

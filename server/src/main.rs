@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Parser;
-use sinew_protocol::network::{DEFAULT_DEVICE_ENDPOINTS, NetworkOptions};
+use sinew_protocol::network::NetworkOptions;
 use sinew_server::node::{ServerConfig, ServerNode};
 use sinew_server::world::load_world;
 
@@ -16,19 +16,9 @@ struct Args {
     /// World description (TOML).
     #[arg(long, default_value = "worlds/pad.toml")]
     world: PathBuf,
-    /// zenoh endpoint to listen on (repeatable). Listen on TCP and UDP at one port so devices get one
-    /// transport with two links: reliable messages on TCP, poses and forces on UDP (no head-of-line blocking).
-    #[arg(long, default_values_t = DEFAULT_DEVICE_ENDPOINTS.map(str::to_owned))]
-    listen: Vec<String>,
-    /// zenoh endpoint to connect to, e.g. a zenohd router (repeatable).
-    #[arg(long)]
-    connect: Vec<String>,
-    /// zenoh config file (JSON5); --listen/--connect override its endpoints.
-    #[arg(long)]
-    zenoh_config: Option<PathBuf>,
-    /// zenoh mode: peer (default) or client (through a zenohd router).
-    #[arg(long)]
-    zenoh_mode: Option<String>,
+    /// zenoh endpoints and mode.
+    #[command(flatten)]
+    network: sinew_protocol::cli::NetworkArgs,
     /// Stop after this many seconds (default: run until killed).
     #[arg(long)]
     duration_s: Option<f64>,
@@ -66,12 +56,7 @@ fn main() -> anyhow::Result<()> {
         world.tick_hz
     );
     let config = ServerConfig {
-        network: NetworkOptions {
-            config_file: args.zenoh_config,
-            listen: args.listen,
-            connect: args.connect,
-            mode: args.zenoh_mode,
-        },
+        network: args.network.options(NetworkOptions::server_default()),
         server_id: args.id,
         emulation,
         panic_at_tick: args.fault_panic_at_tick,

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Parser};
-use sinew_protocol::network::{DEFAULT_ENDPOINT, NetworkOptions};
+use sinew_protocol::network::NetworkOptions;
 use sinew_viewer::{
     InstructorOverlay, ViewerClient, ViewerConfig, ViewerError, ViewerHandle, ViewerStats,
     display_available, render_png_with_overlay, run_window,
@@ -24,18 +24,9 @@ struct Args {
     /// This viewer's participant id [default: viewer-<pid>].
     #[arg(long)]
     id: Option<String>,
-    /// zenoh endpoint to connect to (repeatable) [default: tcp/127.0.0.1:7447 unless --zenoh-config is given].
-    #[arg(long = "connect", value_name = "ENDPOINT")]
-    connect: Vec<String>,
-    /// zenoh endpoint to listen on (repeatable).
-    #[arg(long = "listen", value_name = "ENDPOINT")]
-    listen: Vec<String>,
-    /// zenoh config file (JSON5), loaded first; --connect/--listen/--zenoh-mode override it.
-    #[arg(long, value_name = "FILE")]
-    zenoh_config: Option<PathBuf>,
-    /// zenoh mode: peer (default) or client (through a zenohd router).
-    #[arg(long, value_name = "MODE")]
-    zenoh_mode: Option<String>,
+    /// zenoh endpoints and mode.
+    #[command(flatten)]
+    network: sinew_protocol::cli::NetworkArgs,
     /// How long one snapshot query waits for the server, seconds.
     #[arg(long, default_value_t = 2.0, value_name = "SECONDS")]
     snapshot_timeout_s: f64,
@@ -86,15 +77,7 @@ fn main() -> Result<()> {
         return Err(ViewerError::NoDisplay).context("interactive window");
     }
 
-    let mut network = NetworkOptions {
-        config_file: args.zenoh_config.clone(),
-        listen: args.listen.clone(),
-        connect: args.connect.clone(),
-        mode: args.zenoh_mode.clone(),
-    };
-    if network.connect.is_empty() && network.config_file.is_none() {
-        network.connect.push(DEFAULT_ENDPOINT.to_owned());
-    }
+    let network = args.network.options(NetworkOptions::client_default());
     let viewer_id = args
         .id
         .clone()

@@ -35,18 +35,9 @@ struct Args {
     /// This recorder's participant id (it shows as a viewer).
     #[arg(long)]
     id: Option<String>,
-    /// zenoh endpoint to connect to (repeatable) [default: tcp/127.0.0.1:7447 unless --zenoh-config is given].
-    #[arg(long)]
-    connect: Vec<String>,
-    /// zenoh endpoint to listen on (repeatable).
-    #[arg(long)]
-    listen: Vec<String>,
-    /// zenoh config file (JSON5); --connect/--listen override its endpoints.
-    #[arg(long)]
-    zenoh_config: Option<PathBuf>,
-    /// zenoh mode: peer (default) or client (through a zenohd router).
-    #[arg(long)]
-    zenoh_mode: Option<String>,
+    /// zenoh endpoints and mode (a recorder connects like a viewer).
+    #[command(flatten)]
+    network: sinew_protocol::cli::NetworkArgs,
     /// Stop after this many seconds (default: until Ctrl-C).
     #[arg(long)]
     duration_s: Option<f64>,
@@ -73,17 +64,7 @@ fn main() -> anyhow::Result<()> {
     let presence_key = keys.presence(Role::Viewer, &id)?;
     // The file first: an unwritable path is refused before anything joins the scene.
     let recorder = Recorder::start_wire(&args.out, &args.scene)?;
-    let connect = if args.connect.is_empty() && args.zenoh_config.is_none() {
-        NetworkOptions::client_default().connect
-    } else {
-        args.connect
-    };
-    let network = NetworkOptions {
-        config_file: args.zenoh_config,
-        listen: args.listen,
-        connect,
-        mode: args.zenoh_mode,
-    };
+    let network = args.network.options(NetworkOptions::client_default());
     let session = open_session(&network)
         .map_err(|e| anyhow::anyhow!("opening zenoh ({:?}): {e}", network.connect))?;
     let started = Instant::now();
