@@ -28,6 +28,9 @@ pub struct HapticConfig {
     pub network: NetworkOptions,
     /// The device to serve.
     pub device: Box<dyn Device>,
+    /// Where the device's own frame sits in the wire frame (`--mount-rotation-deg`, `--mount-offset-mm`);
+    /// identity by default. Readings are mapped through it and forces mapped back.
+    pub mount: crate::calibration::WorldFromDevice,
     /// Loop rate, Hz.
     pub loop_rate_hz: u32,
     /// Pacer spin accuracy, ns: 0 = plain sleep only (tests on shared cores), 100_000 for a real device.
@@ -57,6 +60,7 @@ impl std::fmt::Debug for HapticConfig {
             .field("tool", &self.tool)
             .field("network", &self.network)
             .field("device", &self.device.model().name)
+            .field("mount", &self.mount)
             .field("loop_rate_hz", &self.loop_rate_hz)
             .field("spin_accuracy_ns", &self.spin_accuracy_ns)
             .field("safety", &self.safety)
@@ -78,6 +82,7 @@ impl HapticConfig {
             tool: String::new(),
             network: NetworkOptions::device_default(),
             device,
+            mount: crate::calibration::WorldFromDevice::identity(),
             loop_rate_hz: DEFAULT_LOOP_RATE_HZ,
             spin_accuracy_ns: DEFAULT_SPIN_ACCURACY_NS,
             safety: None,

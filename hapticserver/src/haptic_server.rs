@@ -23,6 +23,7 @@ use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Reliability};
 
+use crate::calibration::CalibratedDevice;
 use crate::clock::MonotonicClock;
 use crate::error::HapticError;
 use crate::force_inbox::ForceInbox;
@@ -62,6 +63,7 @@ impl HapticServer {
             tool,
             network,
             device,
+            mount,
             loop_rate_hz,
             spin_accuracy_ns,
             safety,
@@ -85,6 +87,8 @@ impl HapticServer {
         let presence_key = keys.presence(Role::Haptic, &device_id)?;
         let hello_key = keys.hello(Role::Haptic, &device_id)?;
 
+        // Everything from here on sees the device in the wire frame.
+        let device = CalibratedDevice::wrap(device, mount);
         let model = device.model();
         let safety_config = match safety {
             Some(config) => config.limited_to(&model),

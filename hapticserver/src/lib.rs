@@ -1,6 +1,6 @@
 //! hapticserver: serves one haptic device to a Sinew scene over zenoh.
 //!
-//! Owns: the device abstraction ([`device`]) and its backends (the simulated hand: [`sim_device`],
+//! Owns: the device abstraction ([`device`]), its mounting calibration ([`calibration`]) and its backends (the simulated hand: [`sim_device`],
 //! [`hand_model`], [`hand_script`]), device-side force safety ([`safety`]), the 1 kHz loop body
 //! ([`haptic_loop`]) and the process around it ([`haptic_server`]: zenoh declarations, threads, handle,
 //! [`report`], with the last second's [`stillness`]), and the latency-moderated renderer of the server's
@@ -14,6 +14,7 @@
 //! one that went through [`safety::ForceSafety`].
 #![warn(missing_docs)]
 
+pub mod calibration;
 pub mod clock;
 pub mod device;
 pub mod error;
@@ -34,6 +35,7 @@ pub mod stillness;
 pub mod trace;
 pub mod zenoh_session;
 
+pub use calibration::{CalibratedDevice, CalibrationError, WorldFromDevice};
 pub use device::{Device, DeviceError, DeviceModel, DeviceReading};
 pub use error::HapticError;
 pub use force_inbox::DecodeRejects;

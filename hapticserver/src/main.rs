@@ -85,6 +85,15 @@ struct Args {
     /// Fault drill: make the device loop panic at this tick, as a bug in it would.
     #[arg(long, hide = true)]
     fault_panic_at_tick: Option<u64>,
+    /// Mounting rotation of the device, degrees about the scene's fixed x, then y, then z axes: `180,0,0` for
+    /// a device mounted upside down (a reach-in display), `90,0,0` for a Touch on a desk (its +y is up) in a
+    /// scene whose +z is up. Poses are rotated into the scene, forces back into the device.
+    #[arg(long, allow_hyphen_values = true, value_parser = |t: &str| hapticserver::calibration::parse_vec3("--mount-rotation-deg", t))]
+    mount_rotation_deg: Option<[f32; 3]>,
+    /// Mounting offset, mm, added after the rotation (the scene's device origin is the world file's
+    /// `device_origin_in_world_mm` for the tool).
+    #[arg(long, allow_hyphen_values = true, value_parser = |t: &str| hapticserver::calibration::parse_vec3("--mount-offset-mm", t))]
+    mount_offset_mm: Option<[f32; 3]>,
     /// Write every tick (time, position, velocity, force, mode) to this CSV file when the server stops.
     #[arg(long)]
     trace_csv: Option<std::path::PathBuf>,
@@ -130,6 +139,10 @@ fn main() -> Result<()> {
 
     let mut config = HapticConfig::new(&args.scene, &args.id, build_device(&args)?);
     config.tool = args.tool.clone();
+    config.mount = hapticserver::WorldFromDevice::from_degrees(
+        args.mount_rotation_deg.unwrap_or([0.0; 3]),
+        args.mount_offset_mm.unwrap_or([0.0; 3]),
+    )?;
     config.loop_rate_hz = args.rate_hz;
     config.spin_accuracy_ns = args.spin_ns;
     config.mode = args.mode;

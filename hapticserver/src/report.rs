@@ -43,11 +43,11 @@ pub struct HapticReport {
     pub overruns: u64,
     /// Largest force magnitude rendered, N.
     pub max_rendered_force_n: f32,
-    /// Force rendered on the latest tick, N, device frame.
+    /// Force rendered on the latest tick, N, wire frame (before the mounting calibration).
     pub last_rendered_force_n: [f32; 3],
     /// The latest command's force before safety, N, device frame (zero before any command).
     pub last_commanded_force_n: [f32; 3],
-    /// Stylus position on the latest tick, mm, device frame.
+    /// Stylus position on the latest tick, mm, wire frame (after the mounting calibration).
     pub last_position_mm: [f32; 3],
     /// How often each safety rule fired.
     pub safety: SafetyCounters,
