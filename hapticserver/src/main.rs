@@ -18,6 +18,8 @@ use sinew_protocol::network::NetworkOptions;
 enum DeviceKind {
     /// A simulated hand holding a stylus, following --script.
     Sim,
+    /// A recorded hand: plays --replay-trace (a `--trace-csv` file), then holds its last position.
+    Replay,
 }
 
 /// `--passivity` values.
@@ -33,7 +35,8 @@ enum PassivityArg {
 #[derive(Debug, Parser)]
 #[command(name = "hapticserver", version)]
 struct Args {
-    /// Device backend. Only `sim` exists in this build (OpenHaptics comes behind a feature flag).
+    /// Device backend: `sim` (a scripted hand) or `replay` (a recorded one; `sinew play-device` plays a
+    /// session recording).
     #[arg(long, value_enum, default_value = "sim")]
     device: DeviceKind,
     /// Device id: the key segment in sinew/<scene>/device/<id>/...
@@ -94,13 +97,32 @@ struct Args {
     /// `device_origin_in_world_mm` for the tool).
     #[arg(long, allow_hyphen_values = true, value_parser = |t: &str| hapticserver::calibration::parse_vec3("--mount-offset-mm", t))]
     mount_offset_mm: Option<[f32; 3]>,
+    /// The trace to play with `--device replay` (written by `--trace-csv`; scene frame, so no mount flags).
+    #[arg(long)]
+    replay_trace: Option<std::path::PathBuf>,
     /// Write every tick (time, position, velocity, force, mode) to this CSV file when the server stops.
     #[arg(long)]
     trace_csv: Option<std::path::PathBuf>,
 }
 
 fn build_device(args: &Args) -> Result<Box<dyn Device>> {
+    if args.device != DeviceKind::Replay && args.replay_trace.is_some() {
+        bail!("--replay-trace needs --device replay");
+    }
     match args.device {
+        DeviceKind::Replay => {
+            let Some(path) = &args.replay_trace else {
+                bail!(
+                    "--device replay needs --replay-trace FILE (a hapticserver --trace-csv file)"
+                );
+            };
+            if args.mount_rotation_deg.is_some() || args.mount_offset_mm.is_some() {
+                bail!(
+                    "a replayed trace is in the scene frame already: drop --mount-rotation-deg/--mount-offset-mm"
+                );
+            }
+            Ok(Box::new(hapticserver::ReplayDevice::from_trace_csv(path)?))
+        }
         DeviceKind::Sim => {
             let mut options = ScriptOptions::default();
             if let Some(depth_mm) = args.depth_mm {

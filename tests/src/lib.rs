@@ -7,7 +7,8 @@
 //! joined by emulated links), [`scenarios`] (the latency-moderated mode's acceptance runs on the drill,
 //! shared by the tests and the `latency_table` bench), [`netns`] (a lab of network namespaces joined by a real
 //! path with delay, jitter and loss), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
-//! [`report`] (`sinew report`: a recording's training report), [`debrief`] (`sinew replay --publish` and
+//! [`report`] (`sinew report`: a recording's training report), [`play_device`] (`sinew play-device`: a
+//! recorded hand played into a live scene), [`debrief`] (`sinew replay --publish` and
 //! `--png-every`: the instructor's debrief of a recording), [`fuzz`] (generated bad input for the decoders, the
 //! world loader and the recording reader) and [`figure_font`] (the font figures use).
 //! Must not: contain role logic; everything here calls the role crates' public APIs.
@@ -21,5 +22,6 @@ pub mod fuzz;
 pub mod harness;
 pub mod netem;
 pub mod netns;
+pub mod play_device;
 pub mod report;
 pub mod scenarios;

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use plotters::prelude::*;
 use serde::Serialize;
-use sinew_server::recording::{read_recording, replay_observed};
+use sinew_server::recording::replay_observed;
 use sinew_server::training::{
     EventKind, ExerciseRun, ExerciseScore, MetricsConfig, MetricsSummary, SessionObserver,
     SkillState,
@@ -75,12 +75,7 @@ struct Series {
 
 /// Replay `recording` and write its report into `out_dir` (created if needed). Returns the report.
 pub fn write_report(recording: &Path, out_dir: &Path) -> anyhow::Result<SessionReport> {
-    let rec = read_recording(recording)?;
-    let scratch = std::env::temp_dir().join(format!("sinew-report-{}", std::process::id()));
-    std::fs::create_dir_all(&scratch).with_context(|| format!("creating {}", scratch.display()))?;
-    let world = rec.load_world(&scratch);
-    let _ = std::fs::remove_dir_all(&scratch);
-    let world = world?;
+    let (rec, world) = crate::play_device::read_with_world(recording)?;
     let dt_s = 1.0 / world.tick_hz;
     let tools = world.tools.len();
     let mut observer = SessionObserver::new(tools, MetricsConfig::new(dt_s));

@@ -83,6 +83,25 @@ enum Command {
         #[arg(long, default_value_t = 768, requires = "png_every")]
         height: u32,
     },
+    /// Play one surgeon's recorded hand into a live scene as a device (a hapticserver with no motor): the
+    /// poses it sent, on its own clock, then its last position held until `--hold-s` passes. Start a server on
+    /// the recording's world first (`sinew-server --world ...`).
+    PlayDevice {
+        /// The recording (MCAP, `sinew-server --record` or `sinew demo --record`).
+        file: PathBuf,
+        /// Which device of the recording to play (its id, e.g. `left`).
+        #[arg(long)]
+        device: String,
+        /// How long to hold the last position after the stream ends, seconds.
+        #[arg(long, default_value_t = 1.0)]
+        hold_s: f64,
+        /// How the device renders forces (they go nowhere; its report says what they were).
+        #[arg(long, default_value = "auto")]
+        mode: hapticserver::ModePolicy,
+        /// zenoh endpoints and mode (as the hapticserver takes them).
+        #[command(flatten)]
+        network: sinew_protocol::cli::NetworkArgs,
+    },
     /// What a recording holds: its metadata, messages per topic, ticks, presence changes, damage. Reads
     /// `sinew-recorder`'s files too.
     Info {
@@ -164,6 +183,13 @@ fn main() -> anyhow::Result<()> {
                 replay(&file)?;
             }
         }
+        Command::PlayDevice {
+            file,
+            device,
+            hold_s,
+            mode,
+            network,
+        } => play_device(&file, &device, hold_s, mode, &network)?,
         Command::Info { file } => info(&file)?,
         Command::Report { file, out } => {
             let out = out.unwrap_or_else(|| {
@@ -219,26 +245,21 @@ fn info(file: &std::path::Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Read a recording and its world (written out to a temporary directory and loaded from there).
+/// [`sinew::play_device::read_with_world`], warning about damage (what precedes it is used).
 fn read_with_world(
     file: &std::path::Path,
 ) -> anyhow::Result<(
     sinew_server::recording::Recording,
     sinew_server::world::World,
 )> {
-    use anyhow::Context;
-    let recording = sinew_server::recording::read_recording(file)?;
+    let (recording, world) = sinew::play_device::read_with_world(file)?;
     if let Some(damage) = &recording.damage {
         eprintln!(
             "warning: {}: {damage}; replaying what precedes it",
             file.display()
         );
     }
-    let dir = std::env::temp_dir().join(format!("sinew-replay-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let world = recording.load_world(&dir);
-    let _ = std::fs::remove_dir_all(&dir);
-    Ok((recording, world?))
+    Ok((recording, world))
 }
 
 fn publish_replay(
@@ -278,6 +299,50 @@ fn publish_replay(
         done.ticks_total
     );
     println!("published replay finished: every force command as recorded");
+    Ok(())
+}
+
+fn play_device(
+    file: &std::path::Path,
+    device: &str,
+    hold_s: f64,
+    mode: hapticserver::ModePolicy,
+    network: &sinew_protocol::cli::NetworkArgs,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        hold_s.is_finite() && (0.0..=3600.0).contains(&hold_s),
+        "--hold-s must be in [0, 3600] seconds"
+    );
+    let network = network.options(sinew_protocol::network::NetworkOptions::device_default());
+    let mut playing = sinew::play_device::play(file, device, network, mode)?;
+    println!(
+        "playing `{device}` from {} ({:.1} s of poses)",
+        file.display(),
+        playing.duration_s
+    );
+    let started = std::time::Instant::now();
+    let mut next_status = Duration::from_secs(1);
+    let mut finished_at = None;
+    loop {
+        std::thread::sleep(Duration::from_millis(20));
+        if !playing.handle.is_running() {
+            let why = playing.handle.report().loop_failure.unwrap_or_default();
+            anyhow::bail!("the replay device's loop ended unexpectedly: {why}");
+        }
+        let elapsed = started.elapsed();
+        if elapsed >= next_status {
+            println!("{}", playing.handle.report());
+            next_status += Duration::from_secs(1);
+        }
+        if finished_at.is_none() && playing.finished.load(std::sync::atomic::Ordering::Acquire) {
+            finished_at = Some(elapsed);
+        }
+        if finished_at.is_some_and(|at| (elapsed - at).as_secs_f64() >= hold_s) {
+            break;
+        }
+    }
+    playing.handle.stop()?;
+    println!("final: {}", playing.handle.report());
     Ok(())
 }
 
