@@ -24,6 +24,8 @@ pub mod hand_script;
 pub mod haptic_config;
 pub mod haptic_loop;
 pub mod haptic_server;
+#[cfg(feature = "openhaptics")]
+pub mod openhaptics;
 pub mod passivity;
 pub mod render;
 pub mod render_mode;

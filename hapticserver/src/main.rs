@@ -20,6 +20,10 @@ enum DeviceKind {
     Sim,
     /// A recorded hand: plays --replay-trace (a `--trace-csv` file), then holds its last position.
     Replay,
+    /// A 3D Systems Touch / Phantom through the vendor's OpenHaptics HD library (libHD.so): --libhd,
+    /// --hd-device. Untested on hardware.
+    #[cfg(feature = "openhaptics")]
+    Openhaptics,
 }
 
 /// `--passivity` values.
@@ -35,8 +39,8 @@ enum PassivityArg {
 #[derive(Debug, Parser)]
 #[command(name = "hapticserver", version)]
 struct Args {
-    /// Device backend: `sim` (a scripted hand) or `replay` (a recorded one; `sinew play-device` plays a
-    /// session recording).
+    /// Device backend: `sim` (a scripted hand), `replay` (a recorded one; `sinew play-device` plays a
+    /// session recording) or, in builds with the `openhaptics` feature, `openhaptics`.
     #[arg(long, value_enum, default_value = "sim")]
     device: DeviceKind,
     /// Device id: the key segment in sinew/<scene>/device/<id>/...
@@ -97,6 +101,16 @@ struct Args {
     /// `device_origin_in_world_mm` for the tool).
     #[arg(long, allow_hyphen_values = true, value_parser = |t: &str| hapticserver::calibration::parse_vec3("--mount-offset-mm", t))]
     mount_offset_mm: Option<[f32; 3]>,
+    /// libHD to open for `--device openhaptics` (default: libHD.so, libHD.so.3.4, libHD.so.3.0 on the
+    /// loader's path).
+    #[cfg(feature = "openhaptics")]
+    #[arg(long)]
+    libhd: Option<std::path::PathBuf>,
+    /// Device name for `--device openhaptics`, as configured in the vendor's setup tool (default: the
+    /// default device).
+    #[cfg(feature = "openhaptics")]
+    #[arg(long)]
+    hd_device: Option<String>,
     /// The trace to play with `--device replay` (written by `--trace-csv`; scene frame, so no mount flags).
     #[arg(long)]
     replay_trace: Option<std::path::PathBuf>,
@@ -122,6 +136,22 @@ fn build_device(args: &Args) -> Result<Box<dyn Device>> {
                 );
             }
             Ok(Box::new(hapticserver::ReplayDevice::from_trace_csv(path)?))
+        }
+        #[cfg(feature = "openhaptics")]
+        DeviceKind::Openhaptics => {
+            let device = hapticserver::openhaptics::OpenHapticsDevice::open(
+                &hapticserver::openhaptics::OpenHapticsConfig {
+                    library: args.libhd.clone(),
+                    device_name: args.hd_device.clone(),
+                },
+            )?;
+            tracing::info!(
+                "OpenHaptics device `{}` open through {} (peak {} N)",
+                device.model().name,
+                device.library_path().display(),
+                device.model().max_force_n
+            );
+            Ok(Box::new(device))
         }
         DeviceKind::Sim => {
             let mut options = ScriptOptions::default();
