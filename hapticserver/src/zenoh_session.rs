@@ -13,6 +13,10 @@ use crate::error::HapticError;
 
 /// Build the zenoh config for `network`: its config file first (if any), then its entries on top.
 pub fn zenoh_config(network: &NetworkOptions) -> Result<zenoh::Config, HapticError> {
+    network.check().map_err(|detail| HapticError::Zenoh {
+        what: "checking the network options".to_owned(),
+        detail,
+    })?;
     let mut config = match &network.config_file {
         Some(path) => zenoh::Config::from_file(path).map_err(HapticError::zenoh(format!(
             "loading config file {}",

@@ -26,6 +26,16 @@ pub struct NetworkArgs {
     /// zenoh mode: peer (default) or client (through a zenohd router).
     #[arg(long, value_name = "MODE")]
     pub zenoh_mode: Option<String>,
+    /// The lab's CA certificate (PEM, from `sinew certs`): with --tls-cert and --tls-key, every link is mutual
+    /// TLS and default endpoints become tls/ ones (a server then enforces the roles' access rules).
+    #[arg(long, value_name = "FILE", requires_all = ["tls_cert", "tls_key"])]
+    pub tls_ca: Option<std::path::PathBuf>,
+    /// This role's certificate (PEM); its common name is the role: server, observer or device-<id>.
+    #[arg(long, value_name = "FILE", requires_all = ["tls_ca", "tls_key"])]
+    pub tls_cert: Option<std::path::PathBuf>,
+    /// This role's private key (PEM).
+    #[arg(long, value_name = "FILE", requires_all = ["tls_ca", "tls_cert"])]
+    pub tls_key: Option<std::path::PathBuf>,
 }
 
 impl NetworkArgs {
@@ -42,12 +52,27 @@ impl NetworkArgs {
                 default
             }
         };
+        let role_default = match self.tls_files() {
+            Some(tls) => role_default.secured(tls),
+            None => role_default,
+        };
         NetworkOptions {
             config_file: self.zenoh_config.clone(),
             listen: pick(&self.listen, role_default.listen),
             connect: pick(&self.connect, role_default.connect),
             mode: self.zenoh_mode.clone(),
+            tls: role_default.tls,
+            access_control: None,
         }
+    }
+
+    /// The TLS files, when all three flags are given (clap requires all or none).
+    pub fn tls_files(&self) -> Option<crate::security::TlsFiles> {
+        Some(crate::security::TlsFiles {
+            ca: self.tls_ca.clone()?,
+            cert: self.tls_cert.clone()?,
+            key: self.tls_key.clone()?,
+        })
     }
 }
 

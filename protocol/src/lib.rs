@@ -2,9 +2,9 @@
 //!
 //! Owns: every message that crosses zenoh ([`messages`]), the key expressions they travel on ([`keys`]),
 //! the versioned envelope and its typed decode errors ([`codec`]), mesh-position quantization ([`quantize`]),
-//! and the zenoh endpoint options every role shares ([`network`]). It also holds the three tiny real-time
-//! primitives every role uses ([`rt`]: latest-value mailbox, latency histogram, loop pacer) so the roles need
-//! not depend on each other. With the `cli` feature, the command-line flags every role shares ([`cli`]).
+//! the zenoh endpoint options every role shares ([`network`]), and TLS and access control ([`security`]). It
+//! also holds the three tiny real-time primitives every role uses ([`rt`]: latest-value mailbox, latency
+//! histogram, loop pacer) so the roles need not depend on each other. With the `cli` feature, the command-line flags every role shares ([`cli`]).
 //!
 //! Must not: open a zenoh session, touch parry, or know about the simulation. Plain data only.
 #![warn(missing_docs)]
@@ -17,6 +17,7 @@ pub mod messages;
 pub mod network;
 pub mod quantize;
 pub mod rt;
+pub mod security;
 
 pub use codec::{
     DecodeError, InstanceId, Message, MessageKind, PROTOCOL_VERSION, decode, decode_from, encode,

@@ -53,6 +53,12 @@ pub struct NetworkOptions {
     pub connect: Vec<String>,
     /// zenoh mode: `peer` (default) or `client` (through a zenohd router).
     pub mode: Option<String>,
+    /// Mutual TLS with these files: every endpoint is `tls/...`, only TLS links are opened or accepted, and
+    /// the certificate's common name is this role's identity ([`crate::security`]).
+    pub tls: Option<crate::security::TlsFiles>,
+    /// zenoh access-control rules (JSON5) this node enforces on what reaches it (a server's:
+    /// [`crate::security::access_control_json5`]); needs `tls`, whose certificates name the roles.
+    pub access_control: Option<String>,
 }
 
 impl NetworkOptions {
@@ -78,6 +84,54 @@ impl NetworkOptions {
             connect: vec![DEFAULT_ENDPOINT.to_owned()],
             ..Self::default()
         }
+    }
+
+    /// These options with mutual TLS: the role's default TCP endpoints become TLS ones on the same address and
+    /// port, and UDP endpoints are dropped (TLS runs over TCP only: poses and forces share the TLS link).
+    pub fn secured(mut self, tls: crate::security::TlsFiles) -> Self {
+        let to_tls = |list: Vec<String>| -> Vec<String> {
+            list.into_iter()
+                .filter(|e| !e.starts_with("udp/"))
+                .map(|e| match e.strip_prefix("tcp/") {
+                    Some(rest) => format!("tls/{rest}"),
+                    None => e,
+                })
+                .collect()
+        };
+        self.listen = to_tls(self.listen);
+        self.connect = to_tls(self.connect);
+        self.tls = Some(tls);
+        self
+    }
+
+    /// The security options agree with the endpoints: with TLS every endpoint is `tls/...` and the files are
+    /// readable; without it no endpoint is; access control needs TLS. The error says which flag or endpoint.
+    pub fn check(&self) -> Result<(), String> {
+        let endpoints = self.listen.iter().chain(&self.connect);
+        match &self.tls {
+            Some(tls) => {
+                tls.check()?;
+                if let Some(plain) = endpoints.into_iter().find(|e| !e.starts_with("tls/")) {
+                    return Err(format!(
+                        "endpoint `{plain}`: with --tls-* every endpoint must be tls/HOST:PORT (TLS runs \
+                         over TCP; a plain link would bypass it)"
+                    ));
+                }
+            }
+            None => {
+                if let Some(tls) = endpoints.into_iter().find(|e| e.starts_with("tls/")) {
+                    return Err(format!(
+                        "endpoint `{tls}` needs --tls-ca, --tls-cert and --tls-key"
+                    ));
+                }
+                if self.access_control.is_some() {
+                    return Err(
+                        "access control needs TLS: the certificates name the roles".to_owned()
+                    );
+                }
+            }
+        }
+        Ok(())
     }
 
     /// JSON5 `(key, value)` entries to insert into a zenoh config: mode, endpoints, scouting off. Listening
@@ -133,6 +187,24 @@ impl NetworkOptions {
                     "{{period_init_ms:{RETRY_INIT_MS},period_max_ms:{RETRY_MAX_MS},period_increase_factor:2}}"
                 ),
             ));
+        }
+        if let Some(tls) = &self.tls {
+            let path = |p: &std::path::Path| format!("{:?}", p.display().to_string());
+            entries.push(("transport/link/tls/root_ca_certificate", path(&tls.ca)));
+            entries.push(("transport/link/tls/listen_certificate", path(&tls.cert)));
+            entries.push(("transport/link/tls/listen_private_key", path(&tls.key)));
+            entries.push(("transport/link/tls/connect_certificate", path(&tls.cert)));
+            entries.push(("transport/link/tls/connect_private_key", path(&tls.key)));
+            entries.push(("transport/link/tls/enable_mtls", "true".to_owned()));
+            entries.push((
+                "transport/link/tls/verify_name_on_connect",
+                "true".to_owned(),
+            ));
+            // Only TLS links, opened or accepted: a gossiped plain locator is never dialled.
+            entries.push(("transport/link/protocols", "[\"tls\"]".to_owned()));
+        }
+        if let Some(acl) = &self.access_control {
+            entries.push(("access_control", acl.clone()));
         }
         entries
     }

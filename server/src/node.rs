@@ -186,7 +186,16 @@ impl ServerNode {
             Err(err) => tracing::warn!(%err, "could not estimate the tick cost"),
         }
         let keys = SceneKeys::new(&world.scene)?;
-        let session = open_session(&config.network)?;
+        // With TLS, the roles' certificates say who may publish what: the server enforces it on all it hears.
+        let mut network = config.network.clone();
+        if network.tls.is_some() && network.access_control.is_none() {
+            let device_ids: Vec<String> = world.tools.iter().map(|t| t.device_id.clone()).collect();
+            network.access_control = Some(sinew_protocol::security::access_control_json5(
+                &world.scene,
+                &device_ids,
+            ));
+        }
+        let session = open_session(&network)?;
         let asked = std::time::Instant::now();
         let found = session::live_servers(&session, &keys)?;
         tracing::debug!(

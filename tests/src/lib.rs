@@ -1,7 +1,8 @@
 //! sinew: the system crate. Wires the three roles together for the demo (`sinew demo`) and for the
 //! workspace-level end-to-end tests in `tests/tests/`.
 //!
-//! Owns: [`harness`] (start a server, simulated hapticservers and viewers on a loopback zenoh endpoint, each
+//! Owns: [`certs`] (`sinew certs`: a lab's CA and role certificates), [`harness`] (start a server, simulated
+//! hapticservers and viewers on a loopback zenoh endpoint, each
 //! with its own real zenoh session, and measure across them), [`demo`] (the live demo with its per-second
 //! lines and final summary), [`drill`] (latency drills on virtual time: the real server tick and device loops
 //! joined by emulated links), [`scenarios`] (the latency-moderated mode's acceptance runs on the drill,
@@ -14,6 +15,7 @@
 //! Must not: contain role logic; everything here calls the role crates' public APIs.
 #![warn(missing_docs)]
 
+pub mod certs;
 pub mod debrief;
 pub mod demo;
 pub mod drill;

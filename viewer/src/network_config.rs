@@ -9,6 +9,9 @@ use crate::error::ViewerError;
 
 /// A zenoh config from `network`: its config file (if any), overridden by its entries.
 pub fn zenoh_config(network: &NetworkOptions) -> Result<zenoh::Config, ViewerError> {
+    network
+        .check()
+        .map_err(|e| ViewerError::zenoh("checking the network options", e))?;
     let mut config = match &network.config_file {
         Some(path) => zenoh::Config::from_file(path).map_err(|e| {
             ViewerError::zenoh(format!("loading config file {}", path.display()), e)

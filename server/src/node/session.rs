@@ -5,6 +5,7 @@ use zenoh::Wait;
 
 /// Open a zenoh session: the config file first (if any), then the options' entries on top.
 pub fn open_session(options: &NetworkOptions) -> zenoh::Result<zenoh::Session> {
+    options.check()?;
     let mut config = match &options.config_file {
         Some(path) => zenoh::Config::from_file(path)?,
         None => zenoh::Config::default(),

@@ -1,0 +1,136 @@
+//! Sessions only the invited can join, over real mutual-TLS zenoh sessions on loopback: certificates from
+//! `sinew certs`, a server that enforces the roles' access rules, and the refusals each rule makes.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use hapticserver::sim_device::sim_device_model;
+use hapticserver::{HandPreset, HandScript, HapticConfig, HapticServer, SimDevice};
+use sinew::certs::{LabCerts, make_lab_certs};
+use sinew::harness::{deepest_dent_mm, load_shipped_world, serial, wait_until};
+use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::rt::LatestValue;
+use sinew_protocol::security::TlsFiles;
+use sinew_server::node::{ServerConfig, ServerHandle, ServerNode};
+
+fn lab(name: &str) -> LabCerts {
+    let dir = std::env::temp_dir().join(format!("sinew-certs-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap()
+}
+
+fn tls_endpoint() -> String {
+    let tcp = sinew::harness::free_loopback_endpoint().unwrap();
+    tcp.replacen("tcp/", "tls/", 1)
+}
+
+fn start_tls_server(certs: &LabCerts, endpoint: &str) -> ServerHandle {
+    let config = ServerConfig {
+        network: NetworkOptions {
+            listen: vec![endpoint.to_owned()],
+            tls: Some(certs.role("server").unwrap().clone()),
+            ..NetworkOptions::default()
+        },
+        server_id: "server".into(),
+        spin_native_accuracy_ns: 0,
+        ..ServerConfig::default()
+    };
+    ServerNode::start(load_shipped_world("pad.toml").unwrap(), config).unwrap()
+}
+
+fn start_tls_device(
+    id: &str,
+    files: &TlsFiles,
+    endpoint: &str,
+    target: &Arc<LatestValue<[f32; 3]>>,
+) -> hapticserver::HapticHandle {
+    let device = SimDevice::with_params(
+        HandScript::Follow(target.clone()),
+        HandPreset::Grip.params(),
+        sim_device_model(),
+    );
+    let mut config = HapticConfig::new("pad", id, Box::new(device));
+    config.network = NetworkOptions {
+        connect: vec![endpoint.to_owned()],
+        tls: Some(files.clone()),
+        ..NetworkOptions::default()
+    };
+    config.spin_accuracy_ns = 0;
+    HapticServer::start(config).unwrap()
+}
+
+fn cleanup(certs: &LabCerts) {
+    let _ = std::fs::remove_dir_all(&certs.dir);
+}
+
+#[test]
+fn a_device_with_its_lab_certificate_presses_the_pad_over_mutual_tls() {
+    let _serial = serial();
+    let certs = lab("press");
+    let endpoint = tls_endpoint();
+    let server = start_tls_server(&certs, &endpoint);
+    let target = Arc::new(LatestValue::new());
+    target.store([0.0, 0.0, 15.0]);
+    let mut left = start_tls_device(
+        "left",
+        certs.role("device-left").unwrap(),
+        &endpoint,
+        &target,
+    );
+    assert!(
+        wait_until(Duration::from_secs(10), || server
+            .stats()
+            .devices
+            .iter()
+            .any(|d| d.device_id == "left" && d.active)),
+        "left never drove its tool over TLS: {:?}",
+        server.stats().devices
+    );
+    target.store([0.0, 0.0, -5.0]);
+    assert!(
+        wait_until(Duration::from_secs(10), || left
+            .report()
+            .last_commanded_force_n[2]
+            > 0.3),
+        "no force over TLS: {}",
+        left.report()
+    );
+    assert!(
+        wait_until(Duration::from_secs(10), || deepest_dent_mm(&server) > 1.0),
+        "no dent"
+    );
+    left.stop().unwrap();
+    drop(server);
+    cleanup(&certs);
+}
+
+#[test]
+fn a_device_publishing_another_devices_pose_is_refused_and_that_tool_does_not_move() {
+    let _serial = serial();
+    let certs = lab("impostor");
+    let endpoint = tls_endpoint();
+    let server = start_tls_server(&certs, &endpoint);
+    let target = Arc::new(LatestValue::new());
+    target.store([0.0, 0.0, -5.0]);
+    // Left's certificate, claiming to be right.
+    let mut impostor = start_tls_device(
+        "right",
+        certs.role("device-left").unwrap(),
+        &endpoint,
+        &target,
+    );
+    std::thread::sleep(Duration::from_secs(3));
+    let stats = server.stats();
+    let right = stats
+        .devices
+        .iter()
+        .find(|d| d.device_id == "right")
+        .unwrap();
+    assert!(!right.active && right.poses_received == 0, "{right:?}");
+    assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
+    impostor.stop().unwrap();
+    drop(server);
+    cleanup(&certs);
+}
+
