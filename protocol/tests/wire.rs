@@ -196,6 +196,8 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
             duplicate_device: rng.u64(..),
             wrong_tool: rng.u64(..),
             no_hello: rng.u64(..),
+            access_denied: rng.u64(..),
+            tls_refused: rng.u64(..),
         },
         devices: (0..rng.usize(0..3))
             .map(|_| DeviceStats {

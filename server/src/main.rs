@@ -38,11 +38,8 @@ struct Args {
 }
 
 fn main() -> anyhow::Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .init();
+    // The log, and beside it the counter of what access control refuses (the stats' `access_denied`).
+    sinew_server::node::access_refusals::init_log_with_counter("info");
     sinew_protocol::rt::panic_report::install_deferred_backtrace_hook();
     let args = Args::parse();
     let emulation = args.emulation.config().map_err(anyhow::Error::msg)?;

@@ -10,6 +10,7 @@
 //!
 //! Must not: do physics here (that is [`crate::sim`]).
 
+pub mod access_refusals;
 mod device_slots;
 mod frame_exchange;
 mod inbound;
@@ -216,7 +217,7 @@ impl ServerNode {
             frames: FrameExchange::new(&sim),
             replication: std::sync::Mutex::new(ReplicationState::new(&world, &sim)),
             report: std::sync::Mutex::new(SimReport::new(sim.tools.len())),
-            rejects: inbound::RejectCounters::default(),
+            rejects: inbound::RejectCounters::new(),
             stop: AtomicBool::new(false),
             failure: std::sync::OnceLock::new(),
             instance,

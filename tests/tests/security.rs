@@ -15,6 +15,7 @@ use sinew_protocol::security::TlsFiles;
 use sinew_server::node::{ServerConfig, ServerHandle, ServerNode};
 
 fn lab(name: &str) -> LabCerts {
+    sinew_server::node::access_refusals::install_for_tests();
     let dir = std::env::temp_dir().join(format!("sinew-certs-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap()
@@ -93,13 +94,20 @@ fn a_device_with_its_lab_certificate_presses_the_pad_over_mutual_tls() {
             .report()
             .last_commanded_force_n[2]
             > 0.3),
-        "no force over TLS: {}",
-        left.report()
+        "no force over TLS: {}\n{:?}",
+        left.report(),
+        server.stats()
     );
     assert!(
         wait_until(Duration::from_secs(10), || deepest_dent_mm(&server) > 1.0),
         "no dent"
     );
+    let rejected = server.stats().rejected;
+    assert_eq!(
+        rejected.access_denied, 0,
+        "a lab device was denied: {rejected:?}"
+    );
+    assert_eq!(rejected.tls_refused, 0, "{rejected:?}");
     left.stop().unwrap();
     drop(server);
     cleanup(&certs);
@@ -121,6 +129,7 @@ fn a_device_publishing_another_devices_pose_is_refused_and_that_tool_does_not_mo
         &target,
     );
     std::thread::sleep(Duration::from_secs(3));
+    let published = impostor.report().poses_published;
     let stats = server.stats();
     let right = stats
         .devices
@@ -129,8 +138,98 @@ fn a_device_publishing_another_devices_pose_is_refused_and_that_tool_does_not_mo
         .unwrap();
     assert!(!right.active && right.poses_received == 0, "{right:?}");
     assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
+    // Its poses (1 kHz), hellos and presence token were refused, and the server's stats count them: one
+    // refusal per pose it published (the last few may still be in flight).
+    assert!(
+        published > 1000 && stats.rejected.access_denied as f64 >= 0.9 * published as f64,
+        "{published} poses published, refusals counted: {:?}",
+        stats.rejected
+    );
+    assert_eq!(stats.rejected.total(), stats.rejected.access_denied);
+    assert_eq!(
+        stats.rejected.tls_refused, 0,
+        "a lab certificate passes the handshake"
+    );
     impostor.stop().unwrap();
     drop(server);
     cleanup(&certs);
 }
 
+#[test]
+fn an_observer_publishing_a_pose_is_refused_and_the_tissue_does_not_move() {
+    let _serial = serial();
+    let certs = lab("observer");
+    let endpoint = tls_endpoint();
+    let server = start_tls_server(&certs, &endpoint);
+    let target = Arc::new(LatestValue::new());
+    target.store([0.0, 0.0, -5.0]);
+    // A device loop pressing 5 mm deep as `left`, holding an observer's certificate.
+    let mut intruder =
+        start_tls_device("left", certs.role("observer").unwrap(), &endpoint, &target);
+    std::thread::sleep(Duration::from_secs(3));
+    let published = intruder.report().poses_published;
+    let stats = server.stats();
+    let left = stats
+        .devices
+        .iter()
+        .find(|d| d.device_id == "left")
+        .unwrap();
+    assert!(!left.active && left.poses_received == 0, "{left:?}");
+    assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
+    assert!(
+        published > 1000 && stats.rejected.access_denied as f64 >= 0.9 * published as f64,
+        "{published} poses published, refusals counted: {:?}",
+        stats.rejected
+    );
+    // It still sees the server (reading is allowed to every lab certificate).
+    let report = intruder.report();
+    assert!(
+        matches!(
+            report.server_link,
+            hapticserver::server_watch::Link::Joined(_)
+        ),
+        "{report}"
+    );
+    intruder.stop().unwrap();
+    drop(server);
+    cleanup(&certs);
+}
+
+#[test]
+fn a_peer_without_a_lab_certificate_is_refused_at_the_handshake() {
+    let _serial = serial();
+    let certs = lab("outsider-lab");
+    let other = lab("outsider-other");
+    let endpoint = tls_endpoint();
+    let server = start_tls_server(&certs, &endpoint);
+    let target = Arc::new(LatestValue::new());
+    target.store([0.0, 0.0, -5.0]);
+    // A certificate named device-left, from another CA: the server's TLS refuses the link.
+    let outsider = std::panic::catch_unwind(|| {
+        start_tls_device(
+            "left",
+            other.role("device-left").unwrap(),
+            &endpoint,
+            &target,
+        )
+    });
+    std::thread::sleep(Duration::from_secs(2));
+    let stats = server.stats();
+    let left = stats
+        .devices
+        .iter()
+        .find(|d| d.device_id == "left")
+        .unwrap();
+    assert!(!left.active && left.poses_received == 0, "{left:?}");
+    assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
+    // Every attempt to connect was refused at the handshake, and counted.
+    assert!(stats.rejected.tls_refused >= 1, "{:?}", stats.rejected);
+    assert_eq!(
+        stats.rejected.access_denied, 0,
+        "nothing got far enough to be denied"
+    );
+    drop(outsider);
+    drop(server);
+    cleanup(&certs);
+    cleanup(&other);
+}

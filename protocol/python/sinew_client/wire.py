@@ -1,4 +1,4 @@
-"""The envelope and the postcard bodies of Sinew's messages (protocol 4), in pure Python.
+"""The envelope and the postcard bodies of Sinew's messages (protocol 5), in pure Python.
 
 Layout (protocol/WIRE.md): `[version u16 LE][kind u8][sender u64 LE][postcard body]`. Postcard writes unsigned
 integers wider than a byte as LEB128 varints, floats as little-endian IEEE 754, bools as one byte, strings and
@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 4
+PROTOCOL_VERSION = 5
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -348,6 +348,8 @@ class RejectCounts:
     duplicate_device: int = wire_field("u64", default=0)
     wrong_tool: int = wire_field("u64", default=0)
     no_hello: int = wire_field("u64", default=0)
+    access_denied: int = wire_field("u64", default=0)
+    tls_refused: int = wire_field("u64", default=0)
 
 
 @dataclass

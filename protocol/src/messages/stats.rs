@@ -21,6 +21,13 @@ pub struct RejectCounts {
     pub wrong_tool: u64,
     /// A pose from a device instance whose hello has not arrived yet (a device must say hello first).
     pub no_hello: u64,
+    /// Messages zenoh's access control dropped before they reached the server: a peer publishing where its
+    /// certificate's role may not (an observer's pose, a device's pose for another id), or sent to a peer
+    /// whose certificate names no role (only with TLS; `protocol::security`).
+    pub access_denied: u64,
+    /// TLS connections the server's listener refused: a peer without a certificate from the lab's CA (only
+    /// with TLS).
+    pub tls_refused: u64,
 }
 
 impl RejectCounts {
@@ -33,6 +40,8 @@ impl RejectCounts {
             + self.duplicate_device
             + self.wrong_tool
             + self.no_hello
+            + self.access_denied
+            + self.tls_refused
     }
 }
 

@@ -187,6 +187,15 @@ impl DeviceSlot {
         }
     }
 
+    /// The id's presence token is (back) up. A token that comes back after a delete is a device whose
+    /// transport closed and reopened (a link that flapped, a partition that healed): whichever instance it
+    /// is, it may drive again, so the departed mark is cleared (it only guards the poses in flight after a
+    /// delete, which have landed by the time a new transport has been opened and declared).
+    pub fn present(&self) {
+        self.departed.store(0, Ordering::Release);
+        self.gone.store(false, Ordering::Release);
+    }
+
     /// The id's presence token was deleted: the holder left. Its in-flight poses are refused from now on,
     /// and the next instance heard takes the id. Returns the instance that held it.
     pub fn release(&self) -> InstanceId {
@@ -298,6 +307,30 @@ mod tests {
         assert_eq!(s.claim(b, TIMEOUT + MS, TIMEOUT), Claim::Refused);
         assert_eq!(
             s.claim(c, TIMEOUT + 2 * MS, TIMEOUT),
+            Claim::Taken {
+                previous: InstanceId::NONE
+            }
+        );
+        assert!(!s.gone.load(Ordering::Relaxed));
+    }
+
+    #[test]
+    fn a_holder_whose_token_comes_back_after_its_transport_flapped_drives_again() {
+        let s = slot();
+        let a = InstanceId(1);
+        s.greet(a);
+        assert_eq!(
+            s.claim(a, 0, TIMEOUT),
+            Claim::Taken {
+                previous: InstanceId::NONE
+            }
+        );
+        // The transport closes (its token is deleted) and reopens (the token is declared again).
+        assert_eq!(s.release(), a);
+        assert_eq!(s.claim(a, MS, TIMEOUT), Claim::Refused);
+        s.present();
+        assert_eq!(
+            s.claim(a, 2 * MS, TIMEOUT),
             Claim::Taken {
                 previous: InstanceId::NONE
             }

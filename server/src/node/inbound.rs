@@ -29,9 +29,22 @@ pub struct RejectCounters {
     duplicate_device: AtomicU64,
     wrong_tool: AtomicU64,
     no_hello: AtomicU64,
+    /// The process's access-control refusals when this server started (the count is process-wide).
+    access_denied_base: u64,
+    /// The process's refused TLS accepts when this server started.
+    tls_refused_base: u64,
 }
 
 impl RejectCounters {
+    /// Counters from zero, access refusals counted from now.
+    pub fn new() -> Self {
+        Self {
+            access_denied_base: super::access_refusals::refusals(),
+            tls_refused_base: super::access_refusals::tls_refusals(),
+            ..Self::default()
+        }
+    }
+
     fn count(&self, error: &DecodeError) {
         let counter = match error {
             DecodeError::WrongVersion { .. } => &self.wrong_version,
@@ -53,6 +66,10 @@ impl RejectCounters {
             duplicate_device: self.duplicate_device.load(Ordering::Relaxed),
             wrong_tool: self.wrong_tool.load(Ordering::Relaxed),
             no_hello: self.no_hello.load(Ordering::Relaxed),
+            access_denied: super::access_refusals::refusals()
+                .saturating_sub(self.access_denied_base),
+            tls_refused: super::access_refusals::tls_refusals()
+                .saturating_sub(self.tls_refused_base),
         }
     }
 }
@@ -218,7 +235,7 @@ fn on_presence(shared: &Shared, sample: &Sample) {
         let holder = slot.release();
         tracing::info!(device = %slot.device_id, tool = %slot.tool_name, instance = %holder, "device left: tool released");
     } else {
-        slot.gone.store(false, Ordering::Release);
+        slot.present();
         tracing::info!(device = %slot.device_id, tool = %slot.tool_name, "device present");
     }
 }

@@ -102,6 +102,21 @@ enum Command {
         #[command(flatten)]
         network: sinew_protocol::cli::NetworkArgs,
     },
+    /// Make a lab's certificates for mutual TLS: a CA, and one certificate per role (server, observer, and a
+    /// device per --device), each naming its role as its common name. Give each role its three files
+    /// (--tls-ca ca.pem --tls-cert ROLE.pem --tls-key ROLE-key.pem); keep ca-key.pem offline.
+    Certs {
+        /// Folder to write into (created; an existing CA key is never replaced).
+        #[arg(long, default_value = "sinew-certs")]
+        out: PathBuf,
+        /// A device id to make a certificate for (repeatable).
+        #[arg(long = "device", value_name = "ID", default_values_t = ["left".to_owned(), "right".to_owned()])]
+        devices: Vec<String>,
+        /// Another name or address the roles are reached at, beside localhost and the loopback addresses
+        /// (repeatable): a site's DNS name or IP.
+        #[arg(long = "host", value_name = "NAME")]
+        hosts: Vec<String>,
+    },
     /// What a recording holds: its metadata, messages per topic, ticks, presence changes, damage. Reads
     /// `sinew-recorder`'s files too.
     Info {
@@ -121,11 +136,8 @@ enum Command {
 }
 
 fn main() -> anyhow::Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
-        .init();
+    // The log, and the counter of what access control refuses (a demo's server reports it in its stats).
+    sinew_server::node::access_refusals::init_log_with_counter("warn");
     match Args::parse().command {
         Command::Demo {
             world,
@@ -190,6 +202,25 @@ fn main() -> anyhow::Result<()> {
             mode,
             network,
         } => play_device(&file, &device, hold_s, mode, &network)?,
+        Command::Certs {
+            out,
+            devices,
+            hosts,
+        } => {
+            let certs = sinew::certs::make_lab_certs(&out, &devices, &hosts)?;
+            println!(
+                "CA: {} (its key ca-key.pem signs new certificates: keep it offline)",
+                certs.ca.display()
+            );
+            for (name, files) in &certs.roles {
+                println!(
+                    "{name}: --tls-ca {} --tls-cert {} --tls-key {}",
+                    files.ca.display(),
+                    files.cert.display(),
+                    files.key.display()
+                );
+            }
+        }
         Command::Info { file } => info(&file)?,
         Command::Report { file, out } => {
             let out = out.unwrap_or_else(|| {
