@@ -110,7 +110,7 @@ fn main() -> anyhow::Result<()> {
             s.overruns,
             s.deltas_sent,
             s.delta_bytes_sent,
-            s.rejected.total(),
+            rejected_text(&s.rejected),
             devices.join(", ")
         );
         if args
@@ -122,4 +122,28 @@ fn main() -> anyhow::Result<()> {
     }
     server.stop();
     Ok(())
+}
+
+/// `0`, or the total and each non-zero reason: `1071 (access_denied 1071)`.
+fn rejected_text(r: &sinew_protocol::RejectCounts) -> String {
+    let total = r.total();
+    if total == 0 {
+        return "0".to_owned();
+    }
+    let reasons: Vec<String> = [
+        ("malformed", r.malformed),
+        ("wrong_version", r.wrong_version),
+        ("invalid", r.invalid),
+        ("unknown_device", r.unknown_device),
+        ("duplicate_device", r.duplicate_device),
+        ("wrong_tool", r.wrong_tool),
+        ("no_hello", r.no_hello),
+        ("access_denied", r.access_denied),
+        ("tls_refused", r.tls_refused),
+    ]
+    .into_iter()
+    .filter(|(_, n)| *n > 0)
+    .map(|(name, n)| format!("{name} {n}"))
+    .collect();
+    format!("{total} ({})", reasons.join(", "))
 }

@@ -446,3 +446,134 @@ fn every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_fo
         "the device said it lost the server: {haptic_out}"
     );
 }
+
+/// The multi-site layout: `sinew-server --zenoh-mode router` on one "machine", devices on another, every link
+/// mutual TLS with certificates from `sinew certs`, across a 10 ms path. The device with its own certificate
+/// presses the pad and feels it; a device holding the observer's certificate is refused, and the server's
+/// status line counts the refusals.
+#[test]
+fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refuse_an_observers_pose()
+ {
+    let _serial = serial();
+    let name = "a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refuse_an_observers_pose";
+    if skip_unless_available(name) {
+        return;
+    }
+    let server_bin = role_binary("sinew-server").unwrap();
+    let haptic_bin = role_binary("hapticserver").unwrap();
+    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let mut lab = NetnsLab::new(LabConfig::symmetric(10.0, 0.0, 0.0, 7)).unwrap();
+    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let server_ip = lab.server_ip().to_string();
+    let certs_dir = std::env::temp_dir().join(format!("sinew-router-certs-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&certs_dir);
+    // The server's lab address goes into every certificate: the devices check the name they dialled.
+    let certs =
+        sinew::certs::make_lab_certs(&certs_dir, &["left".into()], &[server_ip.clone()]).unwrap();
+    let tls_args = |role: &str| -> Vec<String> {
+        let files = certs.role(role).unwrap();
+        vec![
+            "--tls-ca".into(),
+            files.ca.display().to_string(),
+            "--tls-cert".into(),
+            files.cert.display().to_string(),
+            "--tls-key".into(),
+            files.key.display().to_string(),
+        ]
+    };
+
+    let listen = format!("tls/{server_ip}:7447");
+    let mut server = Command::new(&server_bin);
+    server
+        .arg("--world")
+        .arg(&world)
+        .args([
+            "--zenoh-mode",
+            "router",
+            "--listen",
+            &listen,
+            "--duration-s",
+            "10",
+        ])
+        .args(tls_args("server"));
+    let server = lab.spawn_in_server_ns(&server).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let device = |id: &str, role: &str| {
+        let mut haptic = Command::new(&haptic_bin);
+        haptic
+            .args([
+                "--id",
+                id,
+                "--script",
+                "press",
+                "--connect",
+                &listen,
+                "--duration-s",
+                "6",
+            ])
+            .args(tls_args(role));
+        haptic
+    };
+    let left = lab
+        .spawn_in_device_ns(&device("left", "device-left"))
+        .unwrap();
+    let intruder = lab
+        .spawn_in_device_ns(&device("right", "observer"))
+        .unwrap();
+    let left = wait_output(left, Duration::from_secs(30)).unwrap();
+    let intruder = wait_output(intruder, Duration::from_secs(30)).unwrap();
+    let server = wait_output(server, Duration::from_secs(30)).unwrap();
+    let server_out = String::from_utf8_lossy(&server.stdout);
+    let final_of = |output: &std::process::Output| -> String {
+        let text = String::from_utf8_lossy(&output.stdout);
+        text.lines()
+            .find(|l| l.starts_with("final:"))
+            .map(str::to_owned)
+            .unwrap_or_else(|| {
+                panic!(
+                    "no `final:` line ({}):\n{text}\n{}\nserver:\n{server_out}\n{}",
+                    output.status,
+                    String::from_utf8_lossy(&output.stderr),
+                    String::from_utf8_lossy(&server.stderr)
+                )
+            })
+    };
+    let left_final = final_of(&left);
+    let intruder_final = final_of(&intruder);
+    println!("left: {left_final}\nintruder: {intruder_final}");
+    // zenoh 1.10.2's TLS link drops a transport now and then on a path with delay ("TX task failed:
+    // handshake not complete"); the device rejoins within about 100 ms. Counted here, not asserted.
+    println!(
+        "left's transport dropped and rejoined {} times",
+        server_out
+            .matches("device left: tool released")
+            .count()
+    );
+    // 20 ms round trip: left renders the server's local models (moderated), sent at their own rate.
+    assert!(
+        number_after(&left_final, "forces_rx ").unwrap() > 300.0,
+        "{left_final}"
+    );
+    assert!(
+        server_out.lines().any(|l| l.contains("left:on")),
+        "left never drove its tool:\n{server_out}"
+    );
+    // The intruder hears the server (reading is allowed) but never drives: its poses were refused.
+    assert_eq!(
+        number_after(&intruder_final, "forces_rx ").unwrap(),
+        0.0,
+        "{intruder_final}"
+    );
+    let last_status = server_out
+        .lines()
+        .rfind(|l| l.contains("rejected "))
+        .unwrap_or_else(|| panic!("no status line from the server:\n{server_out}"));
+    println!("server: {last_status}");
+    assert!(
+        number_after(last_status, "rejected ").unwrap() > 1000.0,
+        "the intruder's poses were not refused: {last_status}"
+    );
+    drop(lab);
+    assert_gone(&namespaces);
+    let _ = std::fs::remove_dir_all(&certs_dir);
+}
