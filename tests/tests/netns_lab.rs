@@ -468,8 +468,12 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     let certs_dir = std::env::temp_dir().join(format!("sinew-router-certs-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&certs_dir);
     // The server's lab address goes into every certificate: the devices check the name they dialled.
-    let certs =
-        sinew::certs::make_lab_certs(&certs_dir, &["left".into()], &[server_ip.clone()]).unwrap();
+    let certs = sinew::certs::make_lab_certs(
+        &certs_dir,
+        &["left".into()],
+        std::slice::from_ref(&server_ip),
+    )
+    .unwrap();
     let tls_args = |role: &str| -> Vec<String> {
         let files = certs.role(role).unwrap();
         vec![
@@ -545,9 +549,7 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     // handshake not complete"); the device rejoins within about 100 ms. Counted here, not asserted.
     println!(
         "left's transport dropped and rejoined {} times",
-        server_out
-            .matches("device left: tool released")
-            .count()
+        server_out.matches("device left: tool released").count()
     );
     // 20 ms round trip: left renders the server's local models (moderated), sent at their own rate.
     assert!(
