@@ -89,6 +89,16 @@ pub enum DeviceError {
     },
 }
 
+/// What a motor may be given for `force_n`: the force itself when every component is finite, else zero with
+/// [`DeviceError::NonFiniteForce`] to return (the rule every backend's `write_force` follows).
+pub fn finite_or_zero(force_n: [f32; 3]) -> ([f32; 3], Result<(), DeviceError>) {
+    if force_n.iter().all(|c| c.is_finite()) {
+        (force_n, Ok(()))
+    } else {
+        ([0.0; 3], Err(DeviceError::NonFiniteForce))
+    }
+}
+
 /// A haptic device: read its pose, render a force.
 ///
 /// Real-time contract for implementors: [`Device::read`] and [`Device::write_force`] are called from the 1 kHz

@@ -219,13 +219,9 @@ impl Device for ReplayDevice {
     }
 
     fn write_force(&mut self, force_n: [f32; 3]) -> Result<(), DeviceError> {
-        if force_n.iter().all(|c| c.is_finite()) {
-            self.force_n = force_n;
-            Ok(())
-        } else {
-            self.force_n = [0.0; 3];
-            Err(DeviceError::NonFiniteForce)
-        }
+        let (force_n, result) = crate::device::finite_or_zero(force_n);
+        self.force_n = force_n;
+        result
     }
 }
 

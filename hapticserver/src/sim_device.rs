@@ -101,13 +101,9 @@ impl Device for SimDevice {
 
     /// Render `force_n` from the next read on. A non-finite force is refused and the motor goes to zero.
     fn write_force(&mut self, force_n: [f32; 3]) -> Result<(), DeviceError> {
-        if force_n.iter().all(|c| c.is_finite()) {
-            self.force_n = force_n;
-            Ok(())
-        } else {
-            self.force_n = [0.0; 3];
-            Err(DeviceError::NonFiniteForce)
-        }
+        let (force_n, result) = crate::device::finite_or_zero(force_n);
+        self.force_n = force_n;
+        result
     }
 }
 

@@ -361,6 +361,21 @@ pub fn serial() -> std::sync::MutexGuard<'static, ()> {
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
+/// Wait up to `timeout` until the server says device `id` drives its tool. Returns whether it did.
+pub fn wait_device_active(
+    server: &sinew_server::node::ServerHandle,
+    id: &str,
+    timeout: Duration,
+) -> bool {
+    wait_until(timeout, || {
+        server
+            .stats()
+            .devices
+            .iter()
+            .any(|d| d.device_id == id && d.active)
+    })
+}
+
 /// Deepest point of object 0 below its rest plane z = 0, mm, from the server's latest frame (the pad's dent).
 pub fn deepest_dent_mm(server: &sinew_server::node::ServerHandle) -> f32 {
     server

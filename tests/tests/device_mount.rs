@@ -12,7 +12,8 @@ use hapticserver::{
     ModePolicy, SimDevice, WorldFromDevice,
 };
 use sinew::harness::{
-    Pacing, deepest_dent_mm, pad_device_config, serial, start_pad_server, wait_until,
+    Pacing, deepest_dent_mm, pad_device_config, serial, start_pad_server, wait_device_active,
+    wait_until,
 };
 use sinew_protocol::rt::LatestValue;
 
@@ -62,11 +63,7 @@ fn press_upside_down(mode: ModePolicy) {
     config.spin_accuracy_ns = 0;
     let mut left = HapticServer::start(config).unwrap();
     assert!(
-        wait_until(Duration::from_secs(10), || server
-            .stats()
-            .devices
-            .iter()
-            .any(|d| d.device_id == "left" && d.active)),
+        wait_device_active(&server, "left", Duration::from_secs(10)),
         "device active on the server"
     );
     // The hand is 5 mm below the pad surface in the scene: +5 mm along the device's own z.

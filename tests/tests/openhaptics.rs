@@ -12,7 +12,9 @@ use std::time::{Duration, Instant};
 
 use hapticserver::openhaptics::{OpenHapticsConfig, OpenHapticsDevice};
 use hapticserver::{Device, DeviceError, HapticServer};
-use sinew::harness::{Pacing, pad_device_config, serial, start_pad_server, wait_until};
+use sinew::harness::{
+    Pacing, pad_device_config, serial, start_pad_server, wait_device_active, wait_until,
+};
 
 const HD_DEVICE_FAULT: u32 = 0x0300;
 const HD_CALIBRATION_OK: u32 = 0x5000;
@@ -325,11 +327,7 @@ fn a_touch_pressing_the_pad_over_zenoh_feels_it_clamped_to_its_peak_and_let_go_w
     config.spin_accuracy_ns = 0;
     let mut left = HapticServer::start(config).unwrap();
     assert!(
-        wait_until(Duration::from_secs(10), || server
-            .stats()
-            .devices
-            .iter()
-            .any(|d| d.device_id == "left" && d.active)),
+        wait_device_active(&server, "left", Duration::from_secs(10)),
         "device active on the server"
     );
     fake.set_position([0.0, 0.0, -5.0]);

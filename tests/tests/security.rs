@@ -8,7 +8,7 @@ use std::time::Duration;
 use hapticserver::sim_device::sim_device_model;
 use hapticserver::{HandPreset, HandScript, HapticConfig, HapticServer, SimDevice};
 use sinew::certs::{LabCerts, make_lab_certs};
-use sinew::harness::{deepest_dent_mm, load_shipped_world, serial, wait_until};
+use sinew::harness::{deepest_dent_mm, load_shipped_world, serial, wait_device_active, wait_until};
 use sinew_protocol::network::NetworkOptions;
 use sinew_protocol::rt::LatestValue;
 use sinew_protocol::security::TlsFiles;
@@ -61,6 +61,28 @@ fn start_tls_device(
     HapticServer::start(config).unwrap()
 }
 
+/// Let `device` (publishing as `id` with a certificate that may not) press for 3 s, then check that the
+/// server refused it: `id`'s tool never moved, the tissue is untouched, and at least 90% of the poses it
+/// published were counted as refused (the last few may still be in flight). Returns the stats.
+fn assert_refused(
+    server: &ServerHandle,
+    device: &hapticserver::HapticHandle,
+    id: &str,
+) -> sinew_protocol::ServerStats {
+    std::thread::sleep(Duration::from_secs(3));
+    let published = device.report().poses_published;
+    let stats = server.stats();
+    let slot = stats.devices.iter().find(|d| d.device_id == id).unwrap();
+    assert!(!slot.active && slot.poses_received == 0, "{slot:?}");
+    assert!(deepest_dent_mm(server) < 0.05, "the tissue moved");
+    assert!(
+        published > 1000 && stats.rejected.access_denied as f64 >= 0.9 * published as f64,
+        "{published} poses published, refusals counted: {:?}",
+        stats.rejected
+    );
+    stats
+}
+
 fn cleanup(certs: &LabCerts) {
     let _ = std::fs::remove_dir_all(&certs.dir);
 }
@@ -80,11 +102,7 @@ fn a_device_with_its_lab_certificate_presses_the_pad_over_mutual_tls() {
         &target,
     );
     assert!(
-        wait_until(Duration::from_secs(10), || server
-            .stats()
-            .devices
-            .iter()
-            .any(|d| d.device_id == "left" && d.active)),
+        wait_device_active(&server, "left", Duration::from_secs(10)),
         "left never drove its tool over TLS: {:?}",
         server.stats().devices
     );
@@ -128,23 +146,8 @@ fn a_device_publishing_another_devices_pose_is_refused_and_that_tool_does_not_mo
         &endpoint,
         &target,
     );
-    std::thread::sleep(Duration::from_secs(3));
-    let published = impostor.report().poses_published;
-    let stats = server.stats();
-    let right = stats
-        .devices
-        .iter()
-        .find(|d| d.device_id == "right")
-        .unwrap();
-    assert!(!right.active && right.poses_received == 0, "{right:?}");
-    assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
-    // Its poses (1 kHz), hellos and presence token were refused, and the server's stats count them: one
-    // refusal per pose it published (the last few may still be in flight).
-    assert!(
-        published > 1000 && stats.rejected.access_denied as f64 >= 0.9 * published as f64,
-        "{published} poses published, refusals counted: {:?}",
-        stats.rejected
-    );
+    // Its poses (1 kHz), hellos and presence token were refused, and counted.
+    let stats = assert_refused(&server, &impostor, "right");
     assert_eq!(stats.rejected.total(), stats.rejected.access_denied);
     assert_eq!(
         stats.rejected.tls_refused, 0,
@@ -166,21 +169,7 @@ fn an_observer_publishing_a_pose_is_refused_and_the_tissue_does_not_move() {
     // A device loop pressing 5 mm deep as `left`, holding an observer's certificate.
     let mut intruder =
         start_tls_device("left", certs.role("observer").unwrap(), &endpoint, &target);
-    std::thread::sleep(Duration::from_secs(3));
-    let published = intruder.report().poses_published;
-    let stats = server.stats();
-    let left = stats
-        .devices
-        .iter()
-        .find(|d| d.device_id == "left")
-        .unwrap();
-    assert!(!left.active && left.poses_received == 0, "{left:?}");
-    assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
-    assert!(
-        published > 1000 && stats.rejected.access_denied as f64 >= 0.9 * published as f64,
-        "{published} poses published, refusals counted: {:?}",
-        stats.rejected
-    );
+    assert_refused(&server, &intruder, "left");
     // It still sees the server (reading is allowed to every lab certificate).
     let report = intruder.report();
     assert!(
@@ -190,6 +179,19 @@ fn an_observer_publishing_a_pose_is_refused_and_the_tissue_does_not_move() {
         ),
         "{report}"
     );
+    // A viewer with the same observer certificate replicates the scene: watching is what it may do.
+    let mut config = sinew_viewer::ViewerConfig::new("pad", "instructor");
+    config.network = NetworkOptions {
+        connect: vec![endpoint.clone()],
+        tls: Some(certs.role("observer").unwrap().clone()),
+        ..NetworkOptions::default()
+    };
+    let mut viewer = sinew_viewer::ViewerClient::start(config).unwrap();
+    assert!(
+        viewer.wait_for_snapshot(Duration::from_secs(10)),
+        "the observer's viewer got no snapshot over TLS"
+    );
+    viewer.stop();
     intruder.stop().unwrap();
     drop(server);
     cleanup(&certs);

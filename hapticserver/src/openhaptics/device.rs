@@ -313,19 +313,14 @@ impl Device for OpenHapticsDevice {
 
     fn write_force(&mut self, force_n: [f32; 3]) -> Result<(), DeviceError> {
         self.writes += 1;
-        let finite = force_n.iter().all(|c| c.is_finite());
-        let f = if finite { force_n } else { [0.0; 3] };
+        let (f, result) = crate::device::finite_or_zero(force_n);
         self.shared.command.write(&[
             f64::from(f[0]),
             f64::from(f[1]),
             f64::from(f[2]),
             self.writes as f64,
         ]);
-        if finite {
-            Ok(())
-        } else {
-            Err(DeviceError::NonFiniteForce)
-        }
+        result
     }
 }
 
