@@ -387,25 +387,33 @@ mod tests {
 
     #[test]
     fn seq_cell_is_never_torn_across_threads() {
+        use std::sync::atomic::AtomicBool;
         let cell = std::sync::Arc::new(SeqCell::<4>::default());
+        let stop = std::sync::Arc::new(AtomicBool::new(false));
         let writer = {
-            let cell = cell.clone();
+            let (cell, stop) = (cell.clone(), stop.clone());
             std::thread::spawn(move || {
-                for i in 1..200_000u32 {
-                    let v = f64::from(i);
+                let mut i = 1u64;
+                while !stop.load(Ordering::Relaxed) {
+                    let v = i as f64;
                     cell.write(&[v, v, v, v]);
+                    i += 1;
                 }
+                i
             })
         };
+        // Read while the writer writes, until enough reads succeeded (or 5 s passed on a stalled machine).
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
         let mut reads = 0;
-        while !writer.is_finished() {
+        while reads < 20_000 && std::time::Instant::now() < deadline {
             if let Some(values) = cell.read() {
                 assert!(values.iter().all(|&v| v == values[0]), "torn: {values:?}");
                 reads += 1;
             }
         }
-        writer.join().unwrap();
-        assert!(reads > 0);
+        stop.store(true, Ordering::Relaxed);
+        let writes = writer.join().unwrap();
+        assert!(reads > 0 && writes > 1, "{reads} reads, {writes} writes");
     }
 
     #[test]
