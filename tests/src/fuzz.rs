@@ -48,6 +48,16 @@ impl TargetReport {
         }
     }
 
+    /// Count one input's outcome (accepted, refused, or a panic described by `describe(message)`).
+    fn tally(&mut self, outcome: Result<bool, String>, describe: impl FnOnce(&str) -> String) {
+        self.inputs += 1;
+        match outcome {
+            Ok(true) => self.accepted += 1,
+            Ok(false) => self.refused += 1,
+            Err(message) => self.crash(describe(&message)),
+        }
+    }
+
     fn crash(&mut self, what: String) {
         self.crash_count += 1;
         if self.crashes.len() < 5 {
@@ -279,12 +289,7 @@ pub fn fuzz_decoders(seed: u64, n: u64) -> TargetReport {
             .iter()
             .any(|ok| *ok)
         });
-        report.inputs += 1;
-        match outcome {
-            Ok(true) => report.accepted += 1,
-            Ok(false) => report.refused += 1,
-            Err(message) => report.crash(format!("{message}: {}", hex(&input))),
-        }
+        report.tally(outcome, |message| format!("{message}: {}", hex(&input)));
     }
     report
 }
@@ -460,12 +465,7 @@ pub fn fuzz_world_loader(seed: u64, n: u64, dir: &Path) -> std::io::Result<Targe
             }
             Err(_) => false,
         });
-        report.inputs += 1;
-        match outcome {
-            Ok(true) => report.accepted += 1,
-            Ok(false) => report.refused += 1,
-            Err(message) => report.crash(format!("{message}:\n{input}")),
-        }
+        report.tally(outcome, |message| format!("{message}:\n{input}"));
     }
     Ok(report)
 }
@@ -545,12 +545,9 @@ pub fn fuzz_recordings(seed: u64, n: u64, dir: &Path) -> anyhow::Result<TargetRe
             }
             Err(_) => false,
         });
-        report.inputs += 1;
-        match outcome {
-            Ok(true) => report.accepted += 1,
-            Ok(false) => report.refused += 1,
-            Err(message) => report.crash(format!("{message} ({} bytes)", input.len())),
-        }
+        report.tally(outcome, |message| {
+            format!("{message} ({} bytes)", input.len())
+        });
     }
     Ok(report)
 }
