@@ -65,8 +65,40 @@ pub enum HandScript {
         /// Period of one pulse, s.
         pulse_period_s: f32,
     },
+    /// [`HandScript::Press`], close the jaws `settle_s` later (button 1 held, jaw angle 0), pull the grasped
+    /// tissue by `pull_mm` over `pull_s` (a smooth cosine profile), hold `hold_s`, then open the jaws and stay.
+    GraspPull {
+        /// Surface point, mm.
+        at_mm: [f32; 3],
+        /// How far below the surface the jaws go before closing, mm.
+        depth_mm: f32,
+        /// Starting height above the surface, mm.
+        approach_mm: f32,
+        /// Duration of the descent, s.
+        descend_s: f32,
+        /// Pause at depth before closing, s.
+        settle_s: f32,
+        /// Where the pull takes the hand from the closing point, mm.
+        pull_mm: [f32; 3],
+        /// Duration of the pull, s.
+        pull_s: f32,
+        /// Time held at the end of the pull before the jaws open, s.
+        hold_s: f32,
+    },
     /// The target is set from outside (a test, a replay); the hand holds the last target it saw.
     Follow(Arc<LatestValue<[f32; 3]>>),
+}
+
+/// Opening of a scripted gripper's open jaws, rad (40 degrees).
+pub const SCRIPT_JAW_OPEN_RAD: f32 = 0.698;
+
+/// What a scripted hand does with the instrument's jaws: the buttons held and the gripper opening.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScriptGrip {
+    /// Button bits held (bit 0 closes a grasper driven by a button).
+    pub buttons: u32,
+    /// Gripper opening, rad (0 closed; a grasper driven by the angle closes below its threshold).
+    pub jaw_angle_rad: f32,
 }
 
 impl fmt::Debug for HandScript {
@@ -116,6 +148,17 @@ impl fmt::Debug for HandScript {
                 .field("depth_mm", depth_mm)
                 .field("pulse_mm", pulse_mm)
                 .field("pulse_period_s", pulse_period_s)
+                .finish(),
+            HandScript::GraspPull {
+                at_mm,
+                depth_mm,
+                pull_mm,
+                ..
+            } => f
+                .debug_struct("GraspPull")
+                .field("at_mm", at_mm)
+                .field("depth_mm", depth_mm)
+                .field("pull_mm", pull_mm)
                 .finish(),
             HandScript::Follow(target) => f.debug_tuple("Follow").field(&target.peek()).finish(),
         }
@@ -203,7 +246,71 @@ impl HandScript {
                 }
                 Some(target)
             }
+            HandScript::GraspPull {
+                at_mm,
+                depth_mm,
+                approach_mm,
+                descend_s,
+                settle_s,
+                pull_mm,
+                pull_s,
+                ..
+            } => {
+                let mut target = press_target(*at_mm, *depth_mm, *approach_mm, *descend_s, t_s);
+                let pull_t_s = t_s - f64::from(*descend_s + *settle_s) - GRIP_LEAD_S;
+                if pull_t_s > 0.0 {
+                    let duration_s = f64::from(pull_s.max(1e-3));
+                    let phase = (pull_t_s / duration_s).min(1.0);
+                    let share = (0.5 * (1.0 - (std::f64::consts::PI * phase).cos())) as f32;
+                    let rate = if phase < 1.0 {
+                        (0.5 * std::f64::consts::PI / duration_s
+                            * (std::f64::consts::PI * phase).sin()) as f32
+                    } else {
+                        0.0
+                    };
+                    for ((x, v), pull) in target
+                        .position_mm
+                        .iter_mut()
+                        .zip(target.velocity_mm_s.iter_mut())
+                        .zip(pull_mm)
+                    {
+                        *x += pull * share;
+                        *v = pull * rate;
+                    }
+                }
+                Some(target)
+            }
             HandScript::Follow(mailbox) => mailbox.peek().map(HandTarget::at_rest),
+        }
+    }
+
+    /// What the hand does with the jaws at script time `t_s`: open, except a [`HandScript::GraspPull`] between
+    /// its closing and its release. Real-time: no allocation.
+    pub fn grip(&self, t_s: f64) -> ScriptGrip {
+        let open = ScriptGrip {
+            buttons: 0,
+            jaw_angle_rad: SCRIPT_JAW_OPEN_RAD,
+        };
+        match self {
+            HandScript::GraspPull {
+                descend_s,
+                settle_s,
+                pull_s,
+                hold_s,
+                ..
+            } => {
+                let close_s = f64::from(*descend_s + *settle_s);
+                let open_s = close_s + GRIP_LEAD_S + f64::from(*pull_s + *hold_s);
+                if (close_s..open_s).contains(&t_s) {
+                    ScriptGrip {
+                        buttons: 1,
+                        jaw_angle_rad: 0.0,
+                    }
+                } else {
+                    open
+                }
+            }
+            _ => open,
         }
     }
 
@@ -213,11 +320,15 @@ impl HandScript {
     }
 }
 
+/// A scripted pull starts this long after the jaws close, s: the grasp takes hold on the closing tick, the
+/// jaws are drawn shut.
+const GRIP_LEAD_S: f64 = 0.2;
+
 /// A script or option given on the command line that cannot be used.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ScriptError {
     /// Not one of the script names.
-    #[error("unknown script `{0}`: expected one of hold, press, press-stroke")]
+    #[error("unknown script `{0}`: expected one of hold, press, press-stroke, grasp-pull")]
     UnknownScript(String),
     /// A vector option is not three comma-separated numbers.
     #[error("`{0}` is not a vector `x,y,z` of three finite numbers (mm)")]
@@ -243,6 +354,8 @@ pub enum ScriptKind {
     Press,
     /// `press-stroke`: [`HandScript::PressAndStroke`].
     PressStroke,
+    /// `grasp-pull`: [`HandScript::GraspPull`] (press, close, pull up by `depth + 5` mm over 1 s, hold 2 s, open).
+    GraspPull,
 }
 
 impl ScriptKind {
@@ -252,6 +365,7 @@ impl ScriptKind {
             ScriptKind::Hold => "hold",
             ScriptKind::Press => "press",
             ScriptKind::PressStroke => "press-stroke",
+            ScriptKind::GraspPull => "grasp-pull",
         }
     }
 
@@ -277,6 +391,16 @@ impl ScriptKind {
                 stroke_mm: o.stroke_mm,
                 stroke_period_s: o.stroke_period_s,
             },
+            ScriptKind::GraspPull => HandScript::GraspPull {
+                at_mm: o.at_mm,
+                depth_mm: o.depth_mm,
+                approach_mm: o.approach_mm,
+                descend_s: o.descend_s,
+                settle_s: 0.3,
+                pull_mm: [0.0, 0.0, o.depth_mm + 5.0],
+                pull_s: 1.0,
+                hold_s: 2.0,
+            },
         })
     }
 }
@@ -288,6 +412,7 @@ impl FromStr for ScriptKind {
             "hold" => Ok(ScriptKind::Hold),
             "press" => Ok(ScriptKind::Press),
             "press-stroke" | "press_stroke" => Ok(ScriptKind::PressStroke),
+            "grasp-pull" | "grasp_pull" => Ok(ScriptKind::GraspPull),
             other => Err(ScriptError::UnknownScript(other.to_owned())),
         }
     }
@@ -511,5 +636,25 @@ mod tests {
             })
             .unwrap_err();
         assert!(err.to_string().contains("depth_mm"));
+    }
+
+    #[test]
+    fn grasp_pull_closes_at_depth_pulls_then_opens() {
+        let script = ScriptKind::GraspPull
+            .build(&ScriptOptions {
+                depth_mm: 2.0,
+                descend_s: 1.0,
+                ..ScriptOptions::default()
+            })
+            .unwrap();
+        assert_eq!(script.grip(0.5).buttons, 0);
+        assert!((z(&script, 1.2) + 2.0).abs() < 1e-6);
+        let closed = script.grip(1.35);
+        assert_eq!((closed.buttons, closed.jaw_angle_rad), (1, 0.0));
+        // Pulled up by depth + 5 mm once the pull is over, still closed while held.
+        assert!((z(&script, 2.6) - 5.0).abs() < 1e-4);
+        assert_eq!(script.grip(4.4).buttons, 1);
+        assert_eq!(script.grip(4.6).buttons, 0);
+        assert!((z(&script, 5.0) - 5.0).abs() < 1e-4);
     }
 }

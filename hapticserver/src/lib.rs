@@ -43,7 +43,9 @@ pub use device::{Device, DeviceError, DeviceModel, DeviceReading};
 pub use error::HapticError;
 pub use force_inbox::DecodeRejects;
 pub use hand_model::{HandModel, HandParams, HandPreset, HandTarget};
-pub use hand_script::{HandScript, ScriptError, ScriptKind, ScriptOptions, parse_vec3_mm};
+pub use hand_script::{
+    HandScript, ScriptError, ScriptGrip, ScriptKind, ScriptOptions, parse_vec3_mm,
+};
 pub use haptic_config::HapticConfig;
 pub use haptic_server::{HapticHandle, HapticServer};
 pub use passivity::{Passivity, PassivityCounters, PassivityMode};

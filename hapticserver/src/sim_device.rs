@@ -92,9 +92,12 @@ impl Device for SimDevice {
         self.hand.step(dt_s, &self.target, self.force_n);
         self.hand
             .confine(self.model.workspace_min_mm, self.model.workspace_max_mm);
+        let grip = self.script.grip(self.script_time_s);
         Ok(DeviceReading {
             position_mm: self.hand.position_mm(),
             linear_velocity_mm_s: self.hand.velocity_mm_s(),
+            buttons: grip.buttons,
+            jaw_angle_rad: grip.jaw_angle_rad,
             ..DeviceReading::default()
         })
     }

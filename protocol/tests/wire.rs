@@ -102,6 +102,8 @@ fn tool_states(rng: &mut fastrand::Rng) -> ToolStates {
                 force_n: v3(rng),
                 active: rng.bool(),
                 in_contact: rng.bool(),
+                jaw_angle_rad: rng.f32() * 3.0,
+                attachments: rng.u16(..),
             })
             .collect(),
     }
@@ -168,6 +170,14 @@ fn snapshot(rng: &mut fastrand::Rng) -> SceneSnapshot {
                         positions_mm: (0..4).map(|_| v3(rng)).collect(),
                         triangles: vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]],
                     },
+                },
+                instrument: if rng.bool() {
+                    InstrumentInfo::Probe
+                } else {
+                    InstrumentInfo::Grasper {
+                        jaw_length_mm: 0.5 + rng.f32() * 10.0,
+                        open_angle_rad: rng.f32() * 3.0,
+                    }
                 },
             })
             .collect(),

@@ -94,6 +94,8 @@ fn tool_states() -> ToolStates {
             force_n: [0.0, 0.0, 1.5],
             active: true,
             in_contact: true,
+            jaw_angle_rad: 0.5,
+            attachments: 12,
         }],
     }
 }
@@ -118,6 +120,10 @@ fn snapshot() -> SceneSnapshot {
             name: "left-probe".into(),
             device_id: "left".into(),
             shape: ToolShape::Sphere { radius_mm: 4.0 },
+            instrument: InstrumentInfo::Grasper {
+                jaw_length_mm: 8.0,
+                open_angle_rad: 0.5,
+            },
         }],
         tool_states: tool_states(),
     }

@@ -36,6 +36,7 @@ fn pressed_pad() -> (MassSpringModel, TissueState, f32) {
         position_device_mm: [0.0, 0.0, 0.0], // sphere radius 4: its bottom 4 mm below the rest surface
         velocity_device_mm_s: [0.0; 3],
         orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..ToolCommand::default()
     };
     let mut out = [ToolOutput::default(); 2];
     for _ in 0..300 {

@@ -72,6 +72,7 @@ fn run(world: &World, hold_ticks: usize) -> Run {
             position_device_mm: [0.3, 0.2, 4.0 - depth_mm],
             velocity_device_mm_s: [0.0; 3],
             orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            ..ToolCommand::default()
         }];
         let start = Instant::now();
         let report = sim.step(0.001, &command, &mut out);

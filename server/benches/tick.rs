@@ -54,12 +54,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 position_device_mm: [stroke, 0.0, 4.0 - depth],
                 velocity_device_mm_s: [0.0; 3],
                 orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+                ..ToolCommand::default()
             },
             ToolCommand {
                 active: true,
                 position_device_mm: [-stroke, 5.0, 4.0 - depth],
                 velocity_device_mm_s: [0.0; 3],
                 orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+                ..ToolCommand::default()
             },
         ];
         let start = Instant::now();

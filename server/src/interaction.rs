@@ -1,8 +1,14 @@
-//! Tool-tissue interactions. For now: probing.
+//! Tool-tissue interactions: probing, jaws, grasping.
 //!
-//! Owns: turning tool contacts into node corrections and the force each tool feels. Must not: integrate
-//! the tissue (that is [`crate::tissue`]) or find candidates (that is [`crate::collision`]).
+//! Owns: turning tool contacts into node corrections and the force each tool feels ([`ProbeContacts`]), the
+//! articulation of an instrument's jaws from its device's buttons or jaw angle ([`Jaws`]), and the attachments
+//! a closed grasper holds ([`Grasp`]). Must not: integrate the tissue (that is [`crate::tissue`]) or find
+//! candidates (that is [`crate::collision`]).
 
+mod grasp;
+mod jaws;
 mod probe;
 
+pub use grasp::{Attachment, Grasp, GraspEvent, MAX_ATTACHMENTS};
+pub use jaws::{JawInput, Jaws};
 pub use probe::ProbeContacts;

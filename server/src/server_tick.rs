@@ -96,6 +96,10 @@ impl ServerTick {
                     position_device_mm: input.pose.position_mm,
                     velocity_device_mm_s: input.pose.linear_velocity_mm_s,
                     orientation_xyzw: input.pose.orientation_xyzw,
+                    jaws: crate::interaction::JawInput {
+                        buttons: input.pose.buttons,
+                        jaw_angle_rad: input.pose.jaw_angle_rad,
+                    },
                 },
                 _ => ToolCommand::default(),
             };

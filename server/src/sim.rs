@@ -12,12 +12,12 @@ use crate::haptics::{
     ContactStiffness, CouplingParams, EnergyBudget, MAX_PLANES, NormalStiffnessEstimate,
     VirtualCoupling, WorldPlane, nearest_surface_plane,
 };
-use crate::interaction::ProbeContacts;
+use crate::interaction::{Grasp, GraspEvent, JawInput, Jaws, ProbeContacts};
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, RegionTracker, TieSet, TissueState, Vec3,
     Verdict, guard, integrator_for,
 };
-use crate::world::{ToolShapeSpec, World};
+use crate::world::{InstrumentSpec, ToolShapeSpec, World};
 
 /// Why a world could not become a simulation.
 #[derive(Debug, Error)]
@@ -50,6 +50,10 @@ pub const REFIT_MARGIN_MM: f32 = 0.2;
 /// A tool's planes cover surfaces within this distance of its box, mm: what a hand moving at 100 mm/s covers
 /// in a 200 ms round trip, so a distant device always has the surface it is about to meet.
 pub const PLANE_LOOK_AHEAD_MM: f32 = 20.0;
+
+/// A node this close to a tool's surface counts as on it when jaws close, mm (the probe leaves held nodes on
+/// the surface to within float rounding).
+const BITE_TOLERANCE_MM: f32 = 1e-3;
 
 /// Plane stiffness before a tool has touched anything, N/mm (then the last measured contact's normal
 /// stiffness): the pad's contact stiffness at a few mm.
@@ -147,6 +151,15 @@ pub struct SimTool {
     plane_candidates: Vec<u32>,
     /// The contact's normal stiffness fitted to the tissue's answer.
     estimate: NormalStiffnessEstimate,
+    /// What the tool is beyond its body (a probe, a grasper).
+    pub instrument: InstrumentSpec,
+    /// The device's jaw input this tick.
+    jaw_input: JawInput,
+    /// A grasper's jaws, and what they hold.
+    jaws: Option<Jaws>,
+    grasp: Option<Grasp>,
+    /// The tissue's pull on the tool through the grasp at the end of the last tick, N.
+    grasp_force_n: Vec3,
 }
 
 impl SimTool {
@@ -158,6 +171,16 @@ impl SimTool {
     /// The coupling parameters.
     pub fn coupling(&self) -> &CouplingParams {
         self.coupling.params()
+    }
+
+    /// A grasper's jaws (None for a probe).
+    pub fn jaws(&self) -> Option<&Jaws> {
+        self.jaws.as_ref()
+    }
+
+    /// What a grasper holds (None for a probe).
+    pub fn grasp(&self) -> Option<&Grasp> {
+        self.grasp.as_ref()
     }
 }
 
@@ -172,6 +195,8 @@ pub struct ToolCommand {
     pub velocity_device_mm_s: [f32; 3],
     /// Device orientation, unit quaternion (x, y, z, w).
     pub orientation_xyzw: [f32; 4],
+    /// The device's buttons and gripper angle (they open and close an instrument's jaws).
+    pub jaws: JawInput,
 }
 
 impl Default for ToolCommand {
@@ -181,6 +206,7 @@ impl Default for ToolCommand {
             position_device_mm: [0.0; 3],
             velocity_device_mm_s: [0.0; 3],
             orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            jaws: JawInput::default(),
         }
     }
 }
@@ -214,6 +240,12 @@ pub struct ToolOutput {
     pub plane_count: u8,
     /// Energy this tool's device may output beyond its own input, mJ ([`EnergyBudget`]).
     pub energy_allowance_mj: f32,
+    /// A grasper's jaws are closed.
+    pub jaws_closed: bool,
+    /// A grasper's jaw opening, rad (0 for a probe).
+    pub jaw_angle_rad: f32,
+    /// Points of tissue the jaws hold.
+    pub attachments: u16,
 }
 
 /// Times the anti-divergence guard may halve a tick's step (down to 1/16 of the planned one) before it gives
@@ -238,6 +270,14 @@ pub struct StepReport {
     pub region_nodes: u32,
     /// Region sub-models rebuilt this tick (the active set changed).
     pub region_rebuilds: u32,
+    /// Grasps that took hold this tick (jaws closed on tissue touching both).
+    pub grasps_taken: u32,
+    /// Jaws that closed this tick without tissue on both sides.
+    pub grasps_missed: u32,
+    /// Points of tissue let go by opening jaws (or a tool leaving) this tick.
+    pub attachments_released: u32,
+    /// Points of tissue that slipped out of the jaws this tick (pulled past the grasp's slip force).
+    pub attachments_slipped: u32,
 }
 
 /// The whole simulated scene.
@@ -345,6 +385,14 @@ impl Sim {
                 plane_damping_n_s_per_mm: 0.0,
                 plane_candidates: Vec::with_capacity(8192),
                 estimate: NormalStiffnessEstimate::default(),
+                instrument: spec.instrument,
+                jaw_input: JawInput::default(),
+                jaws: spec.instrument.grasp().map(Jaws::new),
+                grasp: spec
+                    .instrument
+                    .grasp()
+                    .map(|g| Grasp::new(*g, objects.len())),
+                grasp_force_n: Vec3::zeros(),
                 name: spec.name.clone(),
                 device_id: spec.device_id.clone(),
                 shape_spec: spec.shape.clone(),
@@ -429,6 +477,9 @@ impl Sim {
             region.clear_contacts();
             for tool in self.tools.iter().filter(|t| t.active) {
                 region.add_contacts(&tool.contacts[o].candidates);
+                if let Some(grasp) = &tool.grasp {
+                    region.add_contacts(grasp.attached_nodes(o));
+                }
             }
             let update = region.update(&object.model, &mut object.state, dt_s);
             report.region_nodes += update.active_nodes;
@@ -485,6 +536,11 @@ impl Sim {
                         }
                         for tool in &mut self.tools {
                             tool.contacts[o].forget();
+                            if let Some(grasp) = &mut tool.grasp
+                                && !grasp.attached_nodes(o).is_empty()
+                            {
+                                report.attachments_released += grasp_released(grasp.release());
+                            }
                         }
                         report.faults += 1;
                         self.last_energy_n_mm = None;
@@ -518,6 +574,9 @@ impl Sim {
         }
 
         for t in 0..self.tools.len() {
+            self.update_grasp(t, dt_s, &mut report);
+        }
+        for t in 0..self.tools.len() {
             let mut out = self.tool_output(t);
             report.held_nodes += out.held_nodes;
             self.local_model(t, dt_s, &mut out);
@@ -539,7 +598,78 @@ impl Sim {
             force += contacts.reaction_force_n(&object.model, &object.state);
             held += contacts.held.len() as u32;
         }
-        limit_force(force, tool.max_force_n, held)
+        let attachments = tool
+            .grasp
+            .as_ref()
+            .map_or(0, |g| g.attachments().len() as u16);
+        force += tool.grasp_force_n;
+        held += u32::from(attachments);
+        let mut out = limit_force(force, tool.max_force_n, held);
+        out.attachments = attachments;
+        if let Some(jaws) = &tool.jaws {
+            out.jaws_closed = jaws.closed();
+            out.jaw_angle_rad = jaws.angle_rad();
+        }
+        out
+    }
+
+    /// A grasper's jaws take this tick's input: on closing, take hold of the tissue the body touches (both
+    /// jaws must touch it); on opening, let go; while holding, measure the pull and let slipping points go.
+    fn update_grasp(&mut self, t: usize, dt_s: f32, report: &mut StepReport) {
+        let tool = &mut self.tools[t];
+        let (Some(jaws), Some(grasp)) = (&mut tool.jaws, &mut tool.grasp) else {
+            return;
+        };
+        tool.grasp_force_n = Vec3::zeros();
+        if !tool.active {
+            jaws.open();
+            grasp.closing_edge(false);
+            if !grasp.attachments().is_empty() {
+                report.attachments_released += grasp_released(grasp.release());
+            }
+            return;
+        }
+        let closed = jaws.update(&tool.jaw_input, dt_s);
+        if grasp.closing_edge(closed) {
+            grasp.start_take();
+            let bite_mm = grasp.spec().bite_mm;
+            for (o, object) in self.objects.iter().enumerate() {
+                // The nodes the body holds (on its surface) and free surface nodes within the bite of it:
+                // the closing jaws draw them in.
+                for &node in &tool.contacts[o].candidates {
+                    let Some(x) = object.state.positions_mm.get(node as usize) else {
+                        continue;
+                    };
+                    if tool
+                        .collider
+                        .distance_mm(&tool.position_mm, &tool.rotation, x)
+                        <= bite_mm + BITE_TOLERANCE_MM
+                    {
+                        grasp.offer(
+                            o,
+                            std::slice::from_ref(&node),
+                            &tool.position_mm,
+                            &tool.rotation,
+                            &object.model,
+                            &object.state,
+                        );
+                    }
+                }
+            }
+            match grasp.finish_take() {
+                GraspEvent::Took(_) => report.grasps_taken += 1,
+                _ => report.grasps_missed += 1,
+            }
+        } else if !closed && !grasp.attachments().is_empty() {
+            report.attachments_released += grasp_released(grasp.release());
+        }
+        let before = grasp.slipped();
+        for (o, object) in self.objects.iter().enumerate() {
+            if !grasp.attached_nodes(o).is_empty() {
+                tool.grasp_force_n += grasp.settle(o, &object.model, &object.state);
+            }
+        }
+        report.attachments_slipped += (grasp.slipped() - before) as u32;
     }
 
     /// Complete `out` with the local model around tool `t` (contact stiffness and damping, nearby surfaces,
@@ -552,12 +682,13 @@ impl Sim {
         let mut plane_count = 0usize;
         for (o, object) in self.objects.iter_mut().enumerate() {
             let contacts = &tool.contacts[o];
+            let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
             let solver = &mut tool.stiffness[o];
             if !tool.active {
                 solver.forget();
                 continue;
             }
-            if contacts.held.is_empty() {
+            if contacts.held.is_empty() && grasped.is_empty() {
                 solver.forget();
                 if plane_count < MAX_PLANES
                     && let Some(plane) = nearest_surface_plane(
@@ -581,15 +712,26 @@ impl Sim {
                 }
                 continue;
             }
-            let normal = out
-                .force_world_n
-                .try_normalize(1e-9)
-                .unwrap_or_else(|| object.model.rest_normals()[contacts.held[0] as usize]);
+            let first = contacts
+                .held
+                .first()
+                .or(grasped.first())
+                .copied()
+                .unwrap_or(0);
+            let normal = out.force_world_n.try_normalize(1e-9).unwrap_or_else(|| {
+                object
+                    .model
+                    .rest_normals()
+                    .get(first as usize)
+                    .copied()
+                    .unwrap_or_else(Vec3::z)
+            });
             solver.advance(
                 &object.model,
                 &object.state,
                 &contacts.held,
                 &contacts.normals,
+                grasped,
                 &normal,
             );
             match solver.response() {
@@ -725,13 +867,24 @@ impl Sim {
                     None => object.integrator.step(&object.model, &mut object.state, h),
                 };
                 for tool in self.tools.iter_mut().filter(|t| t.active) {
+                    let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
                     tool.contacts[o].project(
                         &tool.collider,
                         &tool.position_mm,
                         &tool.rotation,
                         &object.model,
                         &mut object.state,
+                        grasped,
                     );
+                    if let Some(grasp) = &tool.grasp {
+                        grasp.hold(
+                            o,
+                            &tool.position_mm,
+                            &tool.rotation,
+                            &object.model,
+                            &mut object.state,
+                        );
+                    }
                 }
             }
             report.substeps += self.objects.len() as u32;
@@ -763,6 +916,7 @@ impl Sim {
                 tool.active = false;
                 continue;
             }
+            tool.jaw_input = command.jaws;
             tool.device_mm = tool.device_origin_in_world_mm + Vec3::from(p);
             tool.device_velocity_mm_s = Vec3::from(v);
             if tool.active {
@@ -826,6 +980,14 @@ fn entry_point_mm(origin: &Vec3, reach_mm: f32, objects: &[SimObject]) -> Vec3 {
         .map(|mm| origin + up * mm as f32)
         .find(|p| !near(p))
         .unwrap_or(*origin)
+}
+
+/// How many points a release let go.
+fn grasp_released(event: GraspEvent) -> u32 {
+    match event {
+        GraspEvent::Released(n) => u32::from(n),
+        _ => 0,
+    }
 }
 
 /// Clamp to `max_force_n`, and never pass a non-finite force. Pure.

@@ -632,6 +632,7 @@ fn every_integrator_is_selectable_from_the_world_file_and_probes_the_pad() {
             position_device_mm: [0.0, 0.0, 4.0 - 3.0],
             velocity_device_mm_s: [0.0; 3],
             orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            ..ToolCommand::default()
         };
         let mut out = [ToolOutput::default(); 2];
         for _ in 0..300 {

@@ -55,6 +55,7 @@ fn commands(k: usize) -> [ToolCommand; 2] {
         position_device_mm: [x, y, 4.0 - depth],
         velocity_device_mm_s: [0.0; 3],
         orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..ToolCommand::default()
     };
     [at(stroke, 0.0), at(-stroke, 4.0)]
 }
@@ -155,5 +156,68 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
             "region tracking with {} allocated in a warm tick",
             method.as_str()
         );
+    }
+    // Graspers: closing on the sheet (taking hold), pulling, letting go, and slipping, cycle after cycle.
+    let grasp_path = path.with_file_name("grasp_pull.toml");
+    for slip_force_n in ["0.3", "0.02"] {
+        let grasp_text = std::fs::read_to_string(&grasp_path).unwrap().replace(
+            "slip_force_n = 0.3",
+            &format!("slip_force_n = {slip_force_n}"),
+        );
+        let mut sim = Sim::new(&parse_world(&grasp_path, &grasp_text).unwrap()).unwrap();
+        let grasp_ticks = |sim: &mut Sim, ticks: std::ops::Range<usize>| {
+            let mut out = [ToolOutput::default(); 2];
+            let mut report = sinew_server::sim::StepReport::default();
+            for k in ticks {
+                let cycle = (k % 2000) as f32 * 0.001;
+                let closed = (0.6..1.6).contains(&cycle);
+                let lift = if (0.7..1.5).contains(&cycle) {
+                    4.0
+                } else {
+                    0.0
+                };
+                let descend = (cycle / 0.5).min(1.0);
+                let at = |x: f32| ToolCommand {
+                    active: true,
+                    position_device_mm: [x, 0.0, 12.5 - 10.0 * descend + lift],
+                    jaws: sinew_server::interaction::JawInput {
+                        buttons: u32::from(closed),
+                        jaw_angle_rad: 0.0,
+                    },
+                    ..ToolCommand::default()
+                };
+                let r = sim.step(0.001, &[at(0.0), at(0.0)], &mut out);
+                report.grasps_taken += r.grasps_taken;
+                report.attachments_released += r.attachments_released;
+                report.attachments_slipped += r.attachments_slipped;
+            }
+            report
+        };
+        grasp_ticks(&mut sim, 0..2000);
+        ALLOCATIONS.store(0, Ordering::Relaxed);
+        COUNTING.store(true, Ordering::Relaxed);
+        let report = grasp_ticks(&mut sim, 2000..6000);
+        COUNTING.store(false, Ordering::Relaxed);
+        let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+        println!(
+            "grasp (slip at {slip_force_n} N): {allocations} allocations in 4000 warm ticks with {} takes, {} points released, {} slipped",
+            report.grasps_taken, report.attachments_released, report.attachments_slipped
+        );
+        assert!(
+            report.grasps_taken >= 4,
+            "the jaws never took hold while counting"
+        );
+        if slip_force_n == "0.02" {
+            assert!(
+                report.attachments_slipped > 0,
+                "nothing slipped while counting"
+            );
+        } else {
+            assert!(
+                report.attachments_released > 0,
+                "nothing was let go while counting"
+            );
+        }
+        assert_eq!(allocations, 0, "a grasp tick allocated");
     }
 }

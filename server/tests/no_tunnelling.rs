@@ -20,6 +20,7 @@ fn at(z_mm: f32, active: bool) -> [ToolCommand; 2] {
         position_device_mm: [0.0, 0.0, z_mm],
         velocity_device_mm_s: [0.0; 3],
         orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..ToolCommand::default()
     };
     let right = ToolCommand {
         active: false,

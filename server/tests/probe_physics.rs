@@ -42,6 +42,7 @@ fn press_at(x_mm: f32, depth_mm: f32) -> ToolCommand {
         position_device_mm: [x_mm, 0.0, 4.0 - depth_mm],
         velocity_device_mm_s: [0.0; 3],
         orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..ToolCommand::default()
     }
 }
 

@@ -302,6 +302,7 @@ fn press(depth_mm: f32) -> ToolCommand {
         position_device_mm: [0.0, 0.0, 4.0 - depth_mm],
         velocity_device_mm_s: [0.0; 3],
         orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..ToolCommand::default()
     }
 }
 

@@ -15,7 +15,7 @@ use sinew_viewer::ViewerHandle;
 
 use crate::harness::{
     Pacing, SimDeviceSetup, replica_error, start_server_recording, start_sim_device_emulated,
-    start_viewer, surgeon_scripts,
+    start_viewer, surgeon_scripts_for,
 };
 
 /// Demo options.
@@ -67,6 +67,7 @@ struct Running {
 /// Run the demo. Prints as it goes; returns the summary.
 pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     let world = load_world(&options.world).context("the demo's world")?;
+    let (left, right) = surgeon_scripts_for(&world);
     let scene = world.scene.clone();
     let one_way = sinew_protocol::rt::EmulationConfig {
         delay_ms: options.rtt_ms / 2.0,
@@ -80,7 +81,6 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
         one_way,
         options.record.clone(),
     )?;
-    let (left, right) = surgeon_scripts();
     let device = |id: &str, script| {
         start_sim_device_emulated(
             &scene,

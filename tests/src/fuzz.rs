@@ -191,6 +191,10 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
                         half_length_mm: 5.0,
                         radius_mm: 1.0,
                     },
+                    instrument: sinew_protocol::InstrumentInfo::Grasper {
+                        jaw_length_mm: 8.0,
+                        open_angle_rad: 0.7,
+                    },
                 }],
                 tool_states: tools,
             },

@@ -102,6 +102,22 @@ pub fn record_two_surgeons(
     sinew_server::recording::RecordSummary,
     sinew_server::node::SimReport,
 )> {
+    record_two_surgeons_in("pad.toml", path, duration)
+}
+
+/// [`record_two_surgeons`] on the shipped world `world_name` (left and right devices, each with its
+/// [`surgeon_scripts_for`] script: a grasper grasps and pulls).
+pub fn record_two_surgeons_in(
+    world_name: &str,
+    path: &Path,
+    duration: Duration,
+) -> anyhow::Result<(
+    sinew_server::recording::RecordSummary,
+    sinew_server::node::SimReport,
+)> {
+    let world = load_shipped_world(world_name)?;
+    let scene = world.scene.clone();
+    let (left_script, right_script) = surgeon_scripts_for(&world);
     let endpoint = free_loopback_endpoint()?;
     let config = ServerConfig {
         network: NetworkOptions {
@@ -112,11 +128,9 @@ pub fn record_two_surgeons(
         record: Some(path.to_owned()),
         ..ServerConfig::default()
     };
-    let mut server = ServerNode::start(load_shipped_world("pad.toml")?, config)
-        .context("starting the recording server")?;
-    let (left_script, right_script) = surgeon_scripts();
-    let left = start_sim_device("pad", "left", left_script, &endpoint, Pacing::Sleep)?;
-    let right = start_sim_device("pad", "right", right_script, &endpoint, Pacing::Sleep)?;
+    let mut server = ServerNode::start(world, config).context("starting the recording server")?;
+    let left = start_sim_device(&scene, "left", left_script, &endpoint, Pacing::Sleep)?;
+    let right = start_sim_device(&scene, "right", right_script, &endpoint, Pacing::Sleep)?;
     anyhow::ensure!(
         wait_until(Duration::from_secs(10), || {
             server.stats().devices.iter().all(|d| d.active)
@@ -234,6 +248,33 @@ pub fn surgeon_scripts() -> (HandScript, HandScript) {
         descend_s: 1.0,
     };
     (left, right)
+}
+
+/// The scripts of the two demo surgeons for `world`: [`surgeon_scripts`], except that a tool that is a grasper
+/// gets a grasp-and-pull (press 1.5 mm, close, pull 8 mm up and 6 mm outward, left to -x and right to +x, hold
+/// 2 s, open): coordinated pulling with two graspers.
+pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, HandScript) {
+    let (left, right) = surgeon_scripts();
+    let grasper = |device: &str| {
+        world
+            .tools
+            .iter()
+            .any(|t| t.device_id == device && t.instrument.grasp().is_some())
+    };
+    let pull = |outward_mm: f32| HandScript::GraspPull {
+        at_mm: [0.0, 0.0, 0.0],
+        depth_mm: 1.5,
+        approach_mm: 15.0,
+        descend_s: 1.0,
+        settle_s: 0.3,
+        pull_mm: [outward_mm, 0.0, 8.0],
+        pull_s: 1.0,
+        hold_s: 2.0,
+    };
+    (
+        if grasper("left") { pull(-6.0) } else { left },
+        if grasper("right") { pull(6.0) } else { right },
+    )
 }
 
 /// Poll `condition` every 10 ms until it holds or `timeout` passes. Returns whether it held.

@@ -443,6 +443,7 @@ mod tests {
                 name: "probe".to_owned(),
                 device_id: "left".to_owned(),
                 shape: ToolShape::Sphere { radius_mm: 3.0 },
+                instrument: sinew_protocol::InstrumentInfo::Probe,
             }],
             tool_states: ToolStates {
                 frame,

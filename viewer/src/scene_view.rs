@@ -127,6 +127,67 @@ struct ToolNode {
     node: SceneNode3d,
     /// Rotation from the node's own frame to the tool frame (kiss3d capsules run along y, Sinew's along z).
     tool_from_node: Quat,
+    /// A grasper's two jaws, and where they hinge (tool frame, mm) and how long they are.
+    jaws: Option<Jaws>,
+}
+
+/// A grasper's jaws as drawn: two capsules hinged about the tool's local x axis at `hinge_mm`, each running
+/// `length_mm` along the tool's -z, opened by +-half the jaw angle.
+struct Jaws {
+    nodes: [SceneNode3d; 2],
+    hinge_mm: Vec3,
+    length_mm: f32,
+}
+
+impl Jaws {
+    /// Jaw radius as drawn, mm.
+    const RADIUS_MM: f32 = 0.8;
+
+    fn add(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
+        let sinew_protocol::InstrumentInfo::Grasper { jaw_length_mm, .. } = info.instrument else {
+            return None;
+        };
+        let length_mm = jaw_length_mm.max(0.1);
+        let jaw = |group: &mut SceneNode3d| {
+            group
+                .add_capsule(Self::RADIUS_MM, length_mm)
+                .set_color(TOOL_STEEL)
+                .set_metallic(0.5)
+                .set_roughness(0.35)
+                .set_visible(false)
+        };
+        Some(Self {
+            nodes: [jaw(group), jaw(group)],
+            hinge_mm: Vec3::new(0.0, 0.0, info.shape.bounding_radius_mm()),
+            length_mm,
+        })
+    }
+
+    /// Place both jaws on a tool at `state` (world from tool), open by `state.jaw_angle_rad`.
+    fn place(&mut self, state: &ToolState, colour: Color) {
+        let [x, y, z, w] = state.orientation_xyzw;
+        let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
+        let half = 0.5 * state.jaw_angle_rad.clamp(0.0, std::f32::consts::PI);
+        for (node, sign) in self.nodes.iter_mut().zip([1.0f32, -1.0]) {
+            let tool_from_jaw = Quat::from_rotation_x(sign * half);
+            let centre_tool =
+                self.hinge_mm + tool_from_jaw * Vec3::new(0.0, 0.0, -0.5 * self.length_mm);
+            node.set_position(Vec3::from(state.position_mm) + world_from_tool * centre_tool)
+                .set_rotation(
+                    world_from_tool
+                        * tool_from_jaw
+                        * Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
+                )
+                .set_color(colour)
+                .set_visible(true);
+        }
+    }
+
+    fn hide(&mut self) {
+        for node in &mut self.nodes {
+            node.set_visible(false);
+        }
+    }
 }
 
 /// The kiss3d nodes of one replica.
@@ -224,6 +285,7 @@ impl SceneView {
             .map(|info| ToolNode {
                 tool: info.tool,
                 node: add_tool_shape(&mut group, info),
+                jaws: Jaws::add(&mut group, info),
                 tool_from_node: match info.shape {
                     ToolShape::Capsule { .. } => Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
                     ToolShape::Sphere { .. } | ToolShape::Mesh { .. } => Quat::IDENTITY,
@@ -262,9 +324,17 @@ impl SceneView {
         let states = &replica.tool_states().tools;
         for tool in &mut self.tools {
             match states.iter().find(|s| s.tool == tool.tool) {
-                Some(state) => place_tool(&mut tool.node, tool.tool_from_node, state),
+                Some(state) => {
+                    let colour = place_tool(&mut tool.node, tool.tool_from_node, state);
+                    if let Some(jaws) = &mut tool.jaws {
+                        jaws.place(state, colour);
+                    }
+                }
                 None => {
                     tool.node.set_visible(false);
+                    if let Some(jaws) = &mut tool.jaws {
+                        jaws.hide();
+                    }
                 }
             }
         }
@@ -310,12 +380,13 @@ fn add_tool_shape(group: &mut SceneNode3d, info: &ToolInfo) -> SceneNode3d {
         .set_visible(false)
 }
 
-fn place_tool(node: &mut SceneNode3d, tool_from_node: Quat, state: &ToolState) {
+/// Place a tool's node; returns the colour it was given (inactive, grasping or touching, free).
+fn place_tool(node: &mut SceneNode3d, tool_from_node: Quat, state: &ToolState) -> Color {
     let [x, y, z, w] = state.orientation_xyzw;
     let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
     let color = if !state.active {
         TOOL_INACTIVE
-    } else if state.in_contact {
+    } else if state.in_contact || state.attachments > 0 {
         TOOL_CONTACT
     } else {
         TOOL_STEEL
@@ -324,4 +395,5 @@ fn place_tool(node: &mut SceneNode3d, tool_from_node: Quat, state: &ToolState) {
         .set_rotation(world_from_tool * tool_from_node)
         .set_color(color)
         .set_visible(true);
+    color
 }

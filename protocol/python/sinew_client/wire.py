@@ -1,4 +1,4 @@
-"""The envelope and the postcard bodies of Sinew's messages (protocol 5), in pure Python.
+"""The envelope and the postcard bodies of Sinew's messages (protocol 6), in pure Python.
 
 Layout (protocol/WIRE.md): `[version u16 LE][kind u8][sender u64 LE][postcard body]`. Postcard writes unsigned
 integers wider than a byte as LEB128 varints, floats as little-endian IEEE 754, bools as one byte, strings and
@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 5
+PROTOCOL_VERSION = 6
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -278,6 +278,8 @@ class ToolState:
     force_n: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
     active: bool = wire_field("bool", default=False)
     in_contact: bool = wire_field("bool", default=False)
+    jaw_angle_rad: float = wire_field("f32", default=0.0)
+    attachments: int = wire_field("u16", default=0)
 
 
 @dataclass
@@ -318,6 +320,14 @@ TOOL_SHAPE = (
     ],
 )
 
+INSTRUMENT = (
+    "variants",
+    [
+        ("probe", []),
+        ("grasper", [("jaw_length_mm", "f32"), ("open_angle_rad", "f32")]),
+    ],
+)
+
 
 @dataclass
 class ToolInfo:
@@ -325,6 +335,7 @@ class ToolInfo:
     name: str = wire_field("str", default="")
     device_id: str = wire_field("str", default="")
     shape: dict = wire_field(TOOL_SHAPE, default_factory=lambda: {"kind": "sphere", "radius_mm": 1.0})
+    instrument: dict = wire_field(INSTRUMENT, default_factory=lambda: {"kind": "probe"})
 
 
 @dataclass

@@ -49,6 +49,8 @@ def main():
     assert math.isclose(hello.max_force_n, 3.3, rel_tol=1e-6)
     _, snapshot = wire.decode(vectors["SceneSnapshot"], wire.SceneSnapshot)
     assert snapshot.tools[0].shape == {"kind": "sphere", "radius_mm": 4.0}
+    assert snapshot.tools[0].instrument == {"kind": "grasper", "jaw_length_mm": 8.0, "open_angle_rad": 0.5}
+    assert snapshot.tool_states.tools[0].attachments == 12 and snapshot.tool_states.tools[0].jaw_angle_rad == 0.5
     assert snapshot.objects[0].bounds.dequantize([65535, 0, 32768])[0] == 40.0
     _, stats = wire.decode(vectors["ServerStats"], wire.ServerStats)
     assert stats.devices[0].training.skill_state == "contact" and stats.exercise is None

@@ -47,6 +47,22 @@ impl ToolShape {
     }
 }
 
+/// What a tool is beyond its shape, as viewers draw it. Protocol 6.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub enum InstrumentInfo {
+    /// Its shape only.
+    #[default]
+    Probe,
+    /// Two jaws: the shape's halves either side of the tool's local `y = 0` plane, hinged about its local x
+    /// axis at the back of the shape; `ToolState.jaw_angle_rad` is their opening.
+    Grasper {
+        /// Length of each jaw, mm.
+        jaw_length_mm: f32,
+        /// Opening of the open jaws, rad.
+        open_angle_rad: f32,
+    },
+}
+
 /// Static description of a tool.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ToolInfo {
@@ -58,6 +74,8 @@ pub struct ToolInfo {
     pub device_id: String,
     /// Collision shape.
     pub shape: ToolShape,
+    /// What it is (probe, grasper). Protocol 6.
+    pub instrument: InstrumentInfo,
 }
 
 /// One deformable object's full replicated state.
@@ -146,6 +164,19 @@ impl Message for SceneSnapshot {
             check::finite("tools.shape", dims)?;
             if dims.iter().any(|d| *d < 0.0) {
                 return Err(("tools.shape", "negative dimension"));
+            }
+            if let InstrumentInfo::Grasper {
+                jaw_length_mm,
+                open_angle_rad,
+            } = tool.instrument
+            {
+                check::finite("tools.instrument", &[jaw_length_mm, open_angle_rad])?;
+                if jaw_length_mm <= 0.0 || !(0.0..=std::f32::consts::PI).contains(&open_angle_rad) {
+                    return Err((
+                        "tools.instrument",
+                        "jaw length not positive or opening outside 0 to pi",
+                    ));
+                }
             }
         }
         self.tool_states.validate()

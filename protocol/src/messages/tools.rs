@@ -19,6 +19,10 @@ pub struct ToolState {
     pub active: bool,
     /// The tool touches tissue.
     pub in_contact: bool,
+    /// A grasper's jaw opening, rad (0 closed; 0 for a probe). Protocol 6.
+    pub jaw_angle_rad: f32,
+    /// Points of tissue the jaws hold (0: not grasping). Protocol 6.
+    pub attachments: u16,
 }
 
 /// The state of every tool at one publish frame.
@@ -45,6 +49,10 @@ impl Message for ToolStates {
             check::finite("tools.position_mm", &tool.position_mm)?;
             check::unit_quaternion("tools.orientation_xyzw", &tool.orientation_xyzw)?;
             check::finite("tools.force_n", &tool.force_n)?;
+            check::finite("tools.jaw_angle_rad", &[tool.jaw_angle_rad])?;
+            if !(0.0..=std::f32::consts::PI).contains(&tool.jaw_angle_rad) {
+                return Err(("tools.jaw_angle_rad", "outside 0 to pi"));
+            }
         }
         Ok(())
     }

@@ -73,6 +73,17 @@ impl ToolCollider {
             .loosened(margin_mm)
     }
 
+    /// Distance from `point_mm` to the tool, mm (0 inside it). Never panics.
+    pub fn distance_mm(
+        &self,
+        position_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        point_mm: &Vector3<f32>,
+    ) -> f32 {
+        self.shape()
+            .distance_to_point(&pose(position_mm, rotation), to_parry(point_mm), true)
+    }
+
     /// If `point_mm` is inside the tool, move it along `push_dir` (unit) until it leaves the tool: returns the
     /// exit point on the tool surface and the tool's outward unit normal there. None when the point is
     /// outside. Uses a parry ray cast from inside (non-solid) for the exit. No allocation, never returns

@@ -152,7 +152,8 @@ impl ContactStiffness {
     }
 
     /// Advance the solve by one tick's budget; start a new one from the current state when none is under way.
-    /// `held` are the nodes the tool holds and `tool_normals` the tool's outward normals there. Returns true
+    /// `held` are the nodes the tool holds and `tool_normals` the tool's outward normals there; `grasped` are
+    /// nodes its jaws hold, which follow the tool's whole motion (a grasp's pull is solved like a press). Returns true
     /// when a solve finished this tick (the result changed). Real-time contract: no allocation once warm,
     /// never panics.
     pub fn advance(
@@ -161,14 +162,15 @@ impl ContactStiffness {
         state: &TissueState,
         held: &[u32],
         tool_normals: &[Vec3],
+        grasped: &[u32],
         contact_normal: &Vec3,
     ) -> bool {
-        if held.is_empty() {
+        if held.is_empty() && grasped.is_empty() {
             self.forget();
             return false;
         }
         if !self.solving {
-            self.set_up(model, state, held, tool_normals, contact_normal);
+            self.set_up(model, state, held, tool_normals, grasped, contact_normal);
         }
         for _ in 0..Self::ITERATIONS_PER_TICK {
             if self.converged.iter().all(|&c| c) || self.iterations >= Self::MAX_ITERATIONS {
@@ -217,6 +219,7 @@ impl ContactStiffness {
         state: &TissueState,
         held: &[u32],
         tool_normals: &[Vec3],
+        grasped: &[u32],
         contact_normal: &Vec3,
     ) {
         self.normal = *contact_normal;
@@ -250,6 +253,16 @@ impl ContactStiffness {
                 Vec3::zeros()
             };
             self.u[0].push(imposed);
+            self.u[1].push(Vec3::zeros());
+            self.u[2].push(Vec3::zeros());
+        }
+        // Grasped nodes move rigidly with the jaws: all of the tool's motion is imposed on them.
+        for &g in grasped {
+            let g = g as usize;
+            if g >= n || self.local_of[g] != NONE || !self.local(g, HELD, model) {
+                continue;
+            }
+            self.u[0].push(*contact_normal);
             self.u[1].push(Vec3::zeros());
             self.u[2].push(Vec3::zeros());
         }

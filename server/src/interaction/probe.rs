@@ -58,7 +58,8 @@ impl ProbeContacts {
     }
 
     /// Push every candidate node that is inside the tool out to its surface; record the held nodes.
-    /// Fixed nodes are not moved. No allocation beyond capacity, never panics.
+    /// Fixed nodes are not moved, nor the nodes in `grasped` (sorted: the tool's jaws hold them). No allocation
+    /// beyond capacity, never panics.
     pub fn project(
         &mut self,
         tool: &ToolCollider,
@@ -66,13 +67,14 @@ impl ProbeContacts {
         rotation: &UnitQuaternion<f32>,
         model: &MassSpringModel,
         state: &mut TissueState,
+        grasped: &[u32],
     ) {
         self.held.clear();
         self.normals.clear();
         self.in_front_now.clear();
         for &node in &self.candidates {
             let i = node as usize;
-            if model.is_fixed(i) {
+            if model.is_fixed(i) || grasped.binary_search(&node).is_ok() {
                 continue;
             }
             let push_dir = -model.rest_normals()[i];

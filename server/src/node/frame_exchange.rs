@@ -70,6 +70,8 @@ impl FrameExchange {
                 ],
                 active: tool.active,
                 in_contact: out.in_contact,
+                jaw_angle_rad: out.jaw_angle_rad,
+                attachments: out.attachments,
             };
         }
         drop(frame);

@@ -81,6 +81,7 @@ impl ReplicationState {
                         triangles: surface.triangles.clone(),
                     },
                 },
+                instrument: instrument_info(&tool.instrument),
             })
             .collect();
         Self {
@@ -342,5 +343,16 @@ fn publish_frame(
                 replication.delta_bytes += buf.len() as u64;
             }
         }
+    }
+}
+
+/// What viewers need to draw an instrument.
+pub fn instrument_info(spec: &crate::world::InstrumentSpec) -> sinew_protocol::InstrumentInfo {
+    match spec.grasp() {
+        None => sinew_protocol::InstrumentInfo::Probe,
+        Some(g) => sinew_protocol::InstrumentInfo::Grasper {
+            jaw_length_mm: g.jaw_length_mm,
+            open_angle_rad: g.open_angle_rad,
+        },
     }
 }

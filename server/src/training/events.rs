@@ -44,14 +44,15 @@ pub struct ToolActivity {
 }
 
 impl ToolActivity {
-    /// What a tick's [`ToolOutput`] says of a tool driven (`active`) or not. Instruments add their own flags.
+    /// What a tick's [`ToolOutput`] says of a tool driven (`active`) or not: a grasper grasps while its jaws
+    /// hold tissue. Cutting and burning instruments will add their flags.
     pub fn from_output(active: bool, out: &ToolOutput) -> Self {
         let force_n = out.force_world_n.norm();
         Self {
             active,
             near: active && (out.in_contact || out.plane_count > 0),
             in_contact: active && out.in_contact,
-            grasping: false,
+            grasping: active && out.attachments > 0,
             cutting: false,
             burning: false,
             force_n: if force_n.is_finite() { force_n } else { 0.0 },

@@ -289,6 +289,42 @@ pub(crate) struct ToolSection {
     /// Virtual coupling of the tool to its device pose (defaults: `haptics::CouplingParams::default`).
     #[serde(default)]
     pub coupling: Option<Spanned<CouplingSection>>,
+    /// What the tool does beyond pushing (default: a probe).
+    #[serde(default)]
+    pub instrument: Option<Spanned<InstrumentSection>>,
+}
+
+/// `instrument = { kind = "probe" | "grasper", ... }` of a tool (see `world::instrument`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct InstrumentSection {
+    pub kind: InstrumentKindName,
+    /// Grasper: `"button"` (default) or `"angle"`.
+    pub activation: Option<ActivationName>,
+    /// Grasper, `activation = "button"`: button bits that close the jaws (default 1).
+    pub button_mask: Option<u32>,
+    /// Grasper, `activation = "angle"`: close below, open above, degrees.
+    pub close_below_deg: Option<f32>,
+    pub open_above_deg: Option<f32>,
+    pub open_angle_deg: Option<f32>,
+    pub jaw_length_mm: Option<f32>,
+    pub bite_mm: Option<f32>,
+    pub slip_force_n: Option<f32>,
+    pub max_attachments: Option<u16>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub(crate) enum InstrumentKindName {
+    Probe,
+    Grasper,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub(crate) enum ActivationName {
+    Button,
+    Angle,
 }
 
 #[derive(Debug, Deserialize)]

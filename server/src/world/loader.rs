@@ -9,8 +9,9 @@ use toml::Spanned;
 use super::exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 use super::extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 use super::file_format::{
-    ExerciseSection, FixedSection, IntegratorName, LawSection, MaterialSection, ObjectSection,
-    ShapeSection, TargetSection, TieSection, ToolSection, WorldFile,
+    ActivationName, ExerciseSection, FixedSection, InstrumentKindName, InstrumentSection,
+    IntegratorName, LawSection, MaterialSection, ObjectSection, ShapeSection, TargetSection,
+    TieSection, ToolSection, WorldFile,
 };
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
 use super::tet_mesh::load_msh_mesh;
@@ -230,6 +231,8 @@ pub struct ToolSpec {
     pub max_force_n: f32,
     /// How the tool follows its device pose (`coupling = { ... }`).
     pub coupling: crate::haptics::CouplingParams,
+    /// What the tool does beyond pushing (`instrument = { kind = ... }`; default a probe).
+    pub instrument: crate::world::InstrumentSpec,
 }
 
 /// Read, parse and validate a world file (mesh paths are relative to it).
@@ -1150,6 +1153,10 @@ impl Context<'_> {
                 }
             }
         }
+        let instrument = match &tool.instrument {
+            None => crate::world::InstrumentSpec::Probe,
+            Some(at) => self.instrument(i, at)?,
+        };
         Ok(ToolSpec {
             name: tool.name.get_ref().clone(),
             device_id,
@@ -1157,7 +1164,155 @@ impl Context<'_> {
             device_origin_in_world_mm: tool.device_origin_in_world_mm,
             max_force_n,
             coupling,
+            instrument,
         })
+    }
+
+    /// `tools[i].instrument`: every key checked for its kind and its range.
+    fn instrument(
+        &self,
+        i: usize,
+        at: &Spanned<InstrumentSection>,
+    ) -> Result<crate::world::InstrumentSpec, WorldError> {
+        use crate::world::{GraspSpec, InstrumentSpec, JawActivation};
+        let section = at.get_ref();
+        let key = |k: &str| format!("tools[{i}].instrument.{k}");
+        match section.kind {
+            InstrumentKindName::Probe => {
+                let grasper_keys = [
+                    ("activation", section.activation.is_some()),
+                    ("button_mask", section.button_mask.is_some()),
+                    ("close_below_deg", section.close_below_deg.is_some()),
+                    ("open_above_deg", section.open_above_deg.is_some()),
+                    ("open_angle_deg", section.open_angle_deg.is_some()),
+                    ("jaw_length_mm", section.jaw_length_mm.is_some()),
+                    ("bite_mm", section.bite_mm.is_some()),
+                    ("slip_force_n", section.slip_force_n.is_some()),
+                    ("max_attachments", section.max_attachments.is_some()),
+                ];
+                if let Some((name, _)) = grasper_keys.iter().find(|(_, given)| *given) {
+                    return Err(self.invalid(
+                        at,
+                        &key(name),
+                        "a probe has no jaws: only a grasper takes it",
+                    ));
+                }
+                Ok(InstrumentSpec::Probe)
+            }
+            InstrumentKindName::Grasper => {
+                let mut grasp = GraspSpec::DEFAULT;
+                let rad = |deg: f32| deg.to_radians();
+                let angle_keys =
+                    section.close_below_deg.is_some() || section.open_above_deg.is_some();
+                grasp.activation = match section.activation.unwrap_or(ActivationName::Button) {
+                    ActivationName::Button => {
+                        if angle_keys {
+                            return Err(self.invalid(
+                                at,
+                                &key("close_below_deg"),
+                                "the jaw angle thresholds need activation = \"angle\"",
+                            ));
+                        }
+                        let mask = section.button_mask.unwrap_or(1);
+                        self.check(
+                            at,
+                            &key("button_mask"),
+                            mask != 0,
+                            "must name at least one button bit",
+                        )?;
+                        JawActivation::Button { mask }
+                    }
+                    ActivationName::Angle => {
+                        if section.button_mask.is_some() {
+                            return Err(self.invalid(
+                                at,
+                                &key("button_mask"),
+                                "a button mask needs activation = \"button\"",
+                            ));
+                        }
+                        let JawActivation::Angle {
+                            mut close_below_rad,
+                            mut open_above_rad,
+                        } = GraspSpec::ANGLE_DEFAULT
+                        else {
+                            unreachable!("the angle default is an angle activation")
+                        };
+                        if let Some(deg) = section.close_below_deg {
+                            close_below_rad = rad(deg);
+                        }
+                        if let Some(deg) = section.open_above_deg {
+                            open_above_rad = rad(deg);
+                        }
+                        self.check(
+                            at,
+                            &key("close_below_deg"),
+                            close_below_rad.is_finite() && close_below_rad >= 0.0,
+                            "must be a number >= 0",
+                        )?;
+                        self.check(
+                            at,
+                            &key("open_above_deg"),
+                            open_above_rad.is_finite() && open_above_rad > close_below_rad,
+                            "must be above close_below_deg (the hysteresis band)",
+                        )?;
+                        JawActivation::Angle {
+                            close_below_rad,
+                            open_above_rad,
+                        }
+                    }
+                };
+                let positive = [
+                    (
+                        "open_angle_deg",
+                        section.open_angle_deg.map(rad),
+                        &mut grasp.open_angle_rad,
+                        180.0f32.to_radians(),
+                    ),
+                    (
+                        "jaw_length_mm",
+                        section.jaw_length_mm,
+                        &mut grasp.jaw_length_mm,
+                        200.0,
+                    ),
+                    (
+                        "slip_force_n",
+                        section.slip_force_n,
+                        &mut grasp.slip_force_n,
+                        100.0,
+                    ),
+                ];
+                for (name, value, slot, most) in positive {
+                    if let Some(value) = value {
+                        self.check(
+                            at,
+                            &key(name),
+                            value.is_finite() && value > 0.0 && value <= most,
+                            &format!("must be a positive number, at most {most}"),
+                        )?;
+                        *slot = value;
+                    }
+                }
+                if let Some(bite) = section.bite_mm {
+                    self.check(
+                        at,
+                        &key("bite_mm"),
+                        bite.is_finite() && (0.0..=10.0).contains(&bite),
+                        "must be 0 to 10 mm",
+                    )?;
+                    grasp.bite_mm = bite;
+                }
+                if let Some(most) = section.max_attachments {
+                    self.check(
+                        at,
+                        &key("max_attachments"),
+                        (1..=crate::interaction::MAX_ATTACHMENTS).contains(&most),
+                        &format!("must be 1 to {}", crate::interaction::MAX_ATTACHMENTS),
+                    )?;
+                    grasp.max_attachments = most;
+                }
+                Ok(InstrumentSpec::Grasper(grasp))
+            }
+        }
     }
 }
 

@@ -73,6 +73,7 @@ pub fn sheet_snapshot(
             name: "probe".to_owned(),
             device_id: "left".to_owned(),
             shape: ToolShape::Sphere { radius_mm: 4.0 },
+            instrument: sinew_protocol::InstrumentInfo::Probe,
         }],
         tool_states: ToolStates {
             frame,
@@ -84,6 +85,7 @@ pub fn sheet_snapshot(
                 force_n: [0.0; 3],
                 active: true,
                 in_contact: false,
+                ..ToolState::default()
             }],
         },
     }

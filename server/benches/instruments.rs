@@ -1,0 +1,128 @@
+//! What instruments cost the server tick, on worlds/grasp_pull.toml (the pad and two graspers), one core, no
+//! network. The same sim runs two phases and each is timed over the same number of ticks:
+//! - probe: both tools press 1.5 mm and stroke +-4 mm along x with their jaws open (they act as probes);
+//! - grasp: both tools press, close their jaws on the sheet, pull it 3 mm up and back (1 s period), open, and
+//!   do it again every 2 s; the ticks that take hold (the closing edge) are also reported on their own.
+//!
+//! Figures are ratios to the probe phase of the same run, so they travel between machines.
+//!
+//! Run: `cargo bench -p sinew-server --bench instruments` (add `-- --ticks N` to change the count per phase).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
+
+use std::time::Instant;
+
+use sinew_protocol::rt::LatencyHistogram;
+use sinew_server::interaction::JawInput;
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::world::load_world;
+
+fn command(x_mm: f32, z_mm: f32, closed: bool) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        position_device_mm: [x_mm, 0.0, z_mm],
+        jaws: JawInput {
+            buttons: u32::from(closed),
+            jaw_angle_rad: 0.0,
+        },
+        ..ToolCommand::default()
+    }
+}
+
+struct Phase {
+    ticks: LatencyHistogram,
+    takes: LatencyHistogram,
+    held_max: u16,
+    slipped: u32,
+}
+
+fn run(sim: &mut Sim, ticks: usize, start: usize, grasp: bool) -> Phase {
+    let dt_s = 0.001f32;
+    let mut outputs = [ToolOutput::default(); 2];
+    let mut phase = Phase {
+        ticks: LatencyHistogram::new(),
+        takes: LatencyHistogram::new(),
+        held_max: 0,
+        slipped: 0,
+    };
+    for k in start..start + ticks {
+        let t = k as f32 * dt_s;
+        // Sphere radius 4: centre at 2.5 puts its bottom 1.5 mm into the pad.
+        let (x, z, closed) = if grasp {
+            let cycle = t % 2.0;
+            let closed = (0.2..1.6).contains(&cycle);
+            let lift = if (0.3..1.3).contains(&cycle) {
+                3.0 * (std::f32::consts::PI * (cycle - 0.3)).sin()
+            } else {
+                0.0
+            };
+            (0.0, 2.5 + lift, closed)
+        } else {
+            (4.0 * (std::f32::consts::TAU * t / 2.0).sin(), 2.5, false)
+        };
+        let commands = [command(x, z, closed), command(-x, z, closed)];
+        let started = Instant::now();
+        let report = sim.step(dt_s, &commands, &mut outputs);
+        let elapsed = started.elapsed();
+        phase.ticks.record(elapsed);
+        if report.grasps_taken > 0 {
+            phase.takes.record(elapsed);
+        }
+        phase.slipped += report.attachments_slipped;
+        phase.held_max = phase.held_max.max(outputs[0].attachments);
+        assert_eq!(report.faults, 0);
+    }
+    phase
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let ticks: usize = args
+        .iter()
+        .position(|a| a == "--ticks")
+        .and_then(|i| args.get(i + 1))
+        .map_or(Ok(10_000), |s| s.parse())?;
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/grasp_pull.toml");
+    let world = load_world(&path)?;
+    let mut sim = Sim::new(&world)?;
+    // Settle into the press with the jaws open (not timed).
+    for k in 0..500 {
+        let z = 2.5 + 10.0 * (1.0 - (k + 1) as f32 / 500.0);
+        let mut out = [ToolOutput::default(); 2];
+        sim.step(
+            0.001,
+            &[command(0.0, z, false), command(0.0, z, false)],
+            &mut out,
+        );
+    }
+    let probe = run(&mut sim, ticks, 500, false);
+    let grasp = run(&mut sim, ticks, 500 + ticks, true);
+    let us = |ns: u64| ns as f32 / 1000.0;
+    let (p50, p99) = (
+        probe.ticks.percentile_us(50.0),
+        probe.ticks.percentile_us(99.0),
+    );
+    println!(
+        "instruments bench: worlds/grasp_pull.toml, two tools, {ticks} ticks per phase, one core"
+    );
+    println!(
+        "probe (jaws open, stroking): tick p50 {p50:.0} us, p99 {p99:.0} us, max {:.0} us",
+        us(probe.ticks.max_ns())
+    );
+    let g50 = grasp.ticks.percentile_us(50.0);
+    let g99 = grasp.ticks.percentile_us(99.0);
+    println!(
+        "grasp (close, pull 3 mm, open; every 2 s): tick p50 {g50:.0} us (x{:.2}), p99 {g99:.0} us (x{:.2}), max {:.0} us; up to {} points held per tool, {} slipped",
+        g50 / p50,
+        g99 / p99,
+        us(grasp.ticks.max_ns()),
+        grasp.held_max,
+        grasp.slipped
+    );
+    println!(
+        "ticks that took hold: {}, worst {:.0} us (x{:.2} the probe p50)",
+        grasp.takes.count(),
+        us(grasp.takes.max_ns()),
+        us(grasp.takes.max_ns()) / p50
+    );
+    Ok(())
+}

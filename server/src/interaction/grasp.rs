@@ -1,0 +1,341 @@
+//! Grasping: closed jaws hold tissue by attachments until they open, or the tissue slips out.
+//!
+//! Owns: [`Grasp`], one grasper's [`Attachment`]s, how they are taken when the jaws close, how they hold the
+//! tissue each substep, and the force they put on the tool.
+//!
+//! - **Taking.** When the jaws close, the nodes the tool's body holds (and free surface nodes within the bite
+//!   of it) are offered. The jaws are the body's two halves either side of the tool's local `y = 0` plane; the
+//!   grasp takes hold only if both halves touch tissue, else nothing is held until the jaws open and close
+//!   again (closed jaws cannot grab).
+//! - **Attachments.** Each is a material point of the surface: a triangle (its stable id), barycentric
+//!   coordinates, and the point's place in the tool frame when it was taken (the jaws hold it there). A
+//!   node taken by the jaws is the corner of one of its triangles (barycentric `(1, 0, 0)` up to order); a
+//!   suture's anchors will be interior points of the same kind.
+//! - **Holding.** After each substep's integration and probing, the point is moved to its place on the jaws,
+//!   distributed over the triangle's free nodes by their weights (the minimum-norm correction), and those
+//!   nodes keep no velocity of their own: the constraint is hard and the compliance between hand and tissue
+//!   is the tool's virtual coupling, as for probing.
+//! - **Force.** What the tool feels through an attachment is the tissue's pull on the point: the weighted
+//!   internal forces of its nodes, `sum_k b_k f_k / sum_k b_k^2`. Pulling grasped tissue away from its rest
+//!   therefore feels like pulling: the force points back toward the tissue and grows with the pull.
+//! - **Slip.** An attachment whose pull exceeds the grasp's `slip_force_n` lets go; the load moves to the
+//!   others, so a hard pull slips the tissue out of the jaws point by point.
+//!
+//! Must not: allocate once built (the buffers are sized for [`MAX_ATTACHMENTS`]), or panic on any state.
+
+use nalgebra::UnitQuaternion;
+
+use crate::tissue::{MassSpringModel, TissueState, Vec3};
+use crate::world::GraspSpec;
+
+/// The most attachments one grasp may hold (`max_attachments` is checked against it).
+pub const MAX_ATTACHMENTS: u16 = 256;
+
+/// A node offered to the jaws this far from the jaw plane (tool-local |y|) or less touches neither jaw, mm: it
+/// lies in the gap between them.
+const JAW_GAP_MM: f32 = 0.05;
+
+/// A material point of a surface held by a tool.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Attachment {
+    /// Object index in the world.
+    pub object: u16,
+    /// Triangle of the object's surface (its stable id).
+    pub triangle: u32,
+    /// Weights of the triangle's three corners (sum 1).
+    pub barycentric: [f32; 3],
+    /// Where the tool holds the point, tool frame, mm.
+    pub anchor_tool_mm: Vec3,
+}
+
+/// What a call to [`Grasp::finish_take`] or [`Grasp::release`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GraspEvent {
+    /// The jaws closed on tissue touching both of them: this many points are held.
+    Took(u16),
+    /// The jaws closed without tissue on both sides: nothing is held.
+    Missed,
+    /// The jaws opened (or the tool left): this many points were let go.
+    Released(u16),
+}
+
+/// One grasper's hold on the tissue.
+#[derive(Debug, Clone)]
+pub struct Grasp {
+    spec: GraspSpec,
+    attachments: Vec<Attachment>,
+    /// Per object, the nodes some attachment moves, sorted (the probe leaves them alone).
+    attached_nodes: Vec<Vec<u32>>,
+    /// Per attachment, the tissue's pull on the tool at the end of the last tick, N.
+    pull_n: Vec<Vec3>,
+    /// During a take: a node touched the +y jaw, the -y jaw.
+    touched: [bool; 2],
+    /// The jaws were closed last tick (a take happens on the closing edge only).
+    was_closed: bool,
+    /// Attachments that slipped since the grasp was built.
+    slipped: u64,
+}
+
+impl Grasp {
+    /// A grasp holding nothing, for a world of `object_count` objects.
+    pub fn new(spec: GraspSpec, object_count: usize) -> Self {
+        let most = usize::from(MAX_ATTACHMENTS);
+        Self {
+            spec,
+            attachments: Vec::with_capacity(most),
+            attached_nodes: (0..object_count)
+                .map(|_| Vec::with_capacity(3 * most))
+                .collect(),
+            pull_n: Vec::with_capacity(most),
+            touched: [false; 2],
+            was_closed: false,
+            slipped: 0,
+        }
+    }
+
+    /// The grasp's parameters.
+    pub fn spec(&self) -> &GraspSpec {
+        &self.spec
+    }
+
+    /// The points held.
+    pub fn attachments(&self) -> &[Attachment] {
+        &self.attachments
+    }
+
+    /// The nodes of object `object` that attachments move, sorted.
+    pub fn attached_nodes(&self, object: usize) -> &[u32] {
+        self.attached_nodes
+            .get(object)
+            .map_or(&[], |v| v.as_slice())
+    }
+
+    /// Attachments that slipped since the grasp was built.
+    pub fn slipped(&self) -> u64 {
+        self.slipped
+    }
+
+    /// True on the tick the jaws close (closed now, open last tick); remembers `closed` for the next call.
+    pub fn closing_edge(&mut self, closed: bool) -> bool {
+        let edge = closed && !self.was_closed;
+        self.was_closed = closed;
+        edge
+    }
+
+    /// Start a take: forget what the last one touched.
+    pub fn start_take(&mut self) {
+        self.touched = [false; 2];
+    }
+
+    /// Offer the nodes of object `object` that the jaws close on (the body holds them, or they lie within
+    /// the bite). Each becomes an attachment at its current place in the tool frame, up to the grasp's
+    /// limit; nodes on the jaw plane touch neither jaw, nodes without a surface triangle (interior) are
+    /// skipped.
+    #[allow(clippy::too_many_arguments)] // the tool pose and one object's tissue, as the sim holds them
+    pub fn offer(
+        &mut self,
+        object: usize,
+        nodes: &[u32],
+        position_mm: &Vec3,
+        rotation: &UnitQuaternion<f32>,
+        model: &MassSpringModel,
+        state: &TissueState,
+    ) {
+        let Ok(object_id) = u16::try_from(object) else {
+            return;
+        };
+        let triangles = model.triangles();
+        for &node in nodes {
+            let i = node as usize;
+            let Some(x) = state.positions_mm.get(i) else {
+                continue;
+            };
+            if model.is_fixed(i) {
+                continue;
+            }
+            let local = rotation.inverse_transform_vector(&(x - position_mm));
+            if local.y > JAW_GAP_MM {
+                self.touched[0] = true;
+            } else if local.y < -JAW_GAP_MM {
+                self.touched[1] = true;
+            }
+            if self.attachments.len() >= usize::from(self.spec.max_attachments)
+                || self.attached_nodes[object].binary_search(&node).is_ok()
+            {
+                continue;
+            }
+            let Some((triangle, corner)) = model.node_triangles(i).first().and_then(|&t| {
+                let corners = triangles.get(t as usize)?;
+                Some((t, corners.iter().position(|&c| c == node)?))
+            }) else {
+                continue;
+            };
+            let mut barycentric = [0.0; 3];
+            barycentric[corner] = 1.0;
+            self.attachments.push(Attachment {
+                object: object_id,
+                triangle,
+                barycentric,
+                anchor_tool_mm: local,
+            });
+            self.pull_n.push(Vec3::zeros());
+            let list = &mut self.attached_nodes[object];
+            if let Err(at) = list.binary_search(&node) {
+                list.insert(at, node);
+            }
+        }
+    }
+
+    /// End a take: the jaws hold what was offered if tissue touched both of them, else nothing.
+    pub fn finish_take(&mut self) -> GraspEvent {
+        if self.touched == [true, true] && !self.attachments.is_empty() {
+            GraspEvent::Took(self.attachments.len() as u16)
+        } else {
+            self.clear();
+            GraspEvent::Missed
+        }
+    }
+
+    /// Let everything go (the jaws opened, or the tool left).
+    pub fn release(&mut self) -> GraspEvent {
+        let n = self.attachments.len() as u16;
+        self.clear();
+        GraspEvent::Released(n)
+    }
+
+    fn clear(&mut self) {
+        self.attachments.clear();
+        self.pull_n.clear();
+        for list in &mut self.attached_nodes {
+            list.clear();
+        }
+    }
+
+    /// Move each held point of object `object` to its place on the jaws (one substep). Fixed nodes are not
+    /// moved; a point whose nodes are all fixed is left alone.
+    pub fn hold(
+        &self,
+        object: usize,
+        position_mm: &Vec3,
+        rotation: &UnitQuaternion<f32>,
+        model: &MassSpringModel,
+        state: &mut TissueState,
+    ) {
+        let triangles = model.triangles();
+        for a in self
+            .attachments
+            .iter()
+            .filter(|a| usize::from(a.object) == object)
+        {
+            let Some(corners) = triangles.get(a.triangle as usize) else {
+                continue;
+            };
+            let target = position_mm + rotation.transform_vector(&a.anchor_tool_mm);
+            let mut point = Vec3::zeros();
+            let mut free_weight = 0.0;
+            for (&c, &b) in corners.iter().zip(&a.barycentric) {
+                let Some(x) = state.positions_mm.get(c as usize) else {
+                    continue;
+                };
+                point += x * b;
+                if !model.is_fixed(c as usize) {
+                    free_weight += b * b;
+                }
+            }
+            if free_weight <= 0.0 {
+                continue;
+            }
+            let correction = (target - point) / free_weight;
+            for (&c, &b) in corners.iter().zip(&a.barycentric) {
+                let c = c as usize;
+                if b == 0.0 || model.is_fixed(c) || c >= state.positions_mm.len() {
+                    continue;
+                }
+                state.positions_mm[c] += correction * b;
+                state.velocities_mm_s[c] = Vec3::zeros();
+            }
+        }
+    }
+
+    /// The tissue's pull on the tool through the points of object `object` held at the end of a tick, N; an
+    /// attachment pulled harder than `slip_force_n` lets go (counted). Call once per object per tick, after
+    /// the substeps. No allocation.
+    pub fn settle(&mut self, object: usize, model: &MassSpringModel, state: &TissueState) -> Vec3 {
+        let triangles = model.triangles();
+        let pressure = model.pressure_n_per_mm2(&state.positions_mm);
+        for (a, pull) in self.attachments.iter().zip(self.pull_n.iter_mut()) {
+            if usize::from(a.object) != object {
+                continue;
+            }
+            *pull = Vec3::zeros();
+            let Some(corners) = triangles.get(a.triangle as usize) else {
+                continue;
+            };
+            let mut weight = 0.0;
+            for (&c, &b) in corners.iter().zip(&a.barycentric) {
+                let c = c as usize;
+                if b == 0.0 || model.is_fixed(c) || c >= state.positions_mm.len() {
+                    continue;
+                }
+                *pull +=
+                    model.node_force(c, &state.positions_mm, &state.velocities_mm_s, pressure) * b;
+                weight += b * b;
+            }
+            if weight > 0.0 {
+                *pull /= weight;
+            }
+        }
+        // Let go of the points pulled too hard (stable order, no allocation).
+        let slip = self.spec.slip_force_n;
+        let before = self.attachments.len();
+        let mut keep = 0;
+        for k in 0..before {
+            let a = self.attachments[k];
+            let pull = self.pull_n[k];
+            let finite = pull.iter().all(|c| c.is_finite());
+            if usize::from(a.object) == object && (!finite || pull.norm() > slip) {
+                continue;
+            }
+            self.attachments[keep] = a;
+            self.pull_n[keep] = pull;
+            keep += 1;
+        }
+        if keep < before {
+            self.slipped += (before - keep) as u64;
+            self.attachments.truncate(keep);
+            self.pull_n.truncate(keep);
+            self.rebuild_nodes(object, model);
+        }
+        self.pull_n
+            .iter()
+            .zip(&self.attachments)
+            .filter(|(_, a)| usize::from(a.object) == object)
+            .map(|(p, _)| *p)
+            .sum()
+    }
+
+    /// Recompute the attached-node list of `object` from the attachments (after some let go).
+    fn rebuild_nodes(&mut self, object: usize, model: &MassSpringModel) {
+        let Some(list) = self.attached_nodes.get_mut(object) else {
+            return;
+        };
+        list.clear();
+        let triangles = model.triangles();
+        for a in self
+            .attachments
+            .iter()
+            .filter(|a| usize::from(a.object) == object)
+        {
+            let Some(corners) = triangles.get(a.triangle as usize) else {
+                continue;
+            };
+            for (&c, &b) in corners.iter().zip(&a.barycentric) {
+                if b != 0.0
+                    && let Err(at) = list.binary_search(&c)
+                {
+                    list.insert(at, c);
+                }
+            }
+        }
+    }
+}

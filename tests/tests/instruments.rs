@@ -1,0 +1,157 @@
+//! Instruments end to end over real zenoh sessions on loopback: `worlds/grasp_pull.toml`'s two graspers, each
+//! driven by a simulated hapticserver whose scripted hand presses, closes the jaws (button 1), pulls the sheet
+//! up and outward, holds and lets go. The viewers see the jaws close and open and the sheet follow them; the
+//! hands feel the tissue pull back; a viewer joining late learns what the tools are.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use std::time::Duration;
+
+use sinew::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, record_two_surgeons_in, replica_error,
+    serial, start_server, start_sim_device, start_viewer, surgeon_scripts_for, wait_until,
+};
+use sinew_protocol::InstrumentInfo;
+use sinew_server::recording::{read_recording, replay};
+use sinew_viewer::ViewerHandle;
+
+/// Highest point of the viewer's replica of the sheet above its rest plane, mm.
+fn replica_peak_mm(viewer: &ViewerHandle) -> f32 {
+    viewer.with_replica(|r| {
+        r.objects().first().map_or(0.0, |o| {
+            o.positions_mm_iter().map(|p| p[2]).fold(0.0, f32::max)
+        })
+    })
+}
+
+#[test]
+fn two_graspers_pull_the_sheet_and_every_viewer_sees_jaws_and_tissue() {
+    let _serial = serial();
+    let world = load_shipped_world("grasp_pull.toml").unwrap();
+    let (left_script, right_script) = surgeon_scripts_for(&world);
+    let endpoint = free_loopback_endpoint().unwrap();
+    let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
+    let viewer = start_viewer("grasp_pull", "instructor", &endpoint).unwrap();
+    let left =
+        start_sim_device("grasp_pull", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
+    let right = start_sim_device(
+        "grasp_pull",
+        "right",
+        right_script,
+        &endpoint,
+        Pacing::Sleep,
+    )
+    .unwrap();
+
+    // Both jaws close on the sheet and hold it; the viewer sees them shut and holding.
+    let holding = |viewer: &ViewerHandle| {
+        viewer.with_replica(|r| {
+            let tools = &r.tool_states().tools;
+            tools.len() == 2
+                && tools
+                    .iter()
+                    .all(|t| t.attachments > 0 && t.jaw_angle_rad < 0.05)
+        })
+    };
+    assert!(
+        wait_until(Duration::from_secs(15), || holding(&viewer)),
+        "the viewer never saw both graspers holding: {:?}",
+        viewer.replica().tool_states()
+    );
+    // The pull lifts the sheet, and the viewer's replica follows. (The scripted hand aims 8 mm up; its grip
+    // yields to the tissue's pull, so the jaws rise about 3 mm.)
+    assert!(
+        wait_until(Duration::from_secs(5), || replica_peak_mm(&viewer) > 1.5),
+        "the replica's sheet never rose: peak {} mm",
+        replica_peak_mm(&viewer)
+    );
+    assert!(holding(&viewer), "the grasp slipped during the pull");
+    // Each hand feels the tissue pull it back: down and toward the middle of the sheet.
+    std::thread::sleep(Duration::from_millis(300));
+    let f_left = left.report().last_commanded_force_n;
+    let f_right = right.report().last_commanded_force_n;
+    assert!(f_left[2] < -0.3 && f_left[0] > 0.3, "left feels {f_left:?}");
+    assert!(
+        f_right[2] < -0.3 && f_right[0] < -0.3,
+        "right feels {f_right:?}"
+    );
+    // The training layer sees a grasp.
+    let stats = server.stats();
+    for device in &stats.devices {
+        assert!(
+            ["grasping", "pulling"].contains(&device.training.skill_state.as_str()),
+            "{}: skill state {}",
+            device.device_id,
+            device.training.skill_state
+        );
+    }
+    // The replica equals the server within the quantum while the tissue is held up.
+    let error =
+        replica_error(&server, &viewer, 0, Duration::from_secs(5)).expect("replica lines up");
+    assert!(error.max_error_mm <= error.bound_mm, "{error:?}");
+
+    // A viewer joining now learns that both tools are graspers and sees them holding.
+    let late = start_viewer("grasp_pull", "late", &endpoint).unwrap();
+    assert!(late.wait_for_snapshot(Duration::from_secs(5)));
+    late.with_replica(|r| {
+        assert_eq!(r.tools().len(), 2);
+        for tool in r.tools() {
+            assert!(
+                matches!(tool.instrument, InstrumentInfo::Grasper { jaw_length_mm, .. } if jaw_length_mm == 8.0),
+                "{tool:?}"
+            );
+        }
+    });
+
+    // The jaws open: the sheet is let go and relaxes, the viewers see open jaws.
+    let open = |viewer: &ViewerHandle| {
+        viewer.with_replica(|r| {
+            r.tool_states()
+                .tools
+                .iter()
+                .all(|t| t.attachments == 0 && t.jaw_angle_rad > 0.6)
+        })
+    };
+    assert!(
+        wait_until(Duration::from_secs(10), || open(&viewer) && open(&late)),
+        "the jaws never opened: {:?}",
+        viewer.replica().tool_states()
+    );
+    assert!(
+        wait_until(Duration::from_secs(5), || replica_peak_mm(&viewer) < 0.3),
+        "the sheet did not relax: peak {} mm",
+        replica_peak_mm(&viewer)
+    );
+    assert_eq!(server.stats().sim_faults, 0);
+}
+
+/// A recorded session of two graspers replays bit for bit (the jaws are driven by the recorded poses' buttons),
+/// and its events tell each grasp's start and end.
+#[test]
+fn a_recorded_grasp_session_replays_bit_for_bit() {
+    let _serial = serial();
+    let dir = std::env::temp_dir().join(format!("sinew-grasp-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("grasp.mcap");
+    let (_, live) =
+        record_two_surgeons_in("grasp_pull.toml", &path, Duration::from_secs(5)).unwrap();
+    let recording = read_recording(&path).unwrap();
+    assert!(recording.damage.is_none(), "{:?}", recording.damage);
+    let world = recording.load_world(&dir.join("world")).unwrap();
+    let outcome = replay(&recording, &world).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(outcome.exact(), "{outcome:?}");
+    assert!(outcome.forces_compared > 2000, "{outcome:?}");
+    let kinds: Vec<&str> = recording
+        .events
+        .iter()
+        .map(|(_, _, kind)| kind.as_str())
+        .collect();
+    for kind in ["grasp_begin", "grasp_end"] {
+        assert_eq!(
+            kinds.iter().filter(|k| **k == kind).count(),
+            2,
+            "{kind} once per tool: {kinds:?}"
+        );
+    }
+    assert_eq!(live.faults, 0);
+}
