@@ -85,6 +85,22 @@ pub enum HandScript {
         /// Time held at the end of the pull before the jaws open, s.
         hold_s: f32,
     },
+    /// [`HandScript::Press`], then hold button 1 (the cautery's current) while drawing the tip `stroke_mm`
+    /// along +x over `stroke_s`; then let go of the button and hold.
+    Cauterize {
+        /// Surface point, mm.
+        at_mm: [f32; 3],
+        /// How far below the surface the tip goes, mm.
+        depth_mm: f32,
+        /// Starting height above the surface, mm.
+        approach_mm: f32,
+        /// Duration of the descent, s.
+        descend_s: f32,
+        /// Length of the burn line along +x, mm.
+        stroke_mm: f32,
+        /// Duration of the line, s.
+        stroke_s: f32,
+    },
     /// The target is set from outside (a test, a replay); the hand holds the last target it saw.
     Follow(Arc<LatestValue<[f32; 3]>>),
 }
@@ -159,6 +175,17 @@ impl fmt::Debug for HandScript {
                 .field("at_mm", at_mm)
                 .field("depth_mm", depth_mm)
                 .field("pull_mm", pull_mm)
+                .finish(),
+            HandScript::Cauterize {
+                at_mm,
+                depth_mm,
+                stroke_mm,
+                ..
+            } => f
+                .debug_struct("Cauterize")
+                .field("at_mm", at_mm)
+                .field("depth_mm", depth_mm)
+                .field("stroke_mm", stroke_mm)
                 .finish(),
             HandScript::Follow(target) => f.debug_tuple("Follow").field(&target.peek()).finish(),
         }
@@ -280,6 +307,28 @@ impl HandScript {
                 }
                 Some(target)
             }
+            HandScript::Cauterize {
+                at_mm,
+                depth_mm,
+                approach_mm,
+                descend_s,
+                stroke_mm,
+                stroke_s,
+            } => {
+                let mut target = press_target(*at_mm, *depth_mm, *approach_mm, *descend_s, t_s);
+                let stroke_t_s = t_s - f64::from(*descend_s);
+                if stroke_t_s > 0.0 {
+                    let duration_s = f64::from(stroke_s.max(1e-3));
+                    let share = (stroke_t_s / duration_s).min(1.0) as f32;
+                    target.position_mm[0] = at_mm[0] + stroke_mm * share;
+                    target.velocity_mm_s[0] = if share < 1.0 {
+                        (f64::from(*stroke_mm) / duration_s) as f32
+                    } else {
+                        0.0
+                    };
+                }
+                Some(target)
+            }
             HandScript::Follow(mailbox) => mailbox.peek().map(HandTarget::at_rest),
         }
     }
@@ -310,6 +359,17 @@ impl HandScript {
                     open
                 }
             }
+            HandScript::Cauterize {
+                descend_s,
+                stroke_s,
+                ..
+            } => {
+                let on = f64::from(*descend_s)..f64::from(*descend_s + *stroke_s);
+                ScriptGrip {
+                    buttons: u32::from(on.contains(&t_s)),
+                    ..open
+                }
+            }
             _ => open,
         }
     }
@@ -328,7 +388,9 @@ const GRIP_LEAD_S: f64 = 0.2;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ScriptError {
     /// Not one of the script names.
-    #[error("unknown script `{0}`: expected one of hold, press, press-stroke, grasp-pull")]
+    #[error(
+        "unknown script `{0}`: expected one of hold, press, press-stroke, grasp-pull, cauterize"
+    )]
     UnknownScript(String),
     /// A vector option is not three comma-separated numbers.
     #[error("`{0}` is not a vector `x,y,z` of three finite numbers (mm)")]
@@ -356,6 +418,8 @@ pub enum ScriptKind {
     PressStroke,
     /// `grasp-pull`: [`HandScript::GraspPull`] (press, close, pull up by `depth + 5` mm over 1 s, hold 2 s, open).
     GraspPull,
+    /// `cauterize`: [`HandScript::Cauterize`] (press, then button 1 held along a `stroke_mm` line over 2 s).
+    Cauterize,
 }
 
 impl ScriptKind {
@@ -366,6 +430,7 @@ impl ScriptKind {
             ScriptKind::Press => "press",
             ScriptKind::PressStroke => "press-stroke",
             ScriptKind::GraspPull => "grasp-pull",
+            ScriptKind::Cauterize => "cauterize",
         }
     }
 
@@ -401,6 +466,14 @@ impl ScriptKind {
                 pull_s: 1.0,
                 hold_s: 2.0,
             },
+            ScriptKind::Cauterize => HandScript::Cauterize {
+                at_mm: o.at_mm,
+                depth_mm: o.depth_mm,
+                approach_mm: o.approach_mm,
+                descend_s: o.descend_s,
+                stroke_mm: o.stroke_mm,
+                stroke_s: 2.0,
+            },
         })
     }
 }
@@ -413,6 +486,7 @@ impl FromStr for ScriptKind {
             "press" => Ok(ScriptKind::Press),
             "press-stroke" | "press_stroke" => Ok(ScriptKind::PressStroke),
             "grasp-pull" | "grasp_pull" => Ok(ScriptKind::GraspPull),
+            "cauterize" => Ok(ScriptKind::Cauterize),
             other => Err(ScriptError::UnknownScript(other.to_owned())),
         }
     }

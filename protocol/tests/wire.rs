@@ -118,12 +118,18 @@ fn delta(rng: &mut fastrand::Rng) -> MeshDelta {
         .map(|_| std::array::from_fn(|_| rng.u16(..)))
         .collect();
     let prev_frame = rng.u64(0..u64::MAX / 2);
+    let mut burn_indices: Vec<u32> = (0..rng.usize(0..20)).map(|_| rng.u32(0..10_000)).collect();
+    burn_indices.sort_unstable();
+    burn_indices.dedup();
+    let burn = burn_indices.iter().map(|_| rng.u8(..)).collect();
     MeshDelta {
         object: rng.u16(..),
         frame: prev_frame + rng.u64(1..100),
         prev_frame,
         indices,
         positions_q,
+        burn_indices,
+        burn,
     }
 }
 
@@ -146,6 +152,11 @@ fn snapshot(rng: &mut fastrand::Rng) -> SceneSnapshot {
                     .map(|_| std::array::from_fn(|_| rng.u16(..)))
                     .collect(),
                 frame: rng.u64(0..=frame),
+                burn: if rng.bool() {
+                    Vec::new()
+                } else {
+                    (0..n).map(|_| rng.u8(..)).collect()
+                },
             }
         })
         .collect();
@@ -407,11 +418,64 @@ fn out_of_domain_fields_are_refused_by_name() {
         triangles: vec![[0, 1, 5]],
         positions_q: vec![[0; 3]; 3],
         frame: 0,
+        burn: Vec::new(),
     });
     assert!(matches!(
         decode::<SceneSnapshot>(&encode_to_vec(sinew_protocol::InstanceId(1), &s)),
         Err(DecodeError::Invalid {
             field: "objects.triangles",
+            ..
+        })
+    ));
+
+    // Burn levels (protocol 6): one per burn index, ascending; a snapshot's burn is empty or one per vertex.
+    let mut d = delta(&mut rng);
+    d.burn_indices = vec![1, 2];
+    d.burn = vec![9];
+    assert!(matches!(
+        decode::<MeshDelta>(&encode_to_vec(sinew_protocol::InstanceId(1), &d)),
+        Err(DecodeError::Invalid { field: "burn", .. })
+    ));
+    d.burn_indices = vec![2, 1];
+    d.burn = vec![9, 9];
+    assert!(matches!(
+        decode::<MeshDelta>(&encode_to_vec(sinew_protocol::InstanceId(1), &d)),
+        Err(DecodeError::Invalid {
+            field: "burn_indices",
+            ..
+        })
+    ));
+    let mut s = snapshot(&mut rng);
+    s.objects.push(ObjectSnapshot {
+        object: s.objects.len() as u16,
+        name: "burnt".into(),
+        bounds: QuantBounds {
+            min_mm: [0.0; 3],
+            max_mm: [1.0; 3],
+        },
+        triangles: vec![[0, 1, 2]],
+        positions_q: vec![[0; 3]; 3],
+        frame: 0,
+        burn: vec![255; 2],
+    });
+    assert!(matches!(
+        decode::<SceneSnapshot>(&encode_to_vec(sinew_protocol::InstanceId(1), &s)),
+        Err(DecodeError::Invalid {
+            field: "objects.burn",
+            ..
+        })
+    ));
+    // Tool states: a jaw opening outside 0..pi is refused by name.
+    let mut t = tool_states(&mut rng);
+    t.tools.push(ToolState {
+        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        jaw_angle_rad: -0.5,
+        ..ToolState::default()
+    });
+    assert!(matches!(
+        decode::<ToolStates>(&encode_to_vec(sinew_protocol::InstanceId(1), &t)),
+        Err(DecodeError::Invalid {
+            field: "tools.jaw_angle_rad",
             ..
         })
     ));

@@ -80,6 +80,8 @@ fn delta() -> MeshDelta {
         prev_frame: 11,
         indices: vec![5, 300],
         positions_q: vec![[1, 2, 3], [65535, 0, 32768]],
+        burn_indices: vec![5],
+        burn: vec![200],
     }
 }
 
@@ -114,6 +116,7 @@ fn snapshot() -> SceneSnapshot {
             triangles: vec![[0, 1, 2]],
             positions_q: vec![[0, 0, 32768], [65535, 0, 32768], [0, 65535, 32768]],
             frame: 12,
+            burn: Vec::new(),
         }],
         tools: vec![ToolInfo {
             tool: 0,

@@ -2,7 +2,8 @@
 //! network. The same sim runs two phases and each is timed over the same number of ticks:
 //! - probe: both tools press 1.5 mm and stroke +-4 mm along x with their jaws open (they act as probes);
 //! - grasp: both tools press, close their jaws on the sheet, pull it 3 mm up and back (1 s period), open, and
-//!   do it again every 2 s; the ticks that take hold (the closing edge) are also reported on their own.
+//!   do it again every 2 s; the ticks that take hold (the closing edge) are also reported on their own;
+//! - cautery (worlds/cautery.toml): one tip 0.5 mm in, stroking +-8 mm, current off and then on.
 //!
 //! Figures are ratios to the probe phase of the same run, so they travel between machines.
 //!
@@ -117,6 +118,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         us(grasp.ticks.max_ns()),
         grasp.held_max,
         grasp.slipped
+    );
+    // Cautery: worlds/cautery.toml, the tip 0.5 mm in, stroking +-8 mm; current off, then on.
+    let cautery_path = path.with_file_name("cautery.toml");
+    let mut cautery = Sim::new(&load_world(&cautery_path)?)?;
+    let stroke = |cautery: &mut Sim, ticks: std::ops::Range<usize>, on: bool| {
+        let mut histogram = LatencyHistogram::new();
+        let mut out = [ToolOutput::default(); 2];
+        for k in ticks {
+            let t = k as f32 * 0.001;
+            let command = ToolCommand {
+                active: true,
+                position_device_mm: [8.0 * (t * 2.0).sin(), 0.0, 1.5 - (t / 0.3).min(1.0) * 0.5],
+                jaws: JawInput {
+                    buttons: u32::from(on),
+                    jaw_angle_rad: 0.0,
+                },
+                ..ToolCommand::default()
+            };
+            let started = Instant::now();
+            cautery.step(0.001, &[command], &mut out);
+            histogram.record(started.elapsed());
+        }
+        histogram
+    };
+    stroke(&mut cautery, 0..500, false);
+    let off = stroke(&mut cautery, 500..500 + ticks, false);
+    let on = stroke(&mut cautery, 500 + ticks..500 + 2 * ticks, true);
+    let (o50, o99) = (off.percentile_us(50.0), off.percentile_us(99.0));
+    let (b50, b99) = (on.percentile_us(50.0), on.percentile_us(99.0));
+    println!(
+        "cautery (worlds/cautery.toml, one tip stroking +-8 mm): current off p50 {o50:.0} / p99 {o99:.0} us; on p50 {b50:.0} us (x{:.2}) / p99 {b99:.0} us (x{:.2}); {} vertices burnt",
+        b50 / o50,
+        b99 / o99,
+        cautery.objects[0].burn().iter().filter(|&&b| b > 0).count()
     );
     println!(
         "ticks that took hold: {}, worst {:.0} us (x{:.2} the probe p50)",

@@ -380,6 +380,14 @@ impl ServerHandle {
         self.shared.frames.latest_positions(object)
     }
 
+    /// The latest burn levels (0-255 per node) handed to the publisher (for tests and diagnostics).
+    pub fn latest_burn(&self, object: usize) -> Option<Vec<u8>> {
+        self.shared
+            .frames
+            .with_frame(|frame| frame.burn.get(object).cloned())
+            .flatten()
+    }
+
     /// Why the server can no longer run, once a thread of it failed (the sim thread panicked; its devices were
     /// sent an explicit zero force first). A process embedding the server must stop when this is `Some`.
     pub fn failure(&self) -> Option<&str> {

@@ -20,6 +20,8 @@ pub struct ObjectReplication {
     sent_true_mm: Vec<[f32; 3]>,
     last_frame: u64,
     clamped: u64,
+    /// Burn level last sent per vertex (0-255).
+    sent_burn: Vec<u8>,
 }
 
 impl ObjectReplication {
@@ -48,6 +50,7 @@ impl ObjectReplication {
             name: name.to_owned(),
             bounds,
             triangles: triangles.to_vec(),
+            sent_burn: vec![0; true_mm.len()],
             sent_q,
             sent_true_mm: true_mm,
             last_frame: 0,
@@ -80,17 +83,28 @@ impl ObjectReplication {
         self.clamped
     }
 
-    /// Fill `out` with the vertices whose quantized position changed, for publish `frame`. Returns false (and
-    /// records nothing) when nothing changed. Reuses `out`'s buffers.
+    /// Fill `out` with the vertices whose quantized position or burn level (`burn`, one per vertex; an empty
+    /// slice changes nothing) changed, for publish `frame`. Returns false (and records nothing) when nothing
+    /// changed. Reuses `out`'s buffers.
     pub fn delta(
         &mut self,
         object: u16,
         positions_mm: &[Vec3],
+        burn: &[u8],
         frame: u64,
         out: &mut MeshDelta,
     ) -> bool {
         out.indices.clear();
         out.positions_q.clear();
+        out.burn_indices.clear();
+        out.burn.clear();
+        for (i, (&level, sent)) in burn.iter().zip(self.sent_burn.iter_mut()).enumerate() {
+            if level != *sent {
+                *sent = level;
+                out.burn_indices.push(i as u32);
+                out.burn.push(level);
+            }
+        }
         for (i, (p, sent)) in positions_mm.iter().zip(self.sent_q.iter_mut()).enumerate() {
             let (q, clamped) = self.bounds.quantize([p.x, p.y, p.z]);
             self.clamped += u64::from(clamped);
@@ -100,7 +114,7 @@ impl ObjectReplication {
                 out.positions_q.push(q);
             }
         }
-        if out.indices.is_empty() {
+        if out.indices.is_empty() && out.burn_indices.is_empty() {
             return false;
         }
         for (dst, p) in self.sent_true_mm.iter_mut().zip(positions_mm) {
@@ -122,6 +136,11 @@ impl ObjectReplication {
             triangles: self.triangles.clone(),
             positions_q: self.sent_q.clone(),
             frame: self.last_frame,
+            burn: if self.sent_burn.iter().all(|&b| b == 0) {
+                Vec::new()
+            } else {
+                self.sent_burn.clone()
+            },
         }
     }
 }
@@ -135,14 +154,14 @@ mod tests {
         let rest = vec![Vec3::zeros(), Vec3::x(), Vec3::y()];
         let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0);
         let mut out = MeshDelta::default();
-        assert!(!rep.delta(0, &rest, 1, &mut out));
+        assert!(!rep.delta(0, &rest, &[], 1, &mut out));
         let mut moved = rest.clone();
         moved[1].z = 1.0;
-        assert!(rep.delta(0, &moved, 2, &mut out));
+        assert!(rep.delta(0, &moved, &[], 2, &mut out));
         assert_eq!(out.indices, vec![1]);
         assert_eq!((out.prev_frame, out.frame), (0, 2));
         moved[2].z = -1.0;
-        assert!(rep.delta(0, &moved, 5, &mut out));
+        assert!(rep.delta(0, &moved, &[], 5, &mut out));
         assert_eq!(out.indices, vec![2]);
         assert_eq!((out.prev_frame, out.frame), (2, 5));
         let snap = rep.snapshot(0);

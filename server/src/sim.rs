@@ -75,6 +75,9 @@ pub struct SimObject {
     max_dt_s: f32,
     /// Some when only the region of deformation is integrated.
     region: Option<RegionTracker>,
+    /// How burnt each node is, 0 (untouched) to 65535 (charred): the wire's 0-255 level is the high byte.
+    /// Material damage: a reset to rest keeps it.
+    burn: Vec<u16>,
 }
 
 impl SimObject {
@@ -86,6 +89,11 @@ impl SimObject {
     /// The region of deformation, when the object is region-tracked.
     pub fn region(&self) -> Option<&RegionTracker> {
         self.region.as_ref()
+    }
+
+    /// How burnt each node is, 0 to 65535 (the 0-255 level is `value >> 8`).
+    pub fn burn(&self) -> &[u16] {
+        &self.burn
     }
 
     /// The guard's absolute test on this tick: over the active region only when region-tracked (nothing
@@ -246,6 +254,8 @@ pub struct ToolOutput {
     pub jaw_angle_rad: f32,
     /// Points of tissue the jaws hold.
     pub attachments: u16,
+    /// A cautery tool burnt tissue this tick.
+    pub burning: bool,
 }
 
 /// Times the anti-divergence guard may halve a tick's step (down to 1/16 of the planned one) before it gives
@@ -278,6 +288,8 @@ pub struct StepReport {
     pub attachments_released: u32,
     /// Points of tissue that slipped out of the jaws this tick (pulled past the grasp's slip force).
     pub attachments_slipped: u32,
+    /// Nodes a cautery tool burnt this tick (summed over tools).
+    pub nodes_burnt: u32,
 }
 
 /// The whole simulated scene.
@@ -344,6 +356,7 @@ impl Sim {
             };
             objects.push(SimObject {
                 region,
+                burn: vec![0; model.node_count()],
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
@@ -577,7 +590,10 @@ impl Sim {
             self.update_grasp(t, dt_s, &mut report);
         }
         for t in 0..self.tools.len() {
+            let burnt = self.cauterize(t, dt_s);
+            report.nodes_burnt += burnt;
             let mut out = self.tool_output(t);
+            out.burning = burnt > 0;
             report.held_nodes += out.held_nodes;
             self.local_model(t, dt_s, &mut out);
             if let Some(slot) = outputs.get_mut(t) {
@@ -611,6 +627,40 @@ impl Sim {
             out.jaw_angle_rad = jaws.angle_rad();
         }
         out
+    }
+
+    /// A cautery tool with its button held burns the surface it touches (the nodes on or within its reach of the
+    /// body), by its rate times `dt_s`. Returns the nodes burnt. No allocation.
+    fn cauterize(&mut self, t: usize, dt_s: f32) -> u32 {
+        let tool = &self.tools[t];
+        let Some(spec) = tool.instrument.cautery() else {
+            return 0;
+        };
+        if !tool.active || tool.jaw_input.buttons & spec.button_mask == 0 {
+            return 0;
+        }
+        // Fixed point: 256 units per burn level; at least one unit a tick so a slow rate still burns.
+        let step = (spec.burn_per_s * dt_s * 256.0).clamp(1.0, 65535.0) as u16;
+        let mut burnt = 0;
+        for (o, object) in self.objects.iter_mut().enumerate() {
+            for &node in &tool.contacts[o].candidates {
+                let i = node as usize;
+                let (Some(x), Some(level)) =
+                    (object.state.positions_mm.get(i), object.burn.get_mut(i))
+                else {
+                    continue;
+                };
+                if tool
+                    .collider
+                    .distance_mm(&tool.position_mm, &tool.rotation, x)
+                    <= spec.reach_mm + BITE_TOLERANCE_MM
+                {
+                    *level = level.saturating_add(step);
+                    burnt += 1;
+                }
+            }
+        }
+        burnt
     }
 
     /// A grasper's jaws take this tick's input: on closing, take hold of the tissue the body touches (both

@@ -220,4 +220,34 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
         }
         assert_eq!(allocations, 0, "a grasp tick allocated");
     }
+    // A cautery tip burning a line.
+    let cautery_path = path.with_file_name("cautery.toml");
+    let mut sim = Sim::new(&load_world(&cautery_path).unwrap()).unwrap();
+    let burn_ticks = |sim: &mut Sim, ticks: std::ops::Range<usize>| {
+        let mut out = [ToolOutput::default(); 2];
+        let mut burnt = 0;
+        for k in ticks {
+            let t = k as f32 * 0.001;
+            let at = ToolCommand {
+                active: true,
+                position_device_mm: [8.0 * (t * 2.0).sin(), 0.0, 1.5 - (t / 0.3).min(1.0) * 0.5],
+                jaws: sinew_server::interaction::JawInput {
+                    buttons: 1,
+                    jaw_angle_rad: 0.0,
+                },
+                ..ToolCommand::default()
+            };
+            burnt += sim.step(0.001, &[at], &mut out).nodes_burnt;
+        }
+        burnt
+    };
+    burn_ticks(&mut sim, 0..1000);
+    ALLOCATIONS.store(0, Ordering::Relaxed);
+    COUNTING.store(true, Ordering::Relaxed);
+    let burnt = burn_ticks(&mut sim, 1000..2000);
+    COUNTING.store(false, Ordering::Relaxed);
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    println!("cautery: {allocations} allocations in 1000 warm ticks burning {burnt} node-ticks");
+    assert!(burnt > 0, "nothing burnt while counting");
+    assert_eq!(allocations, 0, "a cautery tick allocated");
 }

@@ -544,3 +544,93 @@ fn a_bad_ranking_exercise_names_the_samples_key_and_the_objects() {
     let (error, _, _) = refused(&world, None);
     assert_eq!(invalid_key_and_line(&error).0, "exercise.samples");
 }
+
+/// Every bad instrument key is refused with its key and line; a good grasper loads with its values.
+#[test]
+fn bad_instrument_keys_name_the_key_and_line() {
+    let tool_line = "shape = { kind = \"sphere\", radius_mm = 1.0 }";
+    let with = |instrument: &str| {
+        GOOD_WORLD.replace(
+            tool_line,
+            &format!("{tool_line}\ninstrument = {instrument}"),
+        )
+    };
+    let good = with(
+        "{ kind = \"grasper\", activation = \"angle\", close_below_deg = 5.0, open_above_deg = 15.0, slip_force_n = 0.5 }",
+    );
+    let world = load_world(&write_world(&good, None)).unwrap();
+    let grasp = world.tools[0].instrument.grasp().copied().unwrap();
+    assert_eq!(grasp.slip_force_n, 0.5);
+    assert!(matches!(
+        grasp.activation,
+        sinew_server::world::JawActivation::Angle { close_below_rad, .. } if (close_below_rad - 5f32.to_radians()).abs() < 1e-6
+    ));
+    for (instrument, key, says) in [
+        (
+            "{ kind = \"probe\", slip_force_n = 0.5 }",
+            "tools[0].instrument.slip_force_n",
+            "a probe has no jaws",
+        ),
+        (
+            "{ kind = \"grasper\", slip_force_n = -1.0 }",
+            "tools[0].instrument.slip_force_n",
+            "positive",
+        ),
+        (
+            "{ kind = \"grasper\", jaw_length_mm = nan }",
+            "tools[0].instrument.jaw_length_mm",
+            "positive",
+        ),
+        (
+            "{ kind = \"grasper\", activation = \"angle\", close_below_deg = 20.0, open_above_deg = 10.0 }",
+            "tools[0].instrument.open_above_deg",
+            "hysteresis",
+        ),
+        (
+            "{ kind = \"grasper\", close_below_deg = 5.0 }",
+            "tools[0].instrument.close_below_deg",
+            "activation = \"angle\"",
+        ),
+        (
+            "{ kind = \"grasper\", activation = \"angle\", button_mask = 2 }",
+            "tools[0].instrument.button_mask",
+            "activation = \"button\"",
+        ),
+        (
+            "{ kind = \"grasper\", button_mask = 0 }",
+            "tools[0].instrument.button_mask",
+            "button bit",
+        ),
+        (
+            "{ kind = \"grasper\", max_attachments = 1000 }",
+            "tools[0].instrument.max_attachments",
+            "1 to 256",
+        ),
+        (
+            "{ kind = \"grasper\", bite_mm = 50.0 }",
+            "tools[0].instrument.bite_mm",
+            "0 to 10",
+        ),
+    ] {
+        let world = with(instrument);
+        let (error, message, _) = refused(&world, None);
+        match error {
+            WorldError::Invalid { line, key: got, .. } => {
+                assert_eq!(got, key, "{instrument}: {message}");
+                assert_eq!(line, line_of(&world, "instrument ="), "{message}");
+            }
+            other => panic!("{instrument}: wrong error {other:?}"),
+        }
+        assert!(message.contains(says), "{instrument}: {message}");
+    }
+    // An unknown kind or key is a syntax error on its line.
+    let world = with("{ kind = \"laser\" }");
+    let (error, message, _) = refused(&world, None);
+    assert!(
+        matches!(error, WorldError::Syntax { line, .. } if line == line_of(&world, "laser")),
+        "{message}"
+    );
+    let world = with("{ kind = \"grasper\", grip = 1.0 }");
+    let (_, message, _) = refused(&world, None);
+    assert!(message.contains("unknown field `grip`"), "{message}");
+}

@@ -164,6 +164,8 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
                 prev_frame: 11,
                 indices: vec![5, 300],
                 positions_q: vec![[1, 2, 3], [65535, 0, 32768]],
+                burn_indices: vec![5],
+                burn: vec![200],
             },
         ),
         encode_to_vec(sender, &tools),
@@ -182,6 +184,7 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
                     triangles: vec![[0, 1, 2]],
                     positions_q: vec![[0; 3], [1; 3], [2; 3]],
                     frame: 3,
+                    burn: vec![0, 128, 255],
                 }],
                 tools: vec![ToolInfo {
                     tool: 0,

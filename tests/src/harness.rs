@@ -252,7 +252,8 @@ pub fn surgeon_scripts() -> (HandScript, HandScript) {
 
 /// The scripts of the two demo surgeons for `world`: [`surgeon_scripts`], except that a tool that is a grasper
 /// gets a grasp-and-pull (press 1.5 mm, close, pull 8 mm up and 6 mm outward, left to -x and right to +x, hold
-/// 2 s, open): coordinated pulling with two graspers.
+/// 2 s, open): coordinated pulling with two graspers; and a cautery tool burns a 12 mm line (0.5 mm in, current
+/// on for 2 s).
 pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, HandScript) {
     let (left, right) = surgeon_scripts();
     let grasper = |device: &str| {
@@ -271,10 +272,30 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         pull_s: 1.0,
         hold_s: 2.0,
     };
-    (
-        if grasper("left") { pull(-6.0) } else { left },
-        if grasper("right") { pull(6.0) } else { right },
-    )
+    let cautery = |device: &str| {
+        world
+            .tools
+            .iter()
+            .any(|t| t.device_id == device && t.instrument.cautery().is_some())
+    };
+    let burn = HandScript::Cauterize {
+        at_mm: [-6.0, 0.0, 0.0],
+        depth_mm: 0.5,
+        approach_mm: 10.0,
+        descend_s: 1.0,
+        stroke_mm: 12.0,
+        stroke_s: 2.0,
+    };
+    let pick = |device: &str, outward_mm: f32, otherwise: HandScript| {
+        if grasper(device) {
+            pull(outward_mm)
+        } else if cautery(device) {
+            burn.clone()
+        } else {
+            otherwise
+        }
+    };
+    (pick("left", -6.0, left), pick("right", 6.0, right))
 }
 
 /// Poll `condition` every 10 ms until it holds or `timeout` passes. Returns whether it held.

@@ -155,3 +155,78 @@ fn a_recorded_grasp_session_replays_bit_for_bit() {
     }
     assert_eq!(live.faults, 0);
 }
+
+/// A cautery tip burns a line on the sheet over zenoh: every viewer's replica holds exactly the server's burn
+/// levels, a viewer joining afterwards gets them in its snapshot, and the rendered picture shows the burn.
+#[test]
+fn a_cautery_line_reaches_every_viewer_and_the_picture() {
+    let _serial = serial();
+    let world = load_shipped_world("cautery.toml").unwrap();
+    let (left_script, right_script) = surgeon_scripts_for(&world);
+    let endpoint = free_loopback_endpoint().unwrap();
+    let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
+    let viewer = start_viewer("cautery", "instructor", &endpoint).unwrap();
+    assert!(viewer.wait_for_snapshot(Duration::from_secs(5)));
+    let before = sinew_viewer::render_image(&viewer.replica(), 640, 480)
+        .unwrap()
+        .0;
+    let left = start_sim_device("cautery", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
+    let right =
+        start_sim_device("cautery", "right", right_script, &endpoint, Pacing::Sleep).unwrap();
+    // The line burns (1 s descent, then 2 s with the current on), then stops growing.
+    let charred = |burn: &[u8]| burn.iter().filter(|&&b| b >= 192).count();
+    assert!(
+        wait_until(Duration::from_secs(15), || {
+            charred(&server.latest_burn(0).unwrap_or_default()) >= 5
+        }),
+        "nothing charred on the server"
+    );
+    let mut last = Vec::new();
+    assert!(
+        wait_until(Duration::from_secs(10), || {
+            let now = server.latest_burn(0).unwrap_or_default();
+            let still = now == last;
+            last = now;
+            std::thread::sleep(Duration::from_millis(300));
+            still
+        }),
+        "the burn never stopped growing"
+    );
+    let truth = server.latest_burn(0).unwrap();
+    let burnt = truth.iter().filter(|&&b| b > 0).count();
+    assert!(burnt >= 10, "{burnt} vertices burnt");
+    // The right tool is a probe: nothing burns at its end of the sheet (world x > 0).
+    let rest = server.latest_positions(0).unwrap();
+    assert!(truth.iter().zip(&rest).all(|(&b, p)| b == 0 || p[0] < 0.0));
+    assert!(
+        wait_until(Duration::from_secs(5), || viewer
+            .with_replica(|r| r.objects()[0].burn() == truth.as_slice())),
+        "the viewer's burn levels differ from the server's"
+    );
+    let late = start_viewer("cautery", "late", &endpoint).unwrap();
+    assert!(late.wait_for_snapshot(Duration::from_secs(5)));
+    late.with_replica(|r| {
+        assert_eq!(r.objects()[0].burn(), truth.as_slice());
+        assert!(matches!(r.tools()[0].instrument, InstrumentInfo::Cautery));
+    });
+    // The picture: charred pixels that were not there before.
+    drop(left);
+    drop(right);
+    let after = sinew_viewer::render_image(&viewer.replica(), 640, 480)
+        .unwrap()
+        .0;
+    let dark = |image: &image::RgbImage| {
+        image
+            .pixels()
+            // Brown-black: dark, and no bluer than red (the background is a dark blue-grey).
+            .filter(|p| p.0[0] < 90 && p.0[2] <= p.0[0])
+            .count()
+    };
+    let (dark_before, dark_after) = (dark(&before), dark(&after));
+    println!("charred pixels: {dark_before} before, {dark_after} after");
+    assert!(
+        dark_after > dark_before + 100,
+        "charred pixels: {dark_before} before, {dark_after} after"
+    );
+    assert_eq!(server.stats().sim_faults, 0);
+}

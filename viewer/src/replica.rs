@@ -85,10 +85,17 @@ pub struct ReplicaObject {
     triangles: Vec<[u32; 3]>,
     positions_q: Vec<[u16; 3]>,
     frame: u64,
+    /// Burn level per vertex, 0-255 (all zero until a cautery tip touches).
+    burn: Vec<u8>,
 }
 
 impl ReplicaObject {
     fn from_snapshot(object: ObjectSnapshot) -> Self {
+        let burn = if object.burn.len() == object.positions_q.len() {
+            object.burn
+        } else {
+            vec![0; object.positions_q.len()]
+        };
         Self {
             index: object.object,
             name: object.name,
@@ -96,7 +103,13 @@ impl ReplicaObject {
             triangles: object.triangles,
             positions_q: object.positions_q,
             frame: object.frame,
+            burn,
         }
+    }
+
+    /// Burn level of each vertex, 0 (untouched) to 255 (charred).
+    pub fn burn(&self) -> &[u8] {
+        &self.burn
     }
 
     fn to_snapshot(&self) -> ObjectSnapshot {
@@ -107,6 +120,11 @@ impl ReplicaObject {
             triangles: self.triangles.clone(),
             positions_q: self.positions_q.clone(),
             frame: self.frame,
+            burn: if self.burn.iter().all(|&b| b == 0) {
+                Vec::new()
+            } else {
+                self.burn.clone()
+            },
         }
     }
 
@@ -251,10 +269,18 @@ impl SceneReplica {
                 positions: delta.positions_q.len(),
             });
         }
+        if delta.burn_indices.len() != delta.burn.len() {
+            return Err(ReplicaError::LengthMismatch {
+                object: delta.object,
+                indices: delta.burn_indices.len(),
+                positions: delta.burn.len(),
+            });
+        }
         let vertex_count = object.positions_q.len();
         if let Some(&index) = delta
             .indices
             .iter()
+            .chain(&delta.burn_indices)
             .find(|&&i| !usize::try_from(i).is_ok_and(|i| i < vertex_count))
         {
             return Err(ReplicaError::IndexOutOfRange {
@@ -267,6 +293,11 @@ impl SceneReplica {
             // In range: checked above.
             if let Some(slot) = object.positions_q.get_mut(index as usize) {
                 *slot = position_q;
+            }
+        }
+        for (&index, &level) in delta.burn_indices.iter().zip(&delta.burn) {
+            if let Some(slot) = object.burn.get_mut(index as usize) {
+                *slot = level;
             }
         }
         object.frame = delta.frame;
@@ -437,6 +468,7 @@ mod tests {
                 triangles: sheet_triangles(n),
                 positions_q,
                 frame,
+                burn: Vec::new(),
             }],
             tools: vec![ToolInfo {
                 tool: 0,
@@ -548,6 +580,52 @@ mod tests {
     }
 
     #[test]
+    fn burn_levels_apply_travel_in_the_snapshot_and_bad_ones_change_nothing() {
+        let n = 4;
+        let start = quantize_all(&sheet_positions_mm(n));
+        let mut replica = SceneReplica::from_snapshot(snapshot(start, n, 20));
+        assert!(replica.objects()[0].burn().iter().all(|&b| b == 0));
+        let burnt = MeshDelta {
+            object: 0,
+            frame: 21,
+            prev_frame: 20,
+            burn_indices: vec![3, 7],
+            burn: vec![40, 255],
+            ..MeshDelta::default()
+        };
+        assert_eq!(replica.apply_delta(&burnt), Ok(DeltaOutcome::Applied));
+        assert_eq!(replica.objects()[0].burn()[3], 40);
+        assert_eq!(replica.objects()[0].burn()[7], 255);
+        // A late joiner's snapshot carries them.
+        let again = SceneReplica::from_snapshot(replica.to_snapshot());
+        assert_eq!(again.objects()[0].burn(), replica.objects()[0].burn());
+        // A burn index past the vertices, or a count that does not match, changes nothing.
+        let before = replica.clone();
+        for bad in [
+            MeshDelta {
+                frame: 22,
+                prev_frame: 21,
+                indices: vec![1],
+                positions_q: vec![[9, 9, 9]],
+                burn_indices: vec![2, 16],
+                burn: vec![1, 2],
+                ..MeshDelta::default()
+            },
+            MeshDelta {
+                frame: 22,
+                prev_frame: 21,
+                burn_indices: vec![2],
+                burn: vec![1, 2],
+                ..MeshDelta::default()
+            },
+        ] {
+            let err = replica.apply_delta(&bad).unwrap_err();
+            assert!(err.is_protocol_error(), "{err}");
+            assert_eq!(replica, before);
+        }
+    }
+
+    #[test]
     fn out_of_range_index_is_refused_with_state_unchanged() {
         let n = 4;
         let start = quantize_all(&sheet_positions_mm(n));
@@ -560,6 +638,7 @@ mod tests {
             prev_frame: 20,
             indices: vec![2, 16],
             positions_q: vec![[1, 1, 1], [2, 2, 2]],
+            ..MeshDelta::default()
         };
         let err = replica.apply_delta(&delta).unwrap_err();
         assert_eq!(

@@ -200,6 +200,8 @@ pub struct SceneView {
     snapshot_revision: Option<u64>,
     object_frames: Vec<u64>,
     scratch: Vec<Vec3>,
+    /// Per object, the burnt triangles drawn over its mesh (None while nothing is burnt).
+    burns: Vec<Option<SceneNode3d>>,
 }
 
 impl Default for SceneView {
@@ -231,6 +233,7 @@ impl SceneView {
             snapshot_revision: None,
             object_frames: Vec::new(),
             scratch: Vec::new(),
+            burns: Vec::new(),
         }
     }
 
@@ -292,6 +295,11 @@ impl SceneView {
                 },
             })
             .collect();
+        self.burns = replica
+            .objects()
+            .iter()
+            .map(|object| add_burn_overlay(&mut group, object))
+            .collect();
         self.group = Some(group);
         self.layout = Some(Layout::of(replica));
         self.update_tools(replica);
@@ -316,6 +324,13 @@ impl SceneView {
                 }
             });
             node.recompute_normals();
+            // The burnt patch follows the surface: rebuilt with the positions (a small mesh, only where burnt).
+            if let (Some(slot), Some(group)) = (self.burns.get_mut(index), self.group.as_mut()) {
+                if let Some(mut old) = slot.take() {
+                    old.remove();
+                }
+                *slot = add_burn_overlay(group, object);
+            }
         }
         self.update_tools(replica);
     }
@@ -354,6 +369,62 @@ fn add_object_mesh(group: &mut SceneNode3d, object: &ReplicaObject) -> Option<Sc
         .set_metallic(0.0)
         .enable_backface_culling(false);
     Some(node)
+}
+
+/// Burn colours, by level: seared (yellow), cooked (brown), charred (black).
+const BURN_COLOURS: [(u8, Color); 3] = [
+    (1, Color::new(0.93, 0.80, 0.30, 1.0)),
+    (96, Color::new(0.45, 0.27, 0.12, 1.0)),
+    (192, Color::new(0.08, 0.06, 0.05, 1.0)),
+];
+
+/// The burnt triangles of `object` (a triangle takes its corners' mean level), one mesh per colour, lifted
+/// 0.05 mm off the surface along each triangle's normal; None when nothing is burnt.
+fn add_burn_overlay(group: &mut SceneNode3d, object: &ReplicaObject) -> Option<SceneNode3d> {
+    let burn = object.burn();
+    if burn.iter().all(|&b| b == 0) {
+        return None;
+    }
+    let positions: Vec<Vec3> = object.positions_mm_iter().map(Vec3::from).collect();
+    let mut overlay = group.add_group();
+    for (k, &(from, colour)) in BURN_COLOURS.iter().enumerate() {
+        let to = BURN_COLOURS
+            .get(k + 1)
+            .map_or(256, |(next, _)| u16::from(*next));
+        let mut vertices = Vec::new();
+        let mut faces = Vec::new();
+        for t in object.triangles() {
+            let corners = t.map(|v| v as usize);
+            let (Some(a), Some(b), Some(c)) = (
+                positions.get(corners[0]),
+                positions.get(corners[1]),
+                positions.get(corners[2]),
+            ) else {
+                continue;
+            };
+            let level = corners
+                .iter()
+                .map(|&v| u16::from(burn.get(v).copied().unwrap_or(0)))
+                .sum::<u16>()
+                / 3;
+            if level < u16::from(from) || level >= to {
+                continue;
+            }
+            let lift = (*b - *a).cross(*c - *a).normalize_or_zero() * 0.05;
+            let first = vertices.len() as u32;
+            vertices.extend([*a + lift, *b + lift, *c + lift]);
+            faces.push([first, first + 1, first + 2]);
+        }
+        if !faces.is_empty() {
+            overlay
+                .add_trimesh(vertices, faces, Vec3::ONE, false)
+                .set_color(colour)
+                .set_roughness(0.95)
+                .set_metallic(0.0)
+                .enable_backface_culling(false);
+        }
+    }
+    Some(overlay)
 }
 
 /// A sphere, capsule or mesh node for a tool.

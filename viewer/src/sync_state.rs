@@ -289,6 +289,7 @@ mod tests {
                 triangles: vec![[0, 1, 2]],
                 positions_q: vec![[0; 3]; 3],
                 frame: object_frame,
+                burn: Vec::new(),
             }],
             tools: Vec::new(),
             tool_states: ToolStates::default(),
@@ -302,6 +303,7 @@ mod tests {
             prev_frame,
             indices: vec![index],
             positions_q: vec![[value; 3]],
+            ..MeshDelta::default()
         }
     }
 

@@ -266,6 +266,8 @@ class MeshDelta:
     prev_frame: int = wire_field("u64", default=0)
     indices: List[int] = wire_field(("vec", "u32"), default_factory=list)
     positions_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
+    burn_indices: List[int] = wire_field(("vec", "u32"), default_factory=list)
+    burn: List[int] = wire_field(("vec", "u8"), default_factory=list)
 
 
 @dataclass
@@ -309,6 +311,7 @@ class ObjectSnapshot:
     triangles: List[List[int]] = wire_field(("vec", ("arr", "u32", 3)), default_factory=list)
     positions_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
     frame: int = wire_field("u64", default=0)
+    burn: List[int] = wire_field(("vec", "u8"), default_factory=list)
 
 
 TOOL_SHAPE = (
@@ -325,6 +328,7 @@ INSTRUMENT = (
     [
         ("probe", []),
         ("grasper", [("jaw_length_mm", "f32"), ("open_angle_rad", "f32")]),
+        ("cautery", []),
     ],
 )
 

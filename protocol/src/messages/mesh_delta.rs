@@ -25,6 +25,10 @@ pub struct MeshDelta {
     pub indices: Vec<u32>,
     /// New quantized positions, one per index.
     pub positions_q: Vec<[u16; 3]>,
+    /// Vertices whose burn level changed, ascending. Protocol 6.
+    pub burn_indices: Vec<u32>,
+    /// New burn levels, one per burn index: 0 untouched .. 255 charred (a cautery tip raised them). Protocol 6.
+    pub burn: Vec<u8>,
 }
 
 impl Message for MeshDelta {
@@ -38,6 +42,12 @@ impl Message for MeshDelta {
         }
         if self.indices.windows(2).any(|w| w[0] >= w[1]) {
             return Err(("indices", "not strictly ascending"));
+        }
+        if self.burn_indices.len() != self.burn.len() {
+            return Err(("burn", "length differs from burn_indices"));
+        }
+        if self.burn_indices.windows(2).any(|w| w[0] >= w[1]) {
+            return Err(("burn_indices", "not strictly ascending"));
         }
         Ok(())
     }

@@ -61,6 +61,9 @@ pub enum InstrumentInfo {
         /// Opening of the open jaws, rad.
         open_angle_rad: f32,
     },
+    /// An active tip: the whole shape burns the surface it touches while its button is held
+    /// (`MeshDelta.burn`).
+    Cautery,
 }
 
 /// Static description of a tool.
@@ -93,6 +96,8 @@ pub struct ObjectSnapshot {
     pub positions_q: Vec<[u16; 3]>,
     /// Frame of the last delta already folded into `positions_q`.
     pub frame: u64,
+    /// Burn level of each vertex (0-255), or empty when nothing is burnt. Protocol 6.
+    pub burn: Vec<u8>,
 }
 
 /// Everything a viewer (or a hapticserver) needs to start replicating.
@@ -131,6 +136,9 @@ impl Message for SceneSnapshot {
             }
             if object.frame > self.frame {
                 return Err(("objects.frame", "after the snapshot frame"));
+            }
+            if !object.burn.is_empty() && object.burn.len() as u64 != n {
+                return Err(("objects.burn", "neither empty nor one level per vertex"));
             }
         }
         for tool in &self.tools {

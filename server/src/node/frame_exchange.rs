@@ -16,6 +16,8 @@ pub struct FrameData {
     pub sim_time_s: f64,
     /// Positions per object, mm.
     pub positions_mm: Vec<Vec<crate::tissue::Vec3>>,
+    /// Burn level per object and node, 0-255.
+    pub burn: Vec<Vec<u8>>,
     /// Tool states, tool order.
     pub tools: Vec<ToolState>,
 }
@@ -39,6 +41,11 @@ impl FrameExchange {
                     .iter()
                     .map(|o| o.state.positions_mm.clone())
                     .collect(),
+                burn: sim
+                    .objects
+                    .iter()
+                    .map(|o| vec![0; o.burn().len()])
+                    .collect(),
                 tools: vec![ToolState::default(); sim.tools.len()],
             }),
             offered: AtomicU64::new(0),
@@ -55,6 +62,11 @@ impl FrameExchange {
         frame.sim_time_s = sim.time_s();
         for (dst, object) in frame.positions_mm.iter_mut().zip(&sim.objects) {
             dst.copy_from_slice(&object.state.positions_mm);
+        }
+        for (dst, object) in frame.burn.iter_mut().zip(&sim.objects) {
+            for (level, burn) in dst.iter_mut().zip(object.burn()) {
+                *level = (burn >> 8) as u8;
+            }
         }
         for (t, (dst, tool)) in frame.tools.iter_mut().zip(&sim.tools).enumerate() {
             let q = tool.rotation.quaternion();

@@ -265,6 +265,7 @@ fn run(
     let mut pacer = Pacer::new(Duration::from_secs_f64(1.0 / shared.world.publish_hz), 0);
     let mut last_offered = 0;
     let mut positions: Vec<Vec<Vec3>> = Vec::new();
+    let mut burn: Vec<Vec<u8>> = Vec::new();
     let mut tool_states = ToolStates::default();
     let mut delta = MeshDelta::default();
     let mut buf = Vec::with_capacity(64 * 1024);
@@ -283,6 +284,11 @@ fn run(
                     dst.clear();
                     dst.extend_from_slice(src);
                 }
+                burn.resize_with(frame.burn.len(), Vec::new);
+                for (dst, src) in burn.iter_mut().zip(&frame.burn) {
+                    dst.clear();
+                    dst.extend_from_slice(src);
+                }
                 tool_states.sim_time_s = frame.sim_time_s;
                 tool_states.tools.clear();
                 tool_states.tools.extend_from_slice(&frame.tools);
@@ -291,6 +297,7 @@ fn run(
                 publish_frame(
                     shared,
                     &positions,
+                    &burn,
                     &mut tool_states,
                     &mut delta,
                     &mut buf,
@@ -321,6 +328,7 @@ fn run(
 fn publish_frame(
     shared: &Shared,
     positions: &[Vec<Vec3>],
+    burn: &[Vec<u8>],
     tool_states: &mut ToolStates,
     delta: &mut MeshDelta,
     buf: &mut Vec<u8>,
@@ -334,7 +342,8 @@ fn publish_frame(
     tool_states.frame = frame;
     replication.tool_states.clone_from(tool_states);
     for (o, (object_positions, publisher)) in positions.iter().zip(delta_publishers).enumerate() {
-        if replication.objects[o].delta(o as u16, object_positions, frame, delta) {
+        let object_burn = burn.get(o).map_or(&[][..], |b| b.as_slice());
+        if replication.objects[o].delta(o as u16, object_positions, object_burn, frame, delta) {
             encode(shared.instance, &*delta, buf);
             // Sent under the replication lock so a snapshot can never be taken between a delta's state
             // change and its publication.
@@ -348,11 +357,12 @@ fn publish_frame(
 
 /// What viewers need to draw an instrument.
 pub fn instrument_info(spec: &crate::world::InstrumentSpec) -> sinew_protocol::InstrumentInfo {
-    match spec.grasp() {
-        None => sinew_protocol::InstrumentInfo::Probe,
-        Some(g) => sinew_protocol::InstrumentInfo::Grasper {
+    match spec {
+        crate::world::InstrumentSpec::Probe => sinew_protocol::InstrumentInfo::Probe,
+        crate::world::InstrumentSpec::Grasper(g) => sinew_protocol::InstrumentInfo::Grasper {
             jaw_length_mm: g.jaw_length_mm,
             open_angle_rad: g.open_angle_rad,
         },
+        crate::world::InstrumentSpec::Cautery(_) => sinew_protocol::InstrumentInfo::Cautery,
     }
 }

@@ -18,6 +18,7 @@ pub struct DebriefFrames {
     exchange: FrameExchange,
     replication: ReplicationState,
     positions: Vec<Vec<Vec3>>,
+    burn: Vec<Vec<u8>>,
     delta: MeshDelta,
 }
 
@@ -29,6 +30,7 @@ impl DebriefFrames {
             exchange: FrameExchange::new(sim),
             replication: ReplicationState::new(world, sim),
             positions: Vec::new(),
+            burn: Vec::new(),
             delta: MeshDelta::default(),
         }
     }
@@ -39,11 +41,13 @@ impl DebriefFrames {
         let _ = self.exchange.try_offer(sim, outputs);
         let replication = &mut self.replication;
         let positions = &mut self.positions;
+        let burn = &mut self.burn;
         let tools = self.exchange.with_frame(|frame| {
             positions.resize_with(frame.positions_mm.len(), Vec::new);
             for (dst, src) in positions.iter_mut().zip(&frame.positions_mm) {
                 dst.clone_from(src);
             }
+            burn.clone_from(&frame.burn);
             (frame.sim_time_s, frame.tools.clone())
         });
         replication.frame += 1;
@@ -55,7 +59,14 @@ impl DebriefFrames {
         }
         for (o, object_positions) in self.positions.iter().enumerate() {
             if let Some(object) = replication.objects.get_mut(o) {
-                object.delta(o as u16, object_positions, frame, &mut self.delta);
+                let object_burn = self.burn.get(o).map_or(&[][..], |b| b.as_slice());
+                object.delta(
+                    o as u16,
+                    object_positions,
+                    object_burn,
+                    frame,
+                    &mut self.delta,
+                );
             }
         }
         replication.snapshot(&self.scene)

@@ -301,7 +301,8 @@ pub(crate) struct InstrumentSection {
     pub kind: InstrumentKindName,
     /// Grasper: `"button"` (default) or `"angle"`.
     pub activation: Option<ActivationName>,
-    /// Grasper, `activation = "button"`: button bits that close the jaws (default 1).
+    /// Grasper, `activation = "button"`: button bits that close the jaws (default 1); cautery: that switch the
+    /// current on.
     pub button_mask: Option<u32>,
     /// Grasper, `activation = "angle"`: close below, open above, degrees.
     pub close_below_deg: Option<f32>,
@@ -311,6 +312,10 @@ pub(crate) struct InstrumentSection {
     pub bite_mm: Option<f32>,
     pub slip_force_n: Option<f32>,
     pub max_attachments: Option<u16>,
+    /// Cautery: burn levels per second while touching (0-255 scale).
+    pub burn_per_s: Option<f32>,
+    /// Cautery: surface this close to the tip burns too, mm.
+    pub reach_mm: Option<f32>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -318,6 +323,7 @@ pub(crate) struct InstrumentSection {
 pub(crate) enum InstrumentKindName {
     Probe,
     Grasper,
+    Cautery,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]

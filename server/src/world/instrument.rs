@@ -8,7 +8,8 @@
 //! Geometry. A tool's `shape` is its blunt body: it probes as before. A grasper's two jaws are that body's two
 //! halves on either side of the tool's local `y = 0` plane, hinged about the tool's local x axis at the back of
 //! the body: closing them takes the tissue the body touches on both sides (so a body that grazes tissue with one
-//! side only cannot grasp). `jaw_length_mm` and `open_angle_deg` are how the viewers draw them.
+//! side only cannot grasp). `jaw_length_mm` and `open_angle_deg` are how the viewers draw them. A cautery
+//! tool's whole body is its active tip: while its button is held, the surface it touches burns.
 
 /// What a tool is.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -17,6 +18,8 @@ pub enum InstrumentSpec {
     Probe,
     /// Jaws that hold tissue while closed.
     Grasper(GraspSpec),
+    /// An active tip (a hook) that burns the tissue it touches while a button is held.
+    Cautery(CauterySpec),
 }
 
 impl InstrumentSpec {
@@ -25,6 +28,7 @@ impl InstrumentSpec {
         match self {
             InstrumentSpec::Probe => "probe",
             InstrumentSpec::Grasper(_) => "grasper",
+            InstrumentSpec::Cautery(_) => "cautery",
         }
     }
 
@@ -32,9 +36,37 @@ impl InstrumentSpec {
     pub fn grasp(&self) -> Option<&GraspSpec> {
         match self {
             InstrumentSpec::Grasper(g) => Some(g),
-            InstrumentSpec::Probe => None,
+            InstrumentSpec::Probe | InstrumentSpec::Cautery(_) => None,
         }
     }
+
+    /// The cautery parameters, for a cautery tool.
+    pub fn cautery(&self) -> Option<&CauterySpec> {
+        match self {
+            InstrumentSpec::Cautery(c) => Some(c),
+            InstrumentSpec::Probe | InstrumentSpec::Grasper(_) => None,
+        }
+    }
+}
+
+/// A cautery tool's parameters: its whole body is the active tip.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CauterySpec {
+    /// Button bits that switch the current on (any of them held).
+    pub button_mask: u32,
+    /// How fast a touched vertex's burn rises, levels per second (0-255 scale: 255 is charred).
+    pub burn_per_s: f32,
+    /// Surface this close to the tip (outside it) burns too, mm.
+    pub reach_mm: f32,
+}
+
+impl CauterySpec {
+    /// Defaults of `kind = "cautery"`: button 1, 400 levels/s (charred after about 0.64 s of contact), 0.3 mm.
+    pub const DEFAULT: CauterySpec = CauterySpec {
+        button_mask: 1,
+        burn_per_s: 400.0,
+        reach_mm: 0.3,
+    };
 }
 
 /// Which part of the device pose drives the jaws.

@@ -1177,27 +1177,82 @@ impl Context<'_> {
         use crate::world::{GraspSpec, InstrumentSpec, JawActivation};
         let section = at.get_ref();
         let key = |k: &str| format!("tools[{i}].instrument.{k}");
+        // Which keys each kind takes; any other given key is refused by name.
+        let given = [
+            ("activation", section.activation.is_some()),
+            ("button_mask", section.button_mask.is_some()),
+            ("close_below_deg", section.close_below_deg.is_some()),
+            ("open_above_deg", section.open_above_deg.is_some()),
+            ("open_angle_deg", section.open_angle_deg.is_some()),
+            ("jaw_length_mm", section.jaw_length_mm.is_some()),
+            ("bite_mm", section.bite_mm.is_some()),
+            ("slip_force_n", section.slip_force_n.is_some()),
+            ("max_attachments", section.max_attachments.is_some()),
+            ("burn_per_s", section.burn_per_s.is_some()),
+            ("reach_mm", section.reach_mm.is_some()),
+        ];
+        let (takes, kind_says): (&[&str], &str) = match section.kind {
+            InstrumentKindName::Probe => (
+                &[],
+                "a probe has no jaws or tip: only a grasper or a cautery tool takes it",
+            ),
+            InstrumentKindName::Grasper => (
+                &[
+                    "activation",
+                    "button_mask",
+                    "close_below_deg",
+                    "open_above_deg",
+                    "open_angle_deg",
+                    "jaw_length_mm",
+                    "bite_mm",
+                    "slip_force_n",
+                    "max_attachments",
+                ],
+                "a grasper does not take it",
+            ),
+            InstrumentKindName::Cautery => (
+                &["button_mask", "burn_per_s", "reach_mm"],
+                "a cautery tool takes button_mask, burn_per_s and reach_mm",
+            ),
+        };
+        if let Some((name, _)) = given
+            .iter()
+            .find(|(name, given)| *given && !takes.contains(name))
+        {
+            return Err(self.invalid(at, &key(name), kind_says));
+        }
         match section.kind {
-            InstrumentKindName::Probe => {
-                let grasper_keys = [
-                    ("activation", section.activation.is_some()),
-                    ("button_mask", section.button_mask.is_some()),
-                    ("close_below_deg", section.close_below_deg.is_some()),
-                    ("open_above_deg", section.open_above_deg.is_some()),
-                    ("open_angle_deg", section.open_angle_deg.is_some()),
-                    ("jaw_length_mm", section.jaw_length_mm.is_some()),
-                    ("bite_mm", section.bite_mm.is_some()),
-                    ("slip_force_n", section.slip_force_n.is_some()),
-                    ("max_attachments", section.max_attachments.is_some()),
-                ];
-                if let Some((name, _)) = grasper_keys.iter().find(|(_, given)| *given) {
-                    return Err(self.invalid(
+            InstrumentKindName::Probe => Ok(InstrumentSpec::Probe),
+            InstrumentKindName::Cautery => {
+                let mut cautery = crate::world::CauterySpec::DEFAULT;
+                if let Some(mask) = section.button_mask {
+                    self.check(
                         at,
-                        &key(name),
-                        "a probe has no jaws: only a grasper takes it",
-                    ));
+                        &key("button_mask"),
+                        mask != 0,
+                        "must name at least one button bit",
+                    )?;
+                    cautery.button_mask = mask;
                 }
-                Ok(InstrumentSpec::Probe)
+                if let Some(rate) = section.burn_per_s {
+                    self.check(
+                        at,
+                        &key("burn_per_s"),
+                        rate.is_finite() && rate > 0.0 && rate <= 100_000.0,
+                        "must be a positive number of burn levels per second, at most 100000",
+                    )?;
+                    cautery.burn_per_s = rate;
+                }
+                if let Some(reach) = section.reach_mm {
+                    self.check(
+                        at,
+                        &key("reach_mm"),
+                        reach.is_finite() && (0.0..=10.0).contains(&reach),
+                        "must be 0 to 10 mm",
+                    )?;
+                    cautery.reach_mm = reach;
+                }
+                Ok(InstrumentSpec::Cautery(cautery))
             }
             InstrumentKindName::Grasper => {
                 let mut grasp = GraspSpec::DEFAULT;

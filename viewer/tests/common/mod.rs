@@ -67,6 +67,7 @@ pub fn sheet_snapshot(
             triangles: sheet_triangles(n),
             positions_q,
             frame,
+            burn: Vec::new(),
         }],
         tools: vec![ToolInfo {
             tool: 0,
