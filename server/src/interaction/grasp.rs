@@ -221,15 +221,7 @@ impl Grasp {
         model: &MassSpringModel,
         state: &mut TissueState,
     ) {
-        let triangles = model.triangles();
-        for a in self
-            .attachments
-            .iter()
-            .filter(|a| usize::from(a.object) == object)
-        {
-            let Some(corners) = triangles.get(a.triangle as usize) else {
-                continue;
-            };
+        for (a, corners) in in_object(&self.attachments, object, model.triangles()) {
             let target = position_mm + rotation.transform_vector(&a.anchor_tool_mm);
             let mut point = Vec3::zeros();
             let mut free_weight = 0.0;
@@ -320,15 +312,7 @@ impl Grasp {
             return;
         };
         list.clear();
-        let triangles = model.triangles();
-        for a in self
-            .attachments
-            .iter()
-            .filter(|a| usize::from(a.object) == object)
-        {
-            let Some(corners) = triangles.get(a.triangle as usize) else {
-                continue;
-            };
+        for (a, corners) in in_object(&self.attachments, object, model.triangles()) {
             for (&c, &b) in corners.iter().zip(&a.barycentric) {
                 if b != 0.0
                     && let Err(at) = list.binary_search(&c)
@@ -338,4 +322,17 @@ impl Grasp {
             }
         }
     }
+}
+
+/// The attachments to object `object`, each with its triangle's corners (an attachment naming a triangle the
+/// object does not have is skipped).
+fn in_object<'a>(
+    attachments: &'a [Attachment],
+    object: usize,
+    triangles: &'a [[u32; 3]],
+) -> impl Iterator<Item = (&'a Attachment, &'a [u32; 3])> {
+    attachments
+        .iter()
+        .filter(move |a| usize::from(a.object) == object)
+        .filter_map(move |a| Some((a, triangles.get(a.triangle as usize)?)))
 }

@@ -1168,6 +1168,35 @@ impl Context<'_> {
         })
     }
 
+    /// `value`, when given, into `slot` if it is finite and `ok`; else the error names `key`.
+    fn take_checked<T>(
+        &self,
+        at: &Spanned<T>,
+        key: &str,
+        value: Option<f32>,
+        ok: impl Fn(f32) -> bool,
+        says: &str,
+        slot: &mut f32,
+    ) -> Result<(), WorldError> {
+        if let Some(value) = value {
+            self.check(at, key, value.is_finite() && ok(value), says)?;
+            *slot = value;
+        }
+        Ok(())
+    }
+
+    /// An instrument's button mask (default button 1): at least one bit.
+    fn button_mask<T>(
+        &self,
+        at: &Spanned<T>,
+        key: &str,
+        mask: Option<u32>,
+    ) -> Result<u32, WorldError> {
+        let mask = mask.unwrap_or(1);
+        self.check(at, key, mask != 0, "must name at least one button bit")?;
+        Ok(mask)
+    }
+
     /// `tools[i].instrument`: every key checked for its kind and its range.
     fn instrument(
         &self,
@@ -1225,33 +1254,24 @@ impl Context<'_> {
             InstrumentKindName::Probe => Ok(InstrumentSpec::Probe),
             InstrumentKindName::Cautery => {
                 let mut cautery = crate::world::CauterySpec::DEFAULT;
-                if let Some(mask) = section.button_mask {
-                    self.check(
-                        at,
-                        &key("button_mask"),
-                        mask != 0,
-                        "must name at least one button bit",
-                    )?;
-                    cautery.button_mask = mask;
-                }
-                if let Some(rate) = section.burn_per_s {
-                    self.check(
-                        at,
-                        &key("burn_per_s"),
-                        rate.is_finite() && rate > 0.0 && rate <= 100_000.0,
-                        "must be a positive number of burn levels per second, at most 100000",
-                    )?;
-                    cautery.burn_per_s = rate;
-                }
-                if let Some(reach) = section.reach_mm {
-                    self.check(
-                        at,
-                        &key("reach_mm"),
-                        reach.is_finite() && (0.0..=10.0).contains(&reach),
-                        "must be 0 to 10 mm",
-                    )?;
-                    cautery.reach_mm = reach;
-                }
+                cautery.button_mask =
+                    self.button_mask(at, &key("button_mask"), section.button_mask)?;
+                self.take_checked(
+                    at,
+                    &key("burn_per_s"),
+                    section.burn_per_s,
+                    |rate| rate > 0.0 && rate <= 100_000.0,
+                    "must be a positive number of burn levels per second, at most 100000",
+                    &mut cautery.burn_per_s,
+                )?;
+                self.take_checked(
+                    at,
+                    &key("reach_mm"),
+                    section.reach_mm,
+                    |reach| (0.0..=10.0).contains(&reach),
+                    "must be 0 to 10 mm",
+                    &mut cautery.reach_mm,
+                )?;
                 Ok(InstrumentSpec::Cautery(cautery))
             }
             InstrumentKindName::Grasper => {
@@ -1268,14 +1288,9 @@ impl Context<'_> {
                                 "the jaw angle thresholds need activation = \"angle\"",
                             ));
                         }
-                        let mask = section.button_mask.unwrap_or(1);
-                        self.check(
-                            at,
-                            &key("button_mask"),
-                            mask != 0,
-                            "must name at least one button bit",
-                        )?;
-                        JawActivation::Button { mask }
+                        JawActivation::Button {
+                            mask: self.button_mask(at, &key("button_mask"), section.button_mask)?,
+                        }
                     }
                     ActivationName::Angle => {
                         if section.button_mask.is_some() {
@@ -1337,25 +1352,23 @@ impl Context<'_> {
                     ),
                 ];
                 for (name, value, slot, most) in positive {
-                    if let Some(value) = value {
-                        self.check(
-                            at,
-                            &key(name),
-                            value.is_finite() && value > 0.0 && value <= most,
-                            &format!("must be a positive number, at most {most}"),
-                        )?;
-                        *slot = value;
-                    }
-                }
-                if let Some(bite) = section.bite_mm {
-                    self.check(
+                    self.take_checked(
                         at,
-                        &key("bite_mm"),
-                        bite.is_finite() && (0.0..=10.0).contains(&bite),
-                        "must be 0 to 10 mm",
+                        &key(name),
+                        value,
+                        |v| v > 0.0 && v <= most,
+                        &format!("must be a positive number, at most {most}"),
+                        slot,
                     )?;
-                    grasp.bite_mm = bite;
                 }
+                self.take_checked(
+                    at,
+                    &key("bite_mm"),
+                    section.bite_mm,
+                    |bite| (0.0..=10.0).contains(&bite),
+                    "must be 0 to 10 mm",
+                    &mut grasp.bite_mm,
+                )?;
                 if let Some(most) = section.max_attachments {
                     self.check(
                         at,
