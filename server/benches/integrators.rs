@@ -8,6 +8,10 @@
 //! the medians into updates per second and ratios. Then, for implicit Euler and XPBD, the
 //! largest step that stays stable at the pad's stiffness beside symplectic Euler's.
 //!
+//! The same run times a plain scalar array-of-structs symplectic-Euler step of the same pad (the way the 2001
+//! framework would have written it, `support/scalar_aos.rs`), and the table gives each method's speed as a
+//! ratio to it too: that ratio travels between machines, the microseconds do not.
+//!
 //! Run: `cargo bench -p sinew-server --bench integrators` (criterion's own report lands in target/criterion).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
 
@@ -17,6 +21,12 @@ use criterion::{BenchmarkId, Criterion, Throughput};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, MassSpringModel, TissueState, integrator_for};
 use sinew_server::world::{IntegratorName, load_world};
+
+#[path = "support/scalar_aos.rs"]
+mod scalar_aos;
+
+/// Criterion id of the scalar array-of-structs baseline (`support/scalar_aos.rs`).
+const BASELINE: &str = "scalar-aos-symplectic-euler";
 
 /// (method, reference node updates/s, reference edge updates/s) from the 2001 paper.
 const REFERENCE: [(IntegratorName, f64, f64); 4] = [
@@ -140,18 +150,24 @@ fn main() {
                 method.as_str()
             );
         }
+        let mut baseline = scalar_aos::ScalarPad::new(&model, &state);
+        group.bench_function(BenchmarkId::from_parameter(BASELINE), |b| {
+            b.iter(|| baseline.step(dt))
+        });
+        assert!(baseline.is_finite(), "the scalar baseline diverged");
         group.finish();
     }
     c.final_summary();
+    let baseline_ns = median_ns(&c, BASELINE);
 
     println!(
         "\npad: {nodes} nodes, {edges} edges, {} faces; dt {dt} s; one core; median of criterion samples",
         model.triangles().len()
     );
     println!(
-        "| method | us/step | node updates/s | edge updates/s | vs 2001 (nodes) | vs 2001 (edges) |"
+        "| method | us/step | node updates/s | edge updates/s | vs 2001 (nodes) | vs 2001 (edges) | vs scalar AoS, this run |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     for method in IntegratorName::ALL {
         let Some(ns) = median_ns(&c, method.as_str()) else {
             println!("| {} | (no estimate found) |", method.as_str());
@@ -170,12 +186,24 @@ fn main() {
             ),
             None => ("-".into(), "-".into()),
         };
+        let vs_baseline = baseline_ns.map_or("-".into(), |b| format!("{:.2}x", b / ns));
         println!(
-            "| {} | {:.1} | {:.1} M | {:.1} M | {rn} | {re} |",
+            "| {} | {:.1} | {:.1} M | {:.1} M | {rn} | {re} | {vs_baseline} |",
             method.as_str(),
             ns / 1000.0,
             nodes as f64 * per_s / 1e6,
             edges as f64 * per_s / 1e6
+        );
+    }
+    if let Some(b) = baseline_ns {
+        let per_s = 1e9 / b;
+        println!(
+            "| scalar AoS symplectic Euler (baseline) | {:.1} | {:.1} M | {:.1} M | {:.0}x | {:.0}x | 1.00x |",
+            b / 1000.0,
+            nodes as f64 * per_s / 1e6,
+            edges as f64 * per_s / 1e6,
+            nodes as f64 * per_s / REFERENCE[0].1,
+            edges as f64 * per_s / REFERENCE[0].2
         );
     }
     println!(
