@@ -17,6 +17,9 @@ use sinew_server::interaction::JawInput;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::load_world;
 
+#[path = "support/bench_args.rs"]
+mod bench_args;
+
 fn command(x_mm: f32, z_mm: f32, closed: bool) -> ToolCommand {
     ToolCommand {
         active: true,
@@ -76,12 +79,7 @@ fn run(sim: &mut Sim, ticks: usize, start: usize, grasp: bool) -> Phase {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
-    let ticks: usize = args
-        .iter()
-        .position(|a| a == "--ticks")
-        .and_then(|i| args.get(i + 1))
-        .map_or(Ok(10_000), |s| s.parse())?;
+    let ticks = bench_args::count_arg("ticks", 10_000)?;
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/grasp_pull.toml");
     let world = load_world(&path)?;
     let mut sim = Sim::new(&world)?;
@@ -127,15 +125,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut out = [ToolOutput::default(); 2];
         for k in ticks {
             let t = k as f32 * 0.001;
-            let command = ToolCommand {
-                active: true,
-                position_device_mm: [8.0 * (t * 2.0).sin(), 0.0, 1.5 - (t / 0.3).min(1.0) * 0.5],
-                jaws: JawInput {
-                    buttons: u32::from(on),
-                    jaw_angle_rad: 0.0,
-                },
-                ..ToolCommand::default()
-            };
+            let command = command(8.0 * (t * 2.0).sin(), 1.5 - (t / 0.3).min(1.0) * 0.5, on);
             let started = Instant::now();
             cautery.step(0.001, &[command], &mut out);
             histogram.record(started.elapsed());

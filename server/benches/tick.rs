@@ -13,13 +13,11 @@ use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, SymplecticEuler};
 use sinew_server::world::load_world;
 
+#[path = "support/bench_args.rs"]
+mod bench_args;
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
-    let ticks: usize = args
-        .iter()
-        .position(|a| a == "--ticks")
-        .and_then(|i| args.get(i + 1))
-        .map_or(Ok(20_000), |s| s.parse())?;
+    let ticks = bench_args::count_arg("ticks", 20_000)?;
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let world = load_world(&path)?;
     let mut sim = Sim::new(&world)?;
