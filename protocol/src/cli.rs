@@ -27,7 +27,7 @@ pub struct NetworkArgs {
     #[arg(long, value_name = "MODE")]
     pub zenoh_mode: Option<String>,
     /// The lab's CA certificate (PEM, from `sinew certs`): with --tls-cert and --tls-key, every link is mutual
-    /// TLS and default endpoints become tls/ ones (a server then enforces the roles' access rules).
+    /// TLS (over QUIC) and default endpoints become quic/ ones (a server then enforces the roles' access rules).
     #[arg(long, value_name = "FILE", requires_all = ["tls_cert", "tls_key"])]
     pub tls_ca: Option<std::path::PathBuf>,
     /// This role's certificate (PEM); its common name is the role: server, observer or device-<id>.

@@ -42,6 +42,34 @@ pub fn with_udp_twin(endpoint: &str) -> Vec<String> {
         .collect()
 }
 
+/// The one link protocol of a secured session: QUIC, whose TLS 1.3 handshake does the mutual authentication
+/// with the `transport/link/tls/*` files. Each connection runs zenoh's mixed reliability (endpoint metadata
+/// `mixed_rel`): reliable messages on a stream, best-effort poses and forces as QUIC datagrams, so a lost
+/// packet never holds later forces back, as the plain TCP + UDP multilink does. zenoh's `tls/` (TLS over TCP)
+/// is not used: zenoh 1.10's TLS link reads and writes one rustls stream from two tasks at once, which is
+/// unsound (eclipse-zenoh/zenoh#2557) and aborted our security test with a corrupted heap.
+pub const SECURE_PROTOCOL: &str = "quic";
+
+/// `endpoint` as a secured session uses it: a `quic/` endpoint that names no `mixed_rel` gets `mixed_rel=value`
+/// in its metadata (`1` to connect, `auto` to listen, so a peer without it still joins on one stream); any other
+/// endpoint, or any endpoint of a plain session, is returned as given.
+fn secure_endpoint(endpoint: &str, secure: bool, value: &str) -> String {
+    if !secure || !endpoint.starts_with("quic/") || endpoint.contains("mixed_rel=") {
+        return endpoint.to_owned();
+    }
+    let (locator, config) = match endpoint.split_once('#') {
+        Some((locator, config)) => (locator, Some(config)),
+        None => (endpoint, None),
+    };
+    let separator = if locator.contains('?') { ';' } else { '?' };
+    let mut out = format!("{locator}{separator}mixed_rel={value}");
+    if let Some(config) = config {
+        out.push('#');
+        out.push_str(config);
+    }
+    out
+}
+
 /// Endpoints and an optional zenoh config file.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct NetworkOptions {
@@ -53,8 +81,8 @@ pub struct NetworkOptions {
     pub connect: Vec<String>,
     /// zenoh mode: `peer` (default) or `client` (through a zenohd router).
     pub mode: Option<String>,
-    /// Mutual TLS with these files: every endpoint is `tls/...`, only TLS links are opened or accepted, and
-    /// the certificate's common name is this role's identity ([`crate::security`]).
+    /// Mutual TLS with these files: every endpoint is `quic/...` (QUIC's TLS 1.3), only QUIC links are opened
+    /// or accepted, and the certificate's common name is this role's identity ([`crate::security`]).
     pub tls: Option<crate::security::TlsFiles>,
     /// zenoh access-control rules (JSON5) this node enforces on what reaches it (a server's:
     /// [`crate::security::access_control_json5`]); needs `tls`, whose certificates name the roles.
@@ -86,40 +114,49 @@ impl NetworkOptions {
         }
     }
 
-    /// These options with mutual TLS: the role's default TCP endpoints become TLS ones on the same address and
-    /// port, and UDP endpoints are dropped (TLS runs over TCP only: poses and forces share the TLS link).
+    /// These options with mutual TLS: the role's default TCP endpoints become QUIC ones on the same address and
+    /// port, and UDP endpoints are dropped (one QUIC connection carries both: reliable messages on a stream,
+    /// best-effort poses and forces as datagrams, see [`SECURE_PROTOCOL`]).
     pub fn secured(mut self, tls: crate::security::TlsFiles) -> Self {
-        let to_tls = |list: Vec<String>| -> Vec<String> {
+        let to_quic = |list: Vec<String>| -> Vec<String> {
             list.into_iter()
                 .filter(|e| !e.starts_with("udp/"))
                 .map(|e| match e.strip_prefix("tcp/") {
-                    Some(rest) => format!("tls/{rest}"),
+                    Some(rest) => format!("quic/{rest}"),
                     None => e,
                 })
                 .collect()
         };
-        self.listen = to_tls(self.listen);
-        self.connect = to_tls(self.connect);
+        self.listen = to_quic(self.listen);
+        self.connect = to_quic(self.connect);
         self.tls = Some(tls);
         self
     }
 
-    /// The security options agree with the endpoints: with TLS every endpoint is `tls/...` and the files are
+    /// The security options agree with the endpoints: with TLS every endpoint is `quic/...` and the files are
     /// readable; without it no endpoint is; access control needs TLS. The error says which flag or endpoint.
     pub fn check(&self) -> Result<(), String> {
         let endpoints = self.listen.iter().chain(&self.connect);
         match &self.tls {
             Some(tls) => {
-                tls.check()?;
-                if let Some(plain) = endpoints.into_iter().find(|e| !e.starts_with("tls/")) {
+                if let Some(plain) = endpoints.into_iter().find(|e| !e.starts_with("quic/")) {
+                    let why = if plain.starts_with("tls/") {
+                        "zenoh's tls/ link is not used: it reads and writes one TLS stream from two tasks at \
+                         once, which crashed a test (eclipse-zenoh/zenoh#2557)"
+                    } else {
+                        "a plain link would bypass TLS"
+                    };
                     return Err(format!(
-                        "endpoint `{plain}`: with --tls-* every endpoint must be tls/HOST:PORT (TLS runs \
-                         over TCP; a plain link would bypass it)"
+                        "endpoint `{plain}`: with --tls-* every endpoint must be quic/HOST:PORT ({why})"
                     ));
                 }
+                tls.check()?;
             }
             None => {
-                if let Some(tls) = endpoints.into_iter().find(|e| e.starts_with("tls/")) {
+                if let Some(tls) = endpoints
+                    .into_iter()
+                    .find(|e| e.starts_with("quic/") || e.starts_with("tls/"))
+                {
                     return Err(format!(
                         "endpoint `{tls}` needs --tls-ca, --tls-cert and --tls-key"
                     ));
@@ -149,11 +186,22 @@ impl NetworkOptions {
         } else if defaults {
             entries.push(("mode", "\"peer\"".to_owned()));
         }
-        if !self.listen.is_empty() || defaults {
-            entries.push(("listen/endpoints", list(&self.listen)));
+        let secure = self.tls.is_some();
+        let listen: Vec<String> = self
+            .listen
+            .iter()
+            .map(|e| secure_endpoint(e, secure, "auto"))
+            .collect();
+        let connect: Vec<String> = self
+            .connect
+            .iter()
+            .map(|e| secure_endpoint(e, secure, "1"))
+            .collect();
+        if !listen.is_empty() || defaults {
+            entries.push(("listen/endpoints", list(&listen)));
         }
-        if !self.connect.is_empty() || defaults {
-            entries.push(("connect/endpoints", list(&self.connect)));
+        if !connect.is_empty() || defaults {
+            entries.push(("connect/endpoints", list(&connect)));
         }
         if defaults {
             entries.push(("scouting/multicast/enabled", "false".to_owned()));
@@ -200,8 +248,8 @@ impl NetworkOptions {
                 "transport/link/tls/verify_name_on_connect",
                 "true".to_owned(),
             ));
-            // Only TLS links, opened or accepted: a gossiped plain locator is never dialled.
-            entries.push(("transport/link/protocols", "[\"tls\"]".to_owned()));
+            // Only QUIC links, opened or accepted: a gossiped plain locator is never dialled.
+            entries.push(("transport/link/protocols", format!("[{SECURE_PROTOCOL:?}]")));
         }
         if let Some(acl) = &self.access_control {
             entries.push(("access_control", acl.clone()));
@@ -260,5 +308,69 @@ mod tests {
             value("listen/endpoints").as_deref(),
             Some(r#"["tcp/127.0.0.1:7447","udp/127.0.0.1:7447"]"#)
         );
+    }
+
+    fn lab_files() -> crate::security::TlsFiles {
+        crate::security::TlsFiles {
+            ca: "ca.pem".into(),
+            cert: "c.pem".into(),
+            key: "k.pem".into(),
+        }
+    }
+
+    #[test]
+    fn a_secured_role_speaks_quic_with_mixed_reliability_and_nothing_else() {
+        let device = NetworkOptions::device_default().secured(lab_files());
+        assert_eq!(device.connect, vec!["quic/127.0.0.1:7447".to_owned()]);
+        let entries = device.config_entries();
+        let value = |key: &str| {
+            entries
+                .iter()
+                .find(|(k, _)| *k == key)
+                .map(|(_, v)| v.clone())
+        };
+        assert_eq!(
+            value("connect/endpoints").as_deref(),
+            Some(r#"["quic/127.0.0.1:7447?mixed_rel=1"]"#)
+        );
+        assert_eq!(
+            value("transport/link/protocols").as_deref(),
+            Some(r#"["quic"]"#)
+        );
+        let server = NetworkOptions::server_default().secured(lab_files());
+        let entries = server.config_entries();
+        assert!(
+            entries.iter().any(|(k, v)| *k == "listen/endpoints"
+                && v == r#"["quic/127.0.0.1:7447?mixed_rel=auto"]"#)
+        );
+        // Metadata and config already on the endpoint are kept; an explicit choice is not overridden.
+        assert_eq!(
+            secure_endpoint("quic/h:1?iface=lo#bind=x", true, "1"),
+            "quic/h:1?iface=lo;mixed_rel=1#bind=x"
+        );
+        assert_eq!(
+            secure_endpoint("quic/h:1?mixed_rel=0", true, "1"),
+            "quic/h:1?mixed_rel=0"
+        );
+        assert_eq!(secure_endpoint("quic/h:1", false, "1"), "quic/h:1");
+    }
+
+    #[test]
+    fn a_tls_or_plain_endpoint_with_certificates_is_refused_with_the_reason() {
+        let mut options = NetworkOptions::device_default().secured(lab_files());
+        options.connect = vec!["tls/127.0.0.1:7447".to_owned()];
+        let err = options.check().unwrap_err();
+        assert!(
+            err.contains("quic/HOST:PORT") && err.contains("#2557"),
+            "{err}"
+        );
+        options.connect = vec!["tcp/127.0.0.1:7447".to_owned()];
+        let err = options.check().unwrap_err();
+        assert!(err.contains("bypass"), "{err}");
+        let plain = NetworkOptions {
+            connect: vec!["quic/127.0.0.1:7447".to_owned()],
+            ..NetworkOptions::default()
+        };
+        assert!(plain.check().unwrap_err().contains("needs --tls-ca"));
     }
 }

@@ -486,7 +486,7 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
         ]
     };
 
-    let listen = format!("tls/{server_ip}:7447");
+    let listen = format!("quic/{server_ip}:7447");
     let mut server = Command::new(&server_bin);
     server
         .arg("--world")
@@ -545,10 +545,10 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     let left_final = final_of(&left);
     let intruder_final = final_of(&intruder);
     println!("left: {left_final}\nintruder: {intruder_final}");
-    // zenoh 1.10.2's TLS link drops a transport now and then on a path with delay ("TX task failed:
-    // handshake not complete"); the device rejoins within about 100 ms. Counted here, not asserted.
+    // Each release of left's tool: one is the device's own exit at 6 s; any more is a transport that dropped
+    // and rejoined (zenoh's old tls/ link did this now and then; QUIC has not yet). Counted, not asserted.
     println!(
-        "left's transport dropped and rejoined {} times",
+        "left's tool was released {} times (1 = its exit)",
         server_out.matches("device left: tool released").count()
     );
     // 20 ms round trip: left renders the server's local models (moderated), sent at their own rate.

@@ -21,9 +21,10 @@ fn lab(name: &str) -> LabCerts {
     make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap()
 }
 
+/// A free loopback port as a secured (QUIC, TLS 1.3) endpoint.
 fn tls_endpoint() -> String {
     let tcp = sinew::harness::free_loopback_endpoint().unwrap();
-    tcp.replacen("tcp/", "tls/", 1)
+    tcp.replacen("tcp/", "quic/", 1)
 }
 
 fn start_tls_server(certs: &LabCerts, endpoint: &str) -> ServerHandle {

@@ -6,9 +6,11 @@
 //! each decision as a TRACE event of one module. The layer listens to that module alone and counts the
 //! decisions that say "unauthorized" (ingress and egress), one per message. zenoh also evaluates every
 //! message kind for a key when it caches that key's permissions (right after "caching permissions for
-//! `key`", on the same thread, for the same key): those evaluations are not messages and are not counted. Likewise a TLS handshake the listener refuses (a
-//! peer whose certificate the lab's CA did not sign, or none) is a WARN event of zenoh's TLS link module,
-//! ending in the hint zenoh gives for every failed accept. A process runs one server, so one count serves it.
+//! `key`", on the same thread, for the same key): those evaluations are not messages and are not counted.
+//! Likewise a TLS handshake the listener refuses (a peer whose certificate the lab's CA did not sign, or none)
+//! is an event of zenoh's QUIC link module (secured sessions run TLS 1.3 inside QUIC): a WARN ending in the hint
+//! zenoh gives for every failed accept, or an ERROR `Cannot accept QUIC connection` when the handshake passed
+//! but the link could not be made. A process runs one server, so one count serves it.
 //!
 //! Install: [`layer`] into the process's subscriber (`sinew-server` does), or [`install_for_tests`] where a
 //! process has none. Cost: one short formatting of each access decision on zenoh's receive path, only while
@@ -28,11 +30,14 @@ use tracing_subscriber::layer::Context;
 /// The module whose TRACE events are zenoh's access decisions.
 pub const ACCESS_CONTROL_TARGET: &str = "zenoh::net::routing::interceptor::access_control";
 
-/// The module whose WARN events include a refused TLS accept.
-pub const TLS_LINK_TARGET: &str = "zenoh_link_tls::unicast";
+/// The module whose WARN and ERROR events include a refused QUIC (TLS 1.3) accept.
+pub const SECURE_LINK_TARGET: &str = "zenoh_link_commons::quic::unicast";
 
-/// What zenoh 1.10 appends to every failed TLS accept (zenoh-link-tls `accept_task`).
-const TLS_ACCEPT_FAILED: &[u8] = b"Hint: increase the system open file limit";
+/// What zenoh 1.10 appends to every failed QUIC accept (zenoh-link-commons `QuicAcceptor::accept_task`).
+const HANDSHAKE_FAILED: &[u8] = b"Hint: increase the system open file limit";
+
+/// How zenoh 1.10 begins the error of an accepted QUIC connection it could not turn into a link.
+const LINK_REFUSED: &[u8] = b"Cannot accept QUIC connection";
 
 static REFUSALS: AtomicU64 = AtomicU64::new(0);
 static TLS_REFUSALS: AtomicU64 = AtomicU64::new(0);
@@ -131,8 +136,8 @@ impl<S: Subscriber> Layer<S> for RefusalCounter {
     fn on_event(&self, event: &Event<'_>, _ctx: Context<'_, S>) {
         let mut message = Message::default();
         event.record(&mut message);
-        if event.metadata().target() == TLS_LINK_TARGET {
-            if message.contains(TLS_ACCEPT_FAILED) {
+        if event.metadata().target() == SECURE_LINK_TARGET {
+            if message.contains(HANDSHAKE_FAILED) || message.text().starts_with(LINK_REFUSED) {
                 TLS_REFUSALS.fetch_add(1, Ordering::Relaxed);
             }
             return;
@@ -169,7 +174,7 @@ where
     RefusalCounter.with_filter(
         Targets::new()
             .with_target(ACCESS_CONTROL_TARGET, Level::TRACE)
-            .with_target(TLS_LINK_TARGET, Level::WARN),
+            .with_target(SECURE_LINK_TARGET, Level::WARN),
     )
 }
 
@@ -256,12 +261,17 @@ mod tests {
         let before = tls_refusals();
         tracing::subscriber::with_default(subscriber, || {
             tracing::warn!(
-                target: "zenoh_link_tls::unicast",
-                "{}. Hint: increase the system open file limit.",
-                "received fatal alert: DecryptError"
+                target: "zenoh_link_commons::quic::unicast",
+                "{} Hint: increase the system open file limit.",
+                "QUIC acceptor failed: ConnectionClosed(received fatal alert: UnknownCA)"
             );
-            tracing::warn!(target: "zenoh_link_tls::unicast", "Unable to set NODEALY option");
+            tracing::error!(
+                target: "zenoh_link_commons::quic::unicast",
+                "Cannot accept QUIC connection: {}",
+                "no certificate"
+            );
+            tracing::warn!(target: "zenoh_link_commons::quic::unicast", "Unable to set DSCP");
         });
-        assert_eq!(tls_refusals() - before, 1);
+        assert_eq!(tls_refusals() - before, 2);
     }
 }
