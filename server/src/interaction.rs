@@ -1,14 +1,17 @@
-//! Tool-tissue interactions: probing, jaws, grasping.
+//! Tool-tissue interactions: probing, jaws, grasping, cutting and tearing.
 //!
 //! Owns: turning tool contacts into node corrections and the force each tool feels ([`ProbeContacts`]), the
 //! articulation of an instrument's jaws from its device's buttons or jaw angle ([`Jaws`]), and the attachments
-//! a closed grasper holds ([`Grasp`]). Must not: integrate the tissue (that is [`crate::tissue`]) or find
+//! a closed grasper holds ([`Grasp`]), and the seams a blade's sweep or an overstretched spring opens
+//! ([`swept_seams`], [`torn_seams`]). Must not: integrate the tissue (that is [`crate::tissue`]) or find
 //! candidates (that is [`crate::collision`]).
 
+mod cut;
 mod grasp;
 mod jaws;
 mod probe;
 
+pub use cut::{BladeSweep, CutScratch, swept_seams, torn_seams};
 pub use grasp::{Attachment, Grasp, GraspEvent, MAX_ATTACHMENTS};
 pub use jaws::{JawInput, Jaws};
 pub use probe::ProbeContacts;

@@ -12,12 +12,16 @@ use crate::haptics::{
     ContactStiffness, CouplingParams, EnergyBudget, MAX_PLANES, NormalStiffnessEstimate,
     VirtualCoupling, WorldPlane, nearest_surface_plane,
 };
-use crate::interaction::{Grasp, GraspEvent, JawInput, Jaws, ProbeContacts};
+use crate::interaction::{
+    BladeSweep, CutScratch, Grasp, GraspEvent, JawInput, Jaws, ProbeContacts, swept_seams,
+    torn_seams,
+};
+use crate::tissue::seams::{Facet, Opening, open_model, shared_by_two};
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, RegionTracker, TieSet, TissueState, Vec3,
     Verdict, guard, integrator_for,
 };
-use crate::world::{InstrumentSpec, ToolShapeSpec, World};
+use crate::world::{InstrumentSpec, IntegratorName, ToolShapeSpec, World};
 
 /// Why a world could not become a simulation.
 #[derive(Debug, Error)]
@@ -69,6 +73,8 @@ pub struct SimObject {
     /// Positions and velocities.
     pub state: TissueState,
     integrator: Box<dyn Integrator>,
+    /// The integrator as the world names it, to make a fresh one after a topology change.
+    integrator_spec: (IntegratorName, Option<u32>),
     guard: DivergenceGuard,
     collider: SurfaceCollider,
     marks: NodeMarks,
@@ -78,6 +84,9 @@ pub struct SimObject {
     /// How burnt each node is, 0 (untouched) to 65535 (charred): the wire's 0-255 level is the high byte.
     /// Material damage: a reset to rest keeps it.
     burn: Vec<u16>,
+    /// Facets a blade or a tear has cut that still join two elements, sorted: they open as soon as the cut
+    /// around them separates a vertex (see [`Sim::open_seams`]).
+    severed: Vec<Facet>,
 }
 
 impl SimObject {
@@ -357,9 +366,11 @@ impl Sim {
             objects.push(SimObject {
                 region,
                 burn: vec![0; model.node_count()],
+                severed: Vec::new(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
+                integrator_spec: (spec.integrator, spec.solver_iterations),
                 guard: DivergenceGuard::new(&model),
                 collider,
                 state,
@@ -435,6 +446,94 @@ impl Sim {
             time_s: 0.0,
             steps: 0,
         })
+    }
+
+    /// Open `seams` in object `object` (see [`crate::tissue::seams`]): vertices whose ring the seams split are
+    /// duplicated (new ids appended, each starting where its parent is, with its velocity and burn), elements
+    /// keep their ids, and everything built on the object's topology is rebuilt for the new one: springs and
+    /// masses, the collider's tree, the integrator's scratch, the region of deformation, the guard, and each
+    /// tool's contact solver on it; grasps re-read the corners of the triangles they hold, so an attachment made
+    /// before the cut holds on after it. Allocates (a cut or tear is an event, not the steady tick). An object
+    /// index out of range, or seams that open nothing, change nothing.
+    pub fn open_seams(&mut self, object: usize, seams: &[Facet]) -> Opening {
+        let Some(o) = self.objects.get_mut(object) else {
+            return Opening::default();
+        };
+        if seams.is_empty() {
+            return Opening::default();
+        }
+        // Facets cut before that have not come apart yet (a crack inside a volume, a slit that has not reached
+        // a border) are cut still: they open with these once the cut separates something.
+        let mut all = std::mem::take(&mut o.severed);
+        all.extend_from_slice(seams);
+        all.sort_unstable();
+        all.dedup();
+        let (parts, opening) = open_model(&o.model, &all);
+        if opening.is_empty() {
+            all.retain(|f| shared_by_two(&o.model, f));
+            o.severed = all;
+            return opening;
+        }
+        let model = MassSpringModel::from_parts(parts);
+        let n = model.node_count();
+        let state = &mut o.state;
+        for &p in &opening.parents {
+            let p = p as usize;
+            let (x, v, b) = (state.positions_mm[p], state.velocities_mm_s[p], o.burn[p]);
+            state.positions_mm.push(x);
+            state.velocities_mm_s.push(v);
+            o.burn.push(b);
+        }
+        state.forces_n.resize(n, Vec3::zeros());
+        state.external_forces_n.resize(n, Vec3::zeros());
+        if let Ok(collider) = SurfaceCollider::new(&state.positions_mm, model.triangles()) {
+            o.collider = collider.with_refit_margin(REFIT_MARGIN_MM);
+        }
+        o.marks = NodeMarks::new(n);
+        o.guard = DivergenceGuard::new(&model);
+        o.integrator = integrator_for(o.integrator_spec.0, o.integrator_spec.1);
+        o.region = o
+            .region
+            .as_ref()
+            .map(|r| RegionTracker::new(&model, r.params()));
+        o.model = model;
+        all.retain(|f| shared_by_two(&o.model, f));
+        o.severed = all;
+        for tool in &mut self.tools {
+            if let Some(stiffness) = tool.stiffness.get_mut(object) {
+                *stiffness = ContactStiffness::new(n);
+            }
+            if let Some(grasp) = &mut tool.grasp {
+                grasp.topology_changed(object, &self.objects[object].model);
+            }
+        }
+        self.last_energy_n_mm = None;
+        opening
+    }
+
+    /// Cut object `object` where a blade swept this tick ([`crate::interaction::swept_seams`] at the current
+    /// positions, then [`Self::open_seams`]).
+    pub fn cut(&mut self, object: usize, sweep: &BladeSweep, scratch: &mut CutScratch) -> Opening {
+        let Some(o) = self.objects.get(object) else {
+            return Opening::default();
+        };
+        let mut seams = std::mem::take(&mut scratch.seams);
+        seams.clear();
+        swept_seams(&o.model, &o.state.positions_mm, sweep, scratch, &mut seams);
+        let opening = self.open_seams(object, &seams);
+        scratch.seams = seams;
+        opening
+    }
+
+    /// Tear object `object` wherever a spring is stretched past `max_strain`
+    /// ([`crate::interaction::torn_seams`], then [`Self::open_seams`]).
+    pub fn tear(&mut self, object: usize, max_strain: f32) -> Opening {
+        let Some(o) = self.objects.get(object) else {
+            return Opening::default();
+        };
+        let mut seams = Vec::new();
+        torn_seams(&o.model, &o.state.positions_mm, max_strain, &mut seams);
+        self.open_seams(object, &seams)
     }
 
     /// Tell the guard that an object's state was changed from outside (its energy reference is stale).

@@ -13,6 +13,7 @@ pub mod guard;
 pub mod integrators;
 mod mass_spring;
 pub mod region;
+pub mod seams;
 pub mod spring_law;
 pub mod springs;
 pub mod stability;

@@ -306,6 +306,12 @@ impl Grasp {
             .sum()
     }
 
+    /// Object `object`'s topology changed (a cut or tear re-pointed some triangles' corners): re-read the
+    /// corners of the triangles held there. Triangle ids are stable, so every attachment stays.
+    pub fn topology_changed(&mut self, object: usize, model: &MassSpringModel) {
+        self.rebuild_nodes(object, model);
+    }
+
     /// Recompute the attached-node list of `object` from the attachments (after some let go).
     fn rebuild_nodes(&mut self, object: usize, model: &MassSpringModel) {
         let Some(list) = self.attached_nodes.get_mut(object) else {

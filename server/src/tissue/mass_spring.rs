@@ -304,6 +304,37 @@ impl MassSpringModel {
         }));
     }
 
+    /// The parts this model would be rebuilt from: the same nodes, springs (in their sorted order), elements
+    /// and material (fixed nodes are those with no acceleration per force). Allocates: for topology changes,
+    /// not the tick.
+    pub fn to_parts(&self) -> ModelParts {
+        let springs = &self.springs;
+        ModelParts {
+            rest_positions_mm: self.rest_positions_mm.clone(),
+            mass_kg: self.mass_kg.clone(),
+            fixed: self.accel_per_force.iter().map(|&w| w == 0.0).collect(),
+            edges: springs
+                .a
+                .iter()
+                .zip(&springs.b)
+                .map(|(&a, &b)| [a, b])
+                .collect(),
+            edge_stiffness_n_per_mm: springs.stiffness_n_per_mm.clone(),
+            edge_damping_n_s_per_mm: springs.damping_n_s_per_mm.clone(),
+            law: Some(self.law),
+            anchor_stiffness_n_per_mm: self.anchor_stiffness_n_per_mm,
+            drag_per_s: self.drag_per_s,
+            gravity_mm_per_s2: self.gravity_mm_per_s2,
+            triangles: self.triangles.clone(),
+            tets: self.tets.tets.clone(),
+            tet_bulk_modulus_n_per_mm2: self.tets.bulk_modulus_n_per_mm2,
+            global_bulk_modulus_n_per_mm2: self
+                .global_volume
+                .as_ref()
+                .map_or(0.0, |g| g.bulk_modulus_n_per_mm2),
+        }
+    }
+
     /// An id no other model built in this process has (a clone keeps it: same topology). Caches keyed on a
     /// model (XPBD's edge colouring) use it, so two sub-models of equal size never share a cache entry.
     pub fn id(&self) -> u64 {

@@ -1,0 +1,441 @@
+//! Cutting and tearing on virtual time, on the shipped pad (a sheet) and tet block (a volume): a blade drawn
+//! across parts the tissue along its path and every id made before stays valid; the cut opens under tension
+//! and pulls back less than whole tissue; a grasp made before a cut holds through it; every integrator steps
+//! the cut tissue; a volume cut through shows its cut faces as a closed surface; an overstretched sheet tears.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use nalgebra::Vector3;
+use sinew_server::interaction::{BladeSweep, CutScratch, JawInput};
+use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
+use sinew_server::tissue::seams::Opening;
+use sinew_server::world::{IntegratorName, parse_world};
+
+type Vec3 = Vector3<f32>;
+
+fn world_text(name: &str) -> (std::path::PathBuf, String) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../worlds")
+        .join(name);
+    let text = std::fs::read_to_string(&path).unwrap();
+    (path, text)
+}
+
+/// The pad with `method`, at the largest step of 1, 0.25 and 0.1 ms the loader accepts for it.
+fn pad_with(method: IntegratorName, instrument: &str) -> Sim {
+    pad_edited(method, instrument, |t| t)
+}
+
+/// [`pad_with`], its text edited first by `edit`.
+fn pad_edited(method: IntegratorName, instrument: &str, edit: impl Fn(String) -> String) -> Sim {
+    let (path, text) = world_text("pad.toml");
+    let text = edit(text);
+    let mut text = text.replace(
+        "integrator = \"symplectic-euler\"",
+        &format!("integrator = \"{}\"", method.as_str()),
+    );
+    if !instrument.is_empty() {
+        let shape = "shape = { kind = \"sphere\", radius_mm = 4.0 }";
+        text = text.replace(shape, &format!("{shape}\ninstrument = {instrument}"));
+    }
+    let world = ["dt_s = 0.001", "dt_s = 0.00025", "dt_s = 0.0001"]
+        .iter()
+        .find_map(|dt| parse_world(&path, &text.replace("dt_s = 0.001", dt)).ok())
+        .unwrap_or_else(|| panic!("the pad loads with {}", method.as_str()));
+    Sim::new(&world).unwrap()
+}
+
+/// One tick with tool 0 at `command` (tool 1 absent); the report, with no fault and a finite force.
+fn tick(sim: &mut Sim, command: ToolCommand) -> (ToolOutput, StepReport) {
+    let mut out = [ToolOutput::default(); 2];
+    let report = sim.step(0.001, &[command], &mut out);
+    assert_eq!(report.faults, 0, "the guard reset the tissue");
+    assert!(out[0].force_world_n.iter().all(|c| c.is_finite()));
+    (out[0], report)
+}
+
+/// Tool 0 (device origin at world x = -18 on the pad) with its 4 mm sphere's bottom `depth_mm` below the rest
+/// surface, `dx_mm` along x, jaws closed or open.
+fn tool_at(dx_mm: f32, depth_mm: f32, closed: bool) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        position_device_mm: [dx_mm, 0.0, 4.0 - depth_mm],
+        jaws: JawInput {
+            buttons: u32::from(closed),
+            jaw_angle_rad: 0.0,
+        },
+        ..ToolCommand::default()
+    }
+}
+
+/// Draw a vertical blade (`z` from -`half_height_mm` to +`half_height_mm`) at world `x_mm` along y from
+/// `y0_mm` to `y1_mm`, 1 mm a tick, stepping the sim with tool 0 at `command` each tick. The openings, merged.
+fn draw_blade(
+    sim: &mut Sim,
+    object: usize,
+    x_mm: f32,
+    (y0_mm, y1_mm): (f32, f32),
+    half_height_mm: f32,
+    command: ToolCommand,
+) -> Vec<Opening> {
+    let mut scratch = CutScratch::default();
+    let blade = |y: f32| {
+        [
+            Vec3::new(x_mm, y, -half_height_mm),
+            Vec3::new(x_mm, y, half_height_mm),
+        ]
+    };
+    let mut openings = Vec::new();
+    let mut y = y0_mm;
+    while y < y1_mm {
+        let next = (y + 1.0).min(y1_mm);
+        let sweep = BladeSweep {
+            from_mm: blade(y),
+            to_mm: blade(next),
+        };
+        let opening = sim.cut(object, &sweep, &mut scratch);
+        if !opening.is_empty() {
+            openings.push(opening);
+        }
+        tick(sim, command);
+        y = next;
+    }
+    openings
+}
+
+/// Connected pieces of `elements` (elements sharing a vertex are in one piece).
+fn pieces<const K: usize>(elements: &[[u32; K]], vertices: usize) -> usize {
+    let mut parent: Vec<usize> = (0..vertices).collect();
+    fn find(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    for e in elements {
+        for w in &e[1..] {
+            let (a, b) = (
+                find(&mut parent, e[0] as usize),
+                find(&mut parent, *w as usize),
+            );
+            parent[a.max(b)] = a.min(b);
+        }
+    }
+    let mut roots: Vec<usize> = elements
+        .iter()
+        .map(|e| find(&mut parent, e[0] as usize))
+        .collect();
+    roots.sort_unstable();
+    roots.dedup();
+    roots.len()
+}
+
+fn total_mass(sim: &Sim, object: usize) -> f64 {
+    sim.objects[object]
+        .model
+        .mass_kg()
+        .iter()
+        .map(|&m| f64::from(m))
+        .sum()
+}
+
+/// Largest distance between a split vertex and its parent: how far the cut has opened.
+fn opened_mm(sim: &Sim, openings: &[Opening]) -> f32 {
+    let x = &sim.objects[0].state.positions_mm;
+    openings
+        .iter()
+        .flat_map(|o| {
+            o.parents
+                .iter()
+                .enumerate()
+                .map(move |(k, &p)| (o.first_new_vertex as usize + k, p as usize))
+        })
+        .map(|(c, p)| (x[c] - x[p]).norm())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn a_blade_drawn_across_the_pad_parts_it_in_two_and_every_id_made_before_stays_valid() {
+    let mut sim = pad_with(IntegratorName::SymplecticEuler, "");
+    let before = sim.objects[0].model.clone();
+    let mass_before = total_mass(&sim, 0);
+    assert_eq!(
+        pieces(before.triangles(), before.node_count()),
+        1,
+        "the pad starts whole"
+    );
+    let openings = draw_blade(&mut sim, 0, 0.3, (-35.0, 35.0), 3.0, ToolCommand::default());
+    let after = &sim.objects[0].model;
+    let added: usize = openings.iter().map(Opening::new_vertices).sum();
+    println!(
+        "{} openings, {added} vertices added to {}, {} triangles",
+        openings.len(),
+        before.node_count(),
+        after.triangles().len()
+    );
+    assert!(added > 0, "the blade cut nothing");
+    assert_eq!(after.node_count(), before.node_count() + added);
+    assert_eq!(
+        pieces(after.triangles(), after.node_count()),
+        2,
+        "not parted"
+    );
+    // No element or vertex was renumbered: triangles keep their slots, old vertices their rest positions, and
+    // each triangle's corners are its old ones or copies of them.
+    assert_eq!(after.triangles().len(), before.triangles().len());
+    assert_eq!(
+        &after.rest_positions_mm()[..before.node_count()],
+        before.rest_positions_mm()
+    );
+    let mut parent: Vec<u32> = (0..before.node_count() as u32).collect();
+    for o in &openings {
+        assert_eq!(
+            o.first_new_vertex as usize,
+            parent.len(),
+            "ids are appended"
+        );
+        let roots: Vec<u32> = o.parents.iter().map(|&p| parent[p as usize]).collect();
+        parent.extend(roots);
+    }
+    for (old, new) in before.triangles().iter().zip(after.triangles()) {
+        assert_eq!(*old, new.map(|v| parent[v as usize]));
+    }
+    // Only vertices near the blade's path split, and the mass is kept.
+    for &p in &parent[before.node_count()..] {
+        let x = before.rest_positions_mm()[p as usize].x;
+        assert!((x - 0.3).abs() < 3.0, "vertex at x = {x} split");
+    }
+    let mass_after = total_mass(&sim, 0);
+    assert!(
+        ((mass_after - mass_before) / mass_before).abs() < 1e-5,
+        "{mass_before} kg -> {mass_after} kg"
+    );
+    // The parted pad still steps and rests where it was.
+    for _ in 0..300 {
+        tick(&mut sim, ToolCommand::default());
+    }
+    assert!(opened_mm(&sim, &openings) < 0.01, "a cut at rest opened");
+}
+
+#[test]
+fn a_grasp_made_before_a_cut_holds_through_it_and_the_cut_opens_and_pulls_back_less() {
+    let grasper = "{ kind = \"grasper\", slip_force_n = 20.0 }";
+    let pull = |cut: bool| -> (f32, f32, usize, StepReport) {
+        // No anchors to the tissue underneath: the pull is held by the sheet alone, as a membrane.
+        let mut sim = pad_edited(IntegratorName::SymplecticEuler, grasper, |t| {
+            let anchor = "anchor_stiffness_n_per_mm = 0.008";
+            assert!(t.contains(anchor));
+            t.replace(anchor, "anchor_stiffness_n_per_mm = 0.0")
+        });
+        for k in 0..400 {
+            let depth = -6.0 + 8.0 * (k + 1) as f32 / 400.0;
+            tick(&mut sim, tool_at(0.0, depth, false));
+        }
+        let (_, took) = tick(&mut sim, tool_at(0.0, 2.0, true));
+        for _ in 0..100 {
+            tick(&mut sim, tool_at(0.0, 2.0, true));
+        }
+        let held = sim.tools[0].grasp().unwrap().attachments().len();
+        assert!(took.grasps_taken == 1 && held > 0, "no grasp: {took:?}");
+        // Cut across the pad 7 mm right of the grasper's centre (world x = -11).
+        let openings = if cut {
+            draw_blade(
+                &mut sim,
+                0,
+                -11.0,
+                (-35.0, 35.0),
+                4.0,
+                tool_at(0.0, 2.0, true),
+            )
+        } else {
+            Vec::new()
+        };
+        // Pull 3 mm away from the cut (toward -x) over 0.5 s, and hold (below the 3.3 N clamp).
+        let mut events = StepReport::default();
+        let mut last = ToolOutput::default();
+        for k in 0..800 {
+            let dx = -3.0 * ((k + 1) as f32 / 500.0).min(1.0);
+            let (out, report) = tick(&mut sim, tool_at(dx, 2.0, true));
+            events.attachments_released += report.attachments_released;
+            events.attachments_slipped += report.attachments_slipped;
+            last = out;
+        }
+        let now = sim.tools[0].grasp().unwrap().attachments().len();
+        assert_eq!(now, held, "attachments lost (cut: {cut})");
+        let force = Vector3::from(last.force_world_n);
+        (force.norm(), opened_mm(&sim, &openings), held, events)
+    };
+    let (whole_n, _, _, whole_events) = pull(false);
+    let (cut_n, opened, held, cut_events) = pull(true);
+    println!(
+        "pull 3 mm: whole {whole_n:.3} N, cut {cut_n:.3} N; the cut opened {opened:.2} mm; {held} points held"
+    );
+    assert_eq!(whole_events.attachments_released, 0);
+    assert_eq!(cut_events.attachments_released, 0, "the cut let go");
+    assert_eq!(cut_events.attachments_slipped, 0, "the cut let go");
+    assert!(
+        opened > 0.5,
+        "the cut did not open under tension: {opened} mm"
+    );
+    assert!(
+        cut_n < 0.95 * whole_n,
+        "cut tissue pulled back as hard as whole: {cut_n} N vs {whole_n} N"
+    );
+}
+
+#[test]
+fn every_integrator_steps_a_cut_pad_pressed_beside_the_cut() {
+    for method in IntegratorName::ALL {
+        let mut sim = pad_with(method, "");
+        let openings = draw_blade(
+            &mut sim,
+            0,
+            -12.3,
+            (-35.0, 35.0),
+            3.0,
+            ToolCommand::default(),
+        );
+        assert!(!openings.is_empty(), "{}: nothing cut", method.as_str());
+        // Press 3 mm just left of the cut, then let go.
+        let mut deepest = 0.0f32;
+        for k in 0..600 {
+            let depth = if k < 300 {
+                -4.0 + 7.0 * (k + 1) as f32 / 300.0
+            } else {
+                3.0
+            };
+            tick(&mut sim, tool_at(3.0, depth, false));
+            let z = sim.objects[0]
+                .state
+                .positions_mm
+                .iter()
+                .map(|p| -p.z)
+                .fold(0.0, f32::max);
+            deepest = deepest.max(z);
+        }
+        for _ in 0..300 {
+            tick(&mut sim, ToolCommand::default());
+        }
+        assert!(sim.objects[0].state.is_finite(), "{}", method.as_str());
+        println!("{}: deepest dent {deepest:.2} mm", method.as_str());
+        assert!(
+            deepest > 1.5,
+            "{}: the cut pad did not dent",
+            method.as_str()
+        );
+    }
+}
+
+#[test]
+fn a_blade_through_the_tet_block_parts_it_into_two_closed_surfaces() {
+    let (path, text) = world_text("tet_block.toml");
+    let mut sim = Sim::new(&parse_world(&path, &text).unwrap()).unwrap();
+    let rest = sim.objects[0].model.rest_positions_mm().to_vec();
+    let (lo, hi) = rest.iter().fold(
+        (Vec3::repeat(f32::MAX), Vec3::repeat(f32::MIN)),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    );
+    let surface_before = sim.objects[0].model.triangles().len();
+    let height = (hi.z - lo.z).max(1.0);
+    let mid_z = 0.5 * (hi.z + lo.z);
+    let mut scratch = CutScratch::default();
+    let x = 0.5 * (lo.x + hi.x) + 0.37;
+    let mut openings = Vec::new();
+    let mut y = lo.y - 3.0;
+    while y < hi.y + 3.0 {
+        let blade = |y: f32| {
+            [
+                Vec3::new(x, y, mid_z - height),
+                Vec3::new(x, y, mid_z + height),
+            ]
+        };
+        let sweep = BladeSweep {
+            from_mm: blade(y),
+            to_mm: blade(y + 1.0),
+        };
+        let opening = sim.cut(0, &sweep, &mut scratch);
+        if !opening.is_empty() {
+            openings.push(opening);
+        }
+        tick(&mut sim, ToolCommand::default());
+        y += 1.0;
+    }
+    let model = &sim.objects[0].model;
+    let tets = &model.tets().tets;
+    println!(
+        "{} openings, {} vertices, {} tets, surface {} -> {} triangles",
+        openings.len(),
+        model.node_count(),
+        tets.len(),
+        surface_before,
+        model.triangles().len()
+    );
+    assert_eq!(pieces(tets, model.node_count()), 2, "not parted");
+    assert!(
+        model.triangles().len() > surface_before,
+        "no cut face shown"
+    );
+    // The surface of each piece is closed and consistently wound: every directed edge once, with its twin.
+    let mut directed: Vec<[u32; 2]> = model
+        .triangles()
+        .iter()
+        .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+        .collect();
+    directed.sort_unstable();
+    let unique = {
+        let mut d = directed.clone();
+        d.dedup();
+        d.len()
+    };
+    assert_eq!(unique, directed.len(), "a directed edge is used twice");
+    for [a, b] in &directed {
+        assert!(
+            directed.binary_search(&[*b, *a]).is_ok(),
+            "edge {a}-{b} has no twin: the surface is open"
+        );
+    }
+    // It still steps.
+    for _ in 0..300 {
+        tick(&mut sim, ToolCommand::default());
+    }
+    assert!(sim.objects[0].state.is_finite());
+}
+
+#[test]
+fn a_sheet_stretched_past_its_strain_limit_tears_and_one_within_it_does_not() {
+    let mut sim = pad_with(IntegratorName::SymplecticEuler, "");
+    // Pull a strip of nodes near x = 0 up by 8 mm from outside (as a tie would), 0.4 s.
+    let near: Vec<usize> = sim.objects[0]
+        .model
+        .rest_positions_mm()
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.x.abs() < 1.5 && p.y.abs() < 4.0)
+        .map(|(i, _)| i)
+        .collect();
+    assert!(!near.is_empty());
+    let mut max_tears = Opening::default();
+    let mut within = 0;
+    for k in 0..400 {
+        let z = 8.0 * ((k + 1) as f32 / 300.0).min(1.0);
+        for &i in &near {
+            let o = &mut sim.objects[0];
+            o.state.positions_mm[i].z = z;
+            o.state.velocities_mm_s[i] = Vec3::zeros();
+        }
+        sim.note_state_changed();
+        within += sim.tear(0, 10.0).new_vertices();
+        let torn = sim.tear(0, 0.3);
+        if !torn.is_empty() {
+            max_tears = torn;
+            break;
+        }
+        tick(&mut sim, ToolCommand::default());
+    }
+    assert_eq!(within, 0, "a strain limit of 1000% tore");
+    assert!(
+        !max_tears.is_empty(),
+        "an 8 mm pull never stretched a spring past 30%"
+    );
+    println!("tore: {} vertices split", max_tears.new_vertices());
+}
