@@ -12,7 +12,7 @@ mod tools;
 pub use force::{ForceCommand, ForceMode};
 pub use hello::{ParticipantHello, Role};
 pub use local_model::{ContactPlane, LocalModel, MAX_CONTACT_PLANES, Sym3};
-pub use mesh_delta::MeshDelta;
+pub use mesh_delta::{MeshDelta, TopologyDelta};
 pub use pose::{DevicePose, RenderMode};
 pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShape};
 pub use stats::{DeviceStats, ExerciseStats, RejectCounts, ServerStats, TrainingStats};

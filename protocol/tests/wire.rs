@@ -130,6 +130,36 @@ fn delta(rng: &mut fastrand::Rng) -> MeshDelta {
         positions_q,
         burn_indices,
         burn,
+        topology: rng.bool().then(|| topology(rng)),
+    }
+}
+
+fn topology(rng: &mut fastrand::Rng) -> TopologyDelta {
+    let first_vertex = rng.u32(1..10_000);
+    let parents: Vec<u32> = (0..rng.usize(0..30))
+        .map(|_| rng.u32(0..first_vertex))
+        .collect();
+    let count = first_vertex + parents.len() as u32;
+    let first_triangle = rng.u32(1..20_000);
+    let mut retargeted: Vec<u32> = (0..rng.usize(0..30))
+        .map(|_| rng.u32(0..first_triangle))
+        .collect();
+    retargeted.sort_unstable();
+    retargeted.dedup();
+    let corners = retargeted
+        .iter()
+        .map(|_| std::array::from_fn(|_| rng.u32(0..count)))
+        .collect();
+    TopologyDelta {
+        epoch: rng.u32(1..),
+        first_vertex,
+        parents,
+        retargeted,
+        corners,
+        first_triangle,
+        added: (0..rng.usize(0..10))
+            .map(|_| std::array::from_fn(|_| rng.u32(0..count)))
+            .collect(),
     }
 }
 
@@ -157,6 +187,7 @@ fn snapshot(rng: &mut fastrand::Rng) -> SceneSnapshot {
                 } else {
                     (0..n).map(|_| rng.u8(..)).collect()
                 },
+                topology_epoch: rng.u32(..),
             }
         })
         .collect();
@@ -419,6 +450,7 @@ fn out_of_domain_fields_are_refused_by_name() {
         positions_q: vec![[0; 3]; 3],
         frame: 0,
         burn: Vec::new(),
+        topology_epoch: 0,
     });
     assert!(matches!(
         decode::<SceneSnapshot>(&encode_to_vec(sinew_protocol::InstanceId(1), &s)),
@@ -457,6 +489,7 @@ fn out_of_domain_fields_are_refused_by_name() {
         positions_q: vec![[0; 3]; 3],
         frame: 0,
         burn: vec![255; 2],
+        topology_epoch: 0,
     });
     assert!(matches!(
         decode::<SceneSnapshot>(&encode_to_vec(sinew_protocol::InstanceId(1), &s)),
@@ -465,6 +498,54 @@ fn out_of_domain_fields_are_refused_by_name() {
             ..
         })
     ));
+    // Topology changes (protocol 7): refused by name when they contradict themselves.
+    let good = topology(&mut rng);
+    for (field, bad) in [
+        (
+            "topology.epoch",
+            TopologyDelta {
+                epoch: 0,
+                ..good.clone()
+            },
+        ),
+        (
+            "topology.corners",
+            TopologyDelta {
+                corners: Vec::new(),
+                retargeted: vec![0],
+                ..good.clone()
+            },
+        ),
+        (
+            "topology.retargeted",
+            TopologyDelta {
+                retargeted: vec![good.first_triangle],
+                corners: vec![[0; 3]],
+                ..good.clone()
+            },
+        ),
+        (
+            "topology.parents",
+            TopologyDelta {
+                parents: vec![good.first_vertex],
+                ..good.clone()
+            },
+        ),
+        (
+            "topology.corners",
+            TopologyDelta {
+                added: vec![[0, 0, good.first_vertex + good.parents.len() as u32]],
+                ..good.clone()
+            },
+        ),
+    ] {
+        let mut d = delta(&mut rng);
+        d.topology = Some(bad);
+        match decode::<MeshDelta>(&encode_to_vec(sinew_protocol::InstanceId(1), &d)) {
+            Err(DecodeError::Invalid { field: f, .. }) => assert_eq!(f, field),
+            other => panic!("{field}: {other:?}"),
+        }
+    }
     // Tool states: a jaw opening outside 0..pi is refused by name.
     let mut t = tool_states(&mut rng);
     t.tools.push(ToolState {

@@ -82,6 +82,15 @@ fn delta() -> MeshDelta {
         positions_q: vec![[1, 2, 3], [65535, 0, 32768]],
         burn_indices: vec![5],
         burn: vec![200],
+        topology: Some(TopologyDelta {
+            epoch: 1,
+            first_vertex: 301,
+            parents: vec![5],
+            retargeted: vec![2],
+            corners: vec![[4, 301, 6]],
+            first_triangle: 10,
+            added: vec![[301, 6, 7]],
+        }),
     }
 }
 
@@ -117,6 +126,7 @@ fn snapshot() -> SceneSnapshot {
             positions_q: vec![[0, 0, 32768], [65535, 0, 32768], [0, 65535, 32768]],
             frame: 12,
             burn: Vec::new(),
+            topology_epoch: 0,
         }],
         tools: vec![ToolInfo {
             tool: 0,

@@ -5,9 +5,44 @@
 //! exactly the server's quantized state. Pure data; must not touch zenoh.
 
 use sinew_protocol::quantize::QuantBounds;
-use sinew_protocol::{MeshDelta, ObjectSnapshot};
+use sinew_protocol::{MeshDelta, ObjectSnapshot, TopologyDelta};
 
 use crate::tissue::Vec3;
+
+/// An object's connectivity as the sim left it: what a replica needs to follow its cuts and tears.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ObjectTopology {
+    /// The sim's count of topology changes of this object (see `SimObject::topology_version`).
+    pub version: u32,
+    /// Surface triangles.
+    pub triangles: Vec<[u32; 3]>,
+    /// The world mesh's vertex count: vertices from here on were split off a parent.
+    pub first_split: u32,
+    /// The parent of each split vertex, in id order.
+    pub parents: Vec<u32>,
+}
+
+impl ObjectTopology {
+    /// Copy `object`'s topology in when its version differs (allocation only then).
+    pub fn follow(&mut self, object: &crate::sim::SimObject) {
+        if self.version == object.topology_version() && !self.triangles.is_empty() {
+            return;
+        }
+        let (first, parents) = object.split_parents();
+        self.version = object.topology_version();
+        self.triangles.clear();
+        self.triangles.extend_from_slice(object.model.triangles());
+        self.first_split = first;
+        self.parents.clear();
+        self.parents.extend_from_slice(parents);
+    }
+    /// Copy `other` in when its version differs (allocation only then).
+    pub fn sync_from(&mut self, other: &ObjectTopology) {
+        if self.version != other.version || self.triangles.len() != other.triangles.len() {
+            self.clone_from(other);
+        }
+    }
+}
 
 /// Replication state of one object.
 #[derive(Debug, Clone)]
@@ -22,6 +57,10 @@ pub struct ObjectReplication {
     clamped: u64,
     /// Burn level last sent per vertex (0-255).
     sent_burn: Vec<u8>,
+    /// The sim topology version the sent state follows.
+    sent_version: u32,
+    /// Topology deltas sent (the wire's epoch).
+    sent_epoch: u32,
 }
 
 impl ObjectReplication {
@@ -55,6 +94,8 @@ impl ObjectReplication {
             sent_true_mm: true_mm,
             last_frame: 0,
             clamped: 0,
+            sent_version: 0,
+            sent_epoch: 0,
         }
     }
 
@@ -83,14 +124,16 @@ impl ObjectReplication {
         self.clamped
     }
 
-    /// Fill `out` with the vertices whose quantized position or burn level (`burn`, one per vertex; an empty
-    /// slice changes nothing) changed, for publish `frame`. Returns false (and records nothing) when nothing
-    /// changed. Reuses `out`'s buffers.
+    /// Fill `out` with the topology change since the last delta, if any (`topology`, the sim's; `None` keeps
+    /// the world's mesh), then the vertices whose quantized position or burn level (`burn`, one per vertex; an
+    /// empty slice changes nothing) changed, for publish `frame`. Returns false (and records nothing) when
+    /// nothing changed. Reuses `out`'s buffers; allocates only when the topology changed.
     pub fn delta(
         &mut self,
         object: u16,
         positions_mm: &[Vec3],
         burn: &[u8],
+        topology: Option<&ObjectTopology>,
         frame: u64,
         out: &mut MeshDelta,
     ) -> bool {
@@ -98,6 +141,9 @@ impl ObjectReplication {
         out.positions_q.clear();
         out.burn_indices.clear();
         out.burn.clear();
+        out.topology = topology
+            .filter(|t| t.version != self.sent_version)
+            .and_then(|t| self.follow_topology(t));
         for (i, (&level, sent)) in burn.iter().zip(self.sent_burn.iter_mut()).enumerate() {
             if level != *sent {
                 *sent = level;
@@ -114,7 +160,7 @@ impl ObjectReplication {
                 out.positions_q.push(q);
             }
         }
-        if out.indices.is_empty() && out.burn_indices.is_empty() {
+        if out.indices.is_empty() && out.burn_indices.is_empty() && out.topology.is_none() {
             return false;
         }
         for (dst, p) in self.sent_true_mm.iter_mut().zip(positions_mm) {
@@ -125,6 +171,55 @@ impl ObjectReplication {
         out.frame = frame;
         self.last_frame = frame;
         true
+    }
+
+    /// Bring the sent state to `topology` (new vertices start as their parents were sent, as a replica starts
+    /// them) and describe the change; `None` when the topology does not extend what was sent (it never
+    /// shrinks or renumbers), which keeps the sent state.
+    fn follow_topology(&mut self, topology: &ObjectTopology) -> Option<TopologyDelta> {
+        let sent = self.sent_q.len();
+        let first = topology.first_split as usize;
+        let total = first + topology.parents.len();
+        let old_triangles = self.triangles.len();
+        if total < sent || sent < first || topology.triangles.len() < old_triangles {
+            return None;
+        }
+        let parents = &topology.parents[sent - first..];
+        for &p in parents {
+            let p = p as usize;
+            let (q, b, t) = (
+                *self.sent_q.get(p)?,
+                *self.sent_burn.get(p)?,
+                *self.sent_true_mm.get(p)?,
+            );
+            self.sent_q.push(q);
+            self.sent_burn.push(b);
+            self.sent_true_mm.push(t);
+        }
+        let mut change = TopologyDelta {
+            first_vertex: sent as u32,
+            parents: parents.to_vec(),
+            first_triangle: old_triangles as u32,
+            added: topology.triangles[old_triangles..].to_vec(),
+            ..TopologyDelta::default()
+        };
+        for (t, (sent, now)) in self
+            .triangles
+            .iter_mut()
+            .zip(&topology.triangles)
+            .enumerate()
+        {
+            if sent != now {
+                *sent = *now;
+                change.retargeted.push(t as u32);
+                change.corners.push(*now);
+            }
+        }
+        self.triangles.extend_from_slice(&change.added);
+        self.sent_version = topology.version;
+        self.sent_epoch += 1;
+        change.epoch = self.sent_epoch;
+        Some(change)
     }
 
     /// The object's full replicated state.
@@ -141,6 +236,7 @@ impl ObjectReplication {
             } else {
                 self.sent_burn.clone()
             },
+            topology_epoch: self.sent_epoch,
         }
     }
 }
@@ -154,14 +250,14 @@ mod tests {
         let rest = vec![Vec3::zeros(), Vec3::x(), Vec3::y()];
         let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0);
         let mut out = MeshDelta::default();
-        assert!(!rep.delta(0, &rest, &[], 1, &mut out));
+        assert!(!rep.delta(0, &rest, &[], None, 1, &mut out));
         let mut moved = rest.clone();
         moved[1].z = 1.0;
-        assert!(rep.delta(0, &moved, &[], 2, &mut out));
+        assert!(rep.delta(0, &moved, &[], None, 2, &mut out));
         assert_eq!(out.indices, vec![1]);
         assert_eq!((out.prev_frame, out.frame), (0, 2));
         moved[2].z = -1.0;
-        assert!(rep.delta(0, &moved, &[], 5, &mut out));
+        assert!(rep.delta(0, &moved, &[], None, 5, &mut out));
         assert_eq!(out.indices, vec![2]);
         assert_eq!((out.prev_frame, out.frame), (2, 5));
         let snap = rep.snapshot(0);

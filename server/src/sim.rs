@@ -87,6 +87,12 @@ pub struct SimObject {
     /// Facets a blade or a tear has cut that still join two elements, sorted: they open as soon as the cut
     /// around them separates a vertex (see [`Sim::open_seams`]).
     severed: Vec<Facet>,
+    /// Topology changes so far (0: the world's mesh as loaded).
+    topology_version: u32,
+    /// The world mesh's vertex count: vertices from here on were split off a parent by a cut or tear.
+    first_split_vertex: u32,
+    /// The parent of each split vertex, in id order.
+    split_parents: Vec<u32>,
 }
 
 impl SimObject {
@@ -98,6 +104,17 @@ impl SimObject {
     /// The region of deformation, when the object is region-tracked.
     pub fn region(&self) -> Option<&RegionTracker> {
         self.region.as_ref()
+    }
+
+    /// Topology changes (cuts and tears that opened something) so far; 0 for the mesh as loaded.
+    pub fn topology_version(&self) -> u32 {
+        self.topology_version
+    }
+
+    /// The world mesh's vertex count, and the parent of every vertex split off since (vertex
+    /// `first + k` from `parents[k]`).
+    pub fn split_parents(&self) -> (u32, &[u32]) {
+        (self.first_split_vertex, &self.split_parents)
     }
 
     /// How burnt each node is, 0 to 65535 (the 0-255 level is `value >> 8`).
@@ -367,6 +384,9 @@ impl Sim {
                 region,
                 burn: vec![0; model.node_count()],
                 severed: Vec::new(),
+                topology_version: 0,
+                first_split_vertex: model.node_count() as u32,
+                split_parents: Vec::new(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
@@ -497,6 +517,8 @@ impl Sim {
             .as_ref()
             .map(|r| RegionTracker::new(&model, r.params()));
         o.model = model;
+        o.topology_version += 1;
+        o.split_parents.extend_from_slice(&opening.parents);
         all.retain(|f| shared_by_two(&o.model, f));
         o.severed = all;
         for tool in &mut self.tools {

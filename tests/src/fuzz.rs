@@ -166,6 +166,15 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
                 positions_q: vec![[1, 2, 3], [65535, 0, 32768]],
                 burn_indices: vec![5],
                 burn: vec![200],
+                topology: Some(sinew_protocol::TopologyDelta {
+                    epoch: 1,
+                    first_vertex: 301,
+                    parents: vec![5, 7],
+                    retargeted: vec![2],
+                    corners: vec![[5, 301, 302]],
+                    first_triangle: 10,
+                    added: vec![[301, 302, 7]],
+                }),
             },
         ),
         encode_to_vec(sender, &tools),
@@ -185,6 +194,7 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
                     positions_q: vec![[0; 3], [1; 3], [2; 3]],
                     frame: 3,
                     burn: vec![0, 128, 255],
+                    topology_epoch: 2,
                 }],
                 tools: vec![ToolInfo {
                     tool: 0,

@@ -8,7 +8,9 @@
 //! here and used unchanged by the network client and by the renderer. A refused update never changes state.
 
 use sinew_protocol::quantize::QuantBounds;
-use sinew_protocol::{MeshDelta, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolStates};
+use sinew_protocol::{
+    MeshDelta, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolStates, TopologyDelta,
+};
 use thiserror::Error;
 
 /// What [`SceneReplica::apply_delta`] did with a delta it accepted.
@@ -57,6 +59,26 @@ pub enum ReplicaError {
         /// Vertices in the replica object.
         vertex_count: usize,
     },
+    /// A topology change that does not follow the object's topology epoch: one was missed.
+    #[error(
+        "topology gap on object {object}: replica at epoch {have_epoch}, change to epoch {epoch}"
+    )]
+    TopologyGap {
+        /// Object index.
+        object: u16,
+        /// The replica object's epoch.
+        have_epoch: u32,
+        /// The change's epoch.
+        epoch: u32,
+    },
+    /// A topology change that does not fit the object (a protocol error).
+    #[error("topology change for object {object}: {reason}")]
+    BadTopology {
+        /// Object index.
+        object: u16,
+        /// What does not fit.
+        reason: String,
+    },
     /// Indices and positions differ in length (a protocol error; decoding refuses this too).
     #[error("delta for object {object} has {indices} indices but {positions} positions")]
     LengthMismatch {
@@ -72,7 +94,10 @@ pub enum ReplicaError {
 impl ReplicaError {
     /// True for a protocol error (the delta itself is wrong), false for a gap (something was missed).
     pub fn is_protocol_error(&self) -> bool {
-        !matches!(self, ReplicaError::Gap { .. })
+        !matches!(
+            self,
+            ReplicaError::Gap { .. } | ReplicaError::TopologyGap { .. }
+        )
     }
 }
 
@@ -87,6 +112,8 @@ pub struct ReplicaObject {
     frame: u64,
     /// Burn level per vertex, 0-255 (all zero until a cautery tip touches).
     burn: Vec<u8>,
+    /// Topology changes folded in (0: the world's mesh).
+    topology_epoch: u32,
 }
 
 impl ReplicaObject {
@@ -104,6 +131,7 @@ impl ReplicaObject {
             positions_q: object.positions_q,
             frame: object.frame,
             burn,
+            topology_epoch: object.topology_epoch,
         }
     }
 
@@ -125,7 +153,75 @@ impl ReplicaObject {
             } else {
                 self.burn.clone()
             },
+            topology_epoch: self.topology_epoch,
         }
+    }
+
+    /// Topology changes (cuts, tears) folded in; 0 for the world's mesh.
+    pub fn topology_epoch(&self) -> u32 {
+        self.topology_epoch
+    }
+
+    /// Check a topology change against this object: its epoch follows, its ids start where the object ends,
+    /// and every id it names exists. Changes nothing.
+    fn check_topology(&self, change: &TopologyDelta) -> Result<(), ReplicaError> {
+        let object = self.index;
+        if change.epoch != self.topology_epoch.wrapping_add(1) {
+            return Err(ReplicaError::TopologyGap {
+                object,
+                have_epoch: self.topology_epoch,
+                epoch: change.epoch,
+            });
+        }
+        let bad = |reason: String| Err(ReplicaError::BadTopology { object, reason });
+        let (vertices, triangles) = (self.positions_q.len(), self.triangles.len());
+        if change.first_vertex as usize != vertices {
+            return bad(format!(
+                "first new vertex {} but the object has {vertices}",
+                change.first_vertex
+            ));
+        }
+        if change.first_triangle as usize != triangles {
+            return bad(format!(
+                "first new triangle {} but the object has {triangles}",
+                change.first_triangle
+            ));
+        }
+        if let Some(p) = change.parents.iter().find(|&&p| p as usize >= vertices) {
+            return bad(format!("parent {p} is not a vertex"));
+        }
+        if let Some(t) = change.retargeted.iter().find(|&&t| t as usize >= triangles) {
+            return bad(format!("retargeted triangle {t} does not exist"));
+        }
+        if change.retargeted.len() != change.corners.len() {
+            return bad("retargeted and corners differ in length".to_owned());
+        }
+        let count = vertices + change.parents.len();
+        if let Some(v) = change
+            .corners
+            .iter()
+            .chain(&change.added)
+            .flatten()
+            .find(|&&v| v as usize >= count)
+        {
+            return bad(format!("corner {v} is not a vertex"));
+        }
+        Ok(())
+    }
+
+    /// Apply a checked topology change: new vertices start at their parents' positions and burn levels.
+    fn apply_topology(&mut self, change: &TopologyDelta) {
+        self.positions_q.reserve(change.parents.len());
+        for &p in &change.parents {
+            let (q, b) = (self.positions_q[p as usize], self.burn[p as usize]);
+            self.positions_q.push(q);
+            self.burn.push(b);
+        }
+        for (&t, &corners) in change.retargeted.iter().zip(&change.corners) {
+            self.triangles[t as usize] = corners;
+        }
+        self.triangles.extend_from_slice(&change.added);
+        self.topology_epoch = change.epoch;
     }
 
     /// Object index (as used by [`MeshDelta::object`]).
@@ -194,6 +290,7 @@ pub struct SceneReplica {
     tool_states: ToolStates,
     revision: u64,
     snapshot_revision: u64,
+    topology_revision: u64,
 }
 
 impl PartialEq for SceneReplica {
@@ -235,6 +332,7 @@ impl SceneReplica {
         self.tool_states = snapshot.tool_states;
         self.revision += 1;
         self.snapshot_revision = self.revision;
+        self.topology_revision = self.revision;
     }
 
     /// Fold one delta into its object.
@@ -276,7 +374,11 @@ impl SceneReplica {
                 positions: delta.burn.len(),
             });
         }
-        let vertex_count = object.positions_q.len();
+        if let Some(change) = &delta.topology {
+            object.check_topology(change)?;
+        }
+        let vertex_count =
+            object.positions_q.len() + delta.topology.as_ref().map_or(0, |t| t.parents.len());
         if let Some(&index) = delta
             .indices
             .iter()
@@ -288,6 +390,10 @@ impl SceneReplica {
                 index,
                 vertex_count,
             });
+        }
+        if let Some(change) = &delta.topology {
+            object.apply_topology(change);
+            self.topology_revision = self.revision + 1;
         }
         for (&index, &position_q) in delta.indices.iter().zip(&delta.positions_q) {
             // In range: checked above.
@@ -349,6 +455,12 @@ impl SceneReplica {
     /// changed (object frames alone do not tell, since a restarted server counts frames from zero again).
     pub fn snapshot_revision(&self) -> u64 {
         self.snapshot_revision
+    }
+
+    /// The [`Self::revision`] at which some object's triangles or vertex count last changed (a snapshot, or a
+    /// cut or tear): a renderer rebuilds its meshes when it moves.
+    pub fn topology_revision(&self) -> u64 {
+        self.topology_revision
     }
 
     /// The replicated objects, in index order.
@@ -469,6 +581,7 @@ mod tests {
                 positions_q,
                 frame,
                 burn: Vec::new(),
+                topology_epoch: 0,
             }],
             tools: vec![ToolInfo {
                 tool: 0,
@@ -787,5 +900,64 @@ mod tests {
                 "error {err} mm"
             );
         }
+    }
+
+    #[test]
+    fn a_cut_appends_vertices_at_their_parents_and_retargets_triangles_and_a_bad_one_changes_nothing()
+     {
+        let n = 3;
+        let start = quantize_all(&sheet_positions_mm(n));
+        let mut replica = SceneReplica::from_snapshot(snapshot(start.clone(), n, 10));
+        let triangles = replica.object(0).unwrap().triangles().to_vec();
+        let cut = TopologyDelta {
+            epoch: 1,
+            first_vertex: start.len() as u32,
+            parents: vec![4],
+            retargeted: vec![1],
+            corners: vec![triangles[1].map(|v| if v == 4 { start.len() as u32 } else { v })],
+            first_triangle: triangles.len() as u32,
+            added: Vec::new(),
+        };
+        let mut delta = MeshDelta {
+            object: 0,
+            frame: 11,
+            prev_frame: 10,
+            indices: vec![start.len() as u32],
+            positions_q: vec![[7, 8, 9]],
+            topology: Some(cut.clone()),
+            ..MeshDelta::default()
+        };
+        // Wrong epoch, a first vertex that is not the end, a corner past the new end: refused, nothing changes.
+        let before = replica.clone();
+        for bad in [
+            TopologyDelta {
+                epoch: 2,
+                ..cut.clone()
+            },
+            TopologyDelta {
+                first_vertex: 3,
+                ..cut.clone()
+            },
+            TopologyDelta {
+                corners: vec![[0, 1, 99]],
+                ..cut.clone()
+            },
+        ] {
+            delta.topology = Some(bad);
+            assert!(replica.apply_delta(&delta).is_err());
+            assert_eq!(replica, before);
+        }
+        delta.topology = Some(cut);
+        let topology_before = replica.topology_revision();
+        assert_eq!(replica.apply_delta(&delta), Ok(DeltaOutcome::Applied));
+        let object = replica.object(0).unwrap();
+        assert_eq!(object.vertex_count(), start.len() + 1);
+        assert_eq!(object.quantized()[start.len()], [7, 8, 9]);
+        assert_eq!(object.topology_epoch(), 1);
+        assert!(object.triangles()[1].contains(&(start.len() as u32)));
+        assert!(replica.topology_revision() > topology_before);
+        // A snapshot of the replica carries the epoch, and a replica rebuilt from it equals this one.
+        let again = SceneReplica::from_snapshot(replica.to_snapshot());
+        assert_eq!(again.object(0), replica.object(0));
     }
 }

@@ -290,6 +290,7 @@ mod tests {
                 positions_q: vec![[0; 3]; 3],
                 frame: object_frame,
                 burn: Vec::new(),
+                topology_epoch: 0,
             }],
             tools: Vec::new(),
             tool_states: ToolStates::default(),

@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 6
+PROTOCOL_VERSION = 7
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -257,6 +257,20 @@ class ParticipantHello:
 
 
 @dataclass
+class TopologyDelta:
+    """A cut or tear: vertices split off their parents, triangles re-pointed, surface triangles added (ids are
+    only ever appended; a re-pointed triangle keeps its id). Apply before the delta's positions and burn."""
+
+    epoch: int = wire_field("u32", default=0)
+    first_vertex: int = wire_field("u32", default=0)
+    parents: List[int] = wire_field(("vec", "u32"), default_factory=list)
+    retargeted: List[int] = wire_field(("vec", "u32"), default_factory=list)
+    corners: List[List[int]] = wire_field(("vec", ("arr", "u32", 3)), default_factory=list)
+    first_triangle: int = wire_field("u32", default=0)
+    added: List[List[int]] = wire_field(("vec", ("arr", "u32", 3)), default_factory=list)
+
+
+@dataclass
 class MeshDelta:
     """Server -> viewers: the changed vertices of one object, quantized against its snapshot bounds."""
 
@@ -268,6 +282,7 @@ class MeshDelta:
     positions_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
     burn_indices: List[int] = wire_field(("vec", "u32"), default_factory=list)
     burn: List[int] = wire_field(("vec", "u8"), default_factory=list)
+    topology: Optional[TopologyDelta] = wire_field(("opt", TopologyDelta), default=None)
 
 
 @dataclass
@@ -312,6 +327,7 @@ class ObjectSnapshot:
     positions_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
     frame: int = wire_field("u64", default=0)
     burn: List[int] = wire_field(("vec", "u8"), default_factory=list)
+    topology_epoch: int = wire_field("u32", default=0)
 
 
 TOOL_SHAPE = (

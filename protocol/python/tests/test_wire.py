@@ -52,6 +52,9 @@ def main():
     assert snapshot.tools[0].instrument == {"kind": "grasper", "jaw_length_mm": 8.0, "open_angle_rad": 0.5}
     assert snapshot.tool_states.tools[0].attachments == 12 and snapshot.tool_states.tools[0].jaw_angle_rad == 0.5
     assert snapshot.objects[0].bounds.dequantize([65535, 0, 32768])[0] == 40.0
+    _, delta = wire.decode(vectors["MeshDelta"], wire.MeshDelta)
+    assert delta.topology is not None and delta.topology.parents == [5] and delta.topology.added == [[301, 6, 7]]
+    assert snapshot.objects[0].topology_epoch == 0
     _, stats = wire.decode(vectors["ServerStats"], wire.ServerStats)
     assert stats.devices[0].training.skill_state == "contact" and stats.exercise is None
     # Bad input: clear errors, never a crash.

@@ -98,6 +98,9 @@ pub struct ObjectSnapshot {
     pub frame: u64,
     /// Burn level of each vertex (0-255), or empty when nothing is burnt. Protocol 6.
     pub burn: Vec<u8>,
+    /// Connectivity changes (cuts, tears) folded into `triangles` and `positions_q`; 0 for the world's own mesh.
+    /// The next [`crate::TopologyDelta`] for this object has `epoch` one more. Protocol 7.
+    pub topology_epoch: u32,
 }
 
 /// Everything a viewer (or a hapticserver) needs to start replicating.

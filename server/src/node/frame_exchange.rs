@@ -20,6 +20,8 @@ pub struct FrameData {
     pub burn: Vec<Vec<u8>>,
     /// Tool states, tool order.
     pub tools: Vec<ToolState>,
+    /// Connectivity per object (copied only when a cut or tear changed it).
+    pub topology: Vec<crate::replication::ObjectTopology>,
 }
 
 /// A single-slot exchange: the sim thread `try_offer`s (never blocks), the publisher `take`s.
@@ -47,13 +49,23 @@ impl FrameExchange {
                     .map(|o| vec![0; o.burn().len()])
                     .collect(),
                 tools: vec![ToolState::default(); sim.tools.len()],
+                topology: sim
+                    .objects
+                    .iter()
+                    .map(|o| {
+                        let mut t = crate::replication::ObjectTopology::default();
+                        t.follow(o);
+                        t
+                    })
+                    .collect(),
             }),
             offered: AtomicU64::new(0),
         }
     }
 
     /// Copy the sim's current frame in. Returns false (nothing written) if the publisher holds the slot.
-    /// Real-time contract: never blocks, no allocation.
+    /// Real-time contract: never blocks; no allocation, except on the first offer after a cut or tear grew an
+    /// object.
     pub fn try_offer(&self, sim: &Sim, outputs: &[ToolOutput]) -> bool {
         let Ok(mut frame) = self.slot.try_lock() else {
             return false;
@@ -61,12 +73,24 @@ impl FrameExchange {
         frame.tick = sim.steps();
         frame.sim_time_s = sim.time_s();
         for (dst, object) in frame.positions_mm.iter_mut().zip(&sim.objects) {
+            if dst.len() != object.state.positions_mm.len() {
+                dst.resize(
+                    object.state.positions_mm.len(),
+                    crate::tissue::Vec3::zeros(),
+                );
+            }
             dst.copy_from_slice(&object.state.positions_mm);
         }
         for (dst, object) in frame.burn.iter_mut().zip(&sim.objects) {
+            if dst.len() != object.burn().len() {
+                dst.resize(object.burn().len(), 0);
+            }
             for (level, burn) in dst.iter_mut().zip(object.burn()) {
                 *level = (burn >> 8) as u8;
             }
+        }
+        for (dst, object) in frame.topology.iter_mut().zip(&sim.objects) {
+            dst.follow(object);
         }
         for (t, (dst, tool)) in frame.tools.iter_mut().zip(&sim.tools).enumerate() {
             let q = tool.rotation.quaternion();

@@ -264,8 +264,7 @@ fn run(
 ) {
     let mut pacer = Pacer::new(Duration::from_secs_f64(1.0 / shared.world.publish_hz), 0);
     let mut last_offered = 0;
-    let mut positions: Vec<Vec<Vec3>> = Vec::new();
-    let mut burn: Vec<Vec<u8>> = Vec::new();
+    let mut objects = ObjectFrames::default();
     let mut tool_states = ToolStates::default();
     let mut delta = MeshDelta::default();
     let mut buf = Vec::with_capacity(64 * 1024);
@@ -279,16 +278,7 @@ fn run(
         if offered != last_offered {
             last_offered = offered;
             let copied = shared.frames.with_frame(|frame| {
-                positions.resize_with(frame.positions_mm.len(), Vec::new);
-                for (dst, src) in positions.iter_mut().zip(&frame.positions_mm) {
-                    dst.clear();
-                    dst.extend_from_slice(src);
-                }
-                burn.resize_with(frame.burn.len(), Vec::new);
-                for (dst, src) in burn.iter_mut().zip(&frame.burn) {
-                    dst.clear();
-                    dst.extend_from_slice(src);
-                }
+                objects.copy_from(frame);
                 tool_states.sim_time_s = frame.sim_time_s;
                 tool_states.tools.clear();
                 tool_states.tools.extend_from_slice(&frame.tools);
@@ -296,8 +286,7 @@ fn run(
             if copied.is_some() {
                 publish_frame(
                     shared,
-                    &positions,
-                    &burn,
+                    &objects,
                     &mut tool_states,
                     &mut delta,
                     &mut buf,
@@ -325,10 +314,39 @@ fn run(
     }
 }
 
+/// The publish thread's copy of the objects in a frame (buffers reused from frame to frame).
+#[derive(Debug, Default)]
+struct ObjectFrames {
+    positions: Vec<Vec<Vec3>>,
+    burn: Vec<Vec<u8>>,
+    topology: Vec<crate::replication::ObjectTopology>,
+}
+
+impl ObjectFrames {
+    /// Copy `frame`'s objects in; a topology is copied only when a cut or tear changed it.
+    fn copy_from(&mut self, frame: &super::frame_exchange::FrameData) {
+        self.positions
+            .resize_with(frame.positions_mm.len(), Vec::new);
+        for (dst, src) in self.positions.iter_mut().zip(&frame.positions_mm) {
+            dst.clear();
+            dst.extend_from_slice(src);
+        }
+        self.burn.resize_with(frame.burn.len(), Vec::new);
+        for (dst, src) in self.burn.iter_mut().zip(&frame.burn) {
+            dst.clear();
+            dst.extend_from_slice(src);
+        }
+        self.topology
+            .resize_with(frame.topology.len(), Default::default);
+        for (dst, src) in self.topology.iter_mut().zip(&frame.topology) {
+            dst.sync_from(src);
+        }
+    }
+}
+
 fn publish_frame(
     shared: &Shared,
-    positions: &[Vec<Vec3>],
-    burn: &[Vec<u8>],
+    objects: &ObjectFrames,
     tool_states: &mut ToolStates,
     delta: &mut MeshDelta,
     buf: &mut Vec<u8>,
@@ -341,9 +359,18 @@ fn publish_frame(
     let frame = replication.frame;
     tool_states.frame = frame;
     replication.tool_states.clone_from(tool_states);
-    for (o, (object_positions, publisher)) in positions.iter().zip(delta_publishers).enumerate() {
-        let object_burn = burn.get(o).map_or(&[][..], |b| b.as_slice());
-        if replication.objects[o].delta(o as u16, object_positions, object_burn, frame, delta) {
+    for (o, (object_positions, publisher)) in
+        objects.positions.iter().zip(delta_publishers).enumerate()
+    {
+        let object_burn = objects.burn.get(o).map_or(&[][..], |b| b.as_slice());
+        if replication.objects[o].delta(
+            o as u16,
+            object_positions,
+            object_burn,
+            objects.topology.get(o),
+            frame,
+            delta,
+        ) {
             encode(shared.instance, &*delta, buf);
             // Sent under the replication lock so a snapshot can never be taken between a delta's state
             // change and its publication.

@@ -19,6 +19,7 @@ pub struct DebriefFrames {
     replication: ReplicationState,
     positions: Vec<Vec<Vec3>>,
     burn: Vec<Vec<u8>>,
+    topology: Vec<crate::replication::ObjectTopology>,
     delta: MeshDelta,
 }
 
@@ -31,6 +32,7 @@ impl DebriefFrames {
             replication: ReplicationState::new(world, sim),
             positions: Vec::new(),
             burn: Vec::new(),
+            topology: Vec::new(),
             delta: MeshDelta::default(),
         }
     }
@@ -42,12 +44,17 @@ impl DebriefFrames {
         let replication = &mut self.replication;
         let positions = &mut self.positions;
         let burn = &mut self.burn;
+        let topology = &mut self.topology;
         let tools = self.exchange.with_frame(|frame| {
             positions.resize_with(frame.positions_mm.len(), Vec::new);
             for (dst, src) in positions.iter_mut().zip(&frame.positions_mm) {
                 dst.clone_from(src);
             }
             burn.clone_from(&frame.burn);
+            topology.resize_with(frame.topology.len(), Default::default);
+            for (dst, src) in topology.iter_mut().zip(&frame.topology) {
+                dst.sync_from(src);
+            }
             (frame.sim_time_s, frame.tools.clone())
         });
         replication.frame += 1;
@@ -64,6 +71,7 @@ impl DebriefFrames {
                     o as u16,
                     object_positions,
                     object_burn,
+                    self.topology.get(o),
                     frame,
                     &mut self.delta,
                 );

@@ -68,6 +68,7 @@ pub fn sheet_snapshot(
             positions_q,
             frame,
             burn: Vec::new(),
+            topology_epoch: 0,
         }],
         tools: vec![ToolInfo {
             tool: 0,
