@@ -101,9 +101,29 @@ pub enum HandScript {
         /// Duration of the line, s.
         stroke_s: f32,
     },
+    /// Lower the tool to `height_mm` above the surface point (a scalpel's edge reaches below its origin, into
+    /// the tissue) over `descend_s`, then draw it along `line_mm` over `line_s` at constant speed, and hold.
+    CutLine {
+        /// Surface point where the line starts, mm.
+        at_mm: [f32; 3],
+        /// Height of the tool origin above the surface while cutting, mm.
+        height_mm: f32,
+        /// Starting height above the surface, mm.
+        approach_mm: f32,
+        /// Duration of the descent, s.
+        descend_s: f32,
+        /// The line, from its start, mm.
+        line_mm: [f32; 3],
+        /// Duration of the line, s.
+        line_s: f32,
+    },
     /// The target is set from outside (a test, a replay); the hand holds the last target it saw.
     Follow(Arc<LatestValue<[f32; 3]>>),
 }
+
+/// Height of the tool origin above the surface during `cut-line`, mm: a scalpel's edge starts 1 mm below its
+/// origin by default, so it reaches from 0.5 mm above the surface into the tissue.
+pub const CUT_LINE_HEIGHT_MM: f32 = 1.5;
 
 /// Opening of a scripted gripper's open jaws, rad (40 degrees).
 pub const SCRIPT_JAW_OPEN_RAD: f32 = 0.698;
@@ -186,6 +206,11 @@ impl fmt::Debug for HandScript {
                 .field("at_mm", at_mm)
                 .field("depth_mm", depth_mm)
                 .field("stroke_mm", stroke_mm)
+                .finish(),
+            HandScript::CutLine { at_mm, line_mm, .. } => f
+                .debug_struct("CutLine")
+                .field("at_mm", at_mm)
+                .field("line_mm", line_mm)
                 .finish(),
             HandScript::Follow(target) => f.debug_tuple("Follow").field(&target.peek()).finish(),
         }
@@ -329,6 +354,35 @@ impl HandScript {
                 }
                 Some(target)
             }
+            HandScript::CutLine {
+                at_mm,
+                height_mm,
+                approach_mm,
+                descend_s,
+                line_mm,
+                line_s,
+            } => {
+                let mut target = press_target(*at_mm, -height_mm, *approach_mm, *descend_s, t_s);
+                let line_t_s = t_s - f64::from(*descend_s);
+                if line_t_s > 0.0 {
+                    let duration_s = f64::from(line_s.max(1e-3));
+                    let share = (line_t_s / duration_s).min(1.0) as f32;
+                    for ((x, v), d) in target
+                        .position_mm
+                        .iter_mut()
+                        .zip(target.velocity_mm_s.iter_mut())
+                        .zip(line_mm)
+                    {
+                        *x += d * share;
+                        *v = if share < 1.0 {
+                            (f64::from(*d) / duration_s) as f32
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+                Some(target)
+            }
             HandScript::Follow(mailbox) => mailbox.peek().map(HandTarget::at_rest),
         }
     }
@@ -389,7 +443,7 @@ const GRIP_LEAD_S: f64 = 0.2;
 pub enum ScriptError {
     /// Not one of the script names.
     #[error(
-        "unknown script `{0}`: expected one of hold, press, press-stroke, grasp-pull, cauterize"
+        "unknown script `{0}`: expected one of hold, press, press-stroke, grasp-pull, cauterize, cut-line"
     )]
     UnknownScript(String),
     /// A vector option is not three comma-separated numbers.
@@ -420,6 +474,9 @@ pub enum ScriptKind {
     GraspPull,
     /// `cauterize`: [`HandScript::Cauterize`] (press, then button 1 held along a `stroke_mm` line over 2 s).
     Cauterize,
+    /// `cut-line`: [`HandScript::CutLine`] (down to [`CUT_LINE_HEIGHT_MM`] above the surface, then a
+    /// `stroke_mm` line along +y over 2 s).
+    CutLine,
 }
 
 impl ScriptKind {
@@ -431,6 +488,7 @@ impl ScriptKind {
             ScriptKind::PressStroke => "press-stroke",
             ScriptKind::GraspPull => "grasp-pull",
             ScriptKind::Cauterize => "cauterize",
+            ScriptKind::CutLine => "cut-line",
         }
     }
 
@@ -474,6 +532,14 @@ impl ScriptKind {
                 stroke_mm: o.stroke_mm,
                 stroke_s: 2.0,
             },
+            ScriptKind::CutLine => HandScript::CutLine {
+                at_mm: o.at_mm,
+                height_mm: CUT_LINE_HEIGHT_MM,
+                approach_mm: o.approach_mm,
+                descend_s: o.descend_s,
+                line_mm: [0.0, o.stroke_mm, 0.0],
+                line_s: 2.0,
+            },
         })
     }
 }
@@ -487,6 +553,7 @@ impl FromStr for ScriptKind {
             "press-stroke" | "press_stroke" => Ok(ScriptKind::PressStroke),
             "grasp-pull" | "grasp_pull" => Ok(ScriptKind::GraspPull),
             "cauterize" => Ok(ScriptKind::Cauterize),
+            "cut-line" | "cut_line" => Ok(ScriptKind::CutLine),
             other => Err(ScriptError::UnknownScript(other.to_owned())),
         }
     }

@@ -52,7 +52,7 @@ struct Args {
     /// Scene name.
     #[arg(long, default_value = "pad")]
     scene: String,
-    /// Simulated hand script: hold, press, press-stroke, grasp-pull or cauterize.
+    /// Simulated hand script: hold, press, press-stroke, grasp-pull, cauterize or cut-line.
     #[arg(long, default_value = "press")]
     script: ScriptKind,
     /// Press depth below the surface point, mm (negative: above it).

@@ -388,6 +388,19 @@ impl ServerHandle {
             .flatten()
     }
 
+    /// The latest connectivity of an object handed to the publisher: its topology version (cuts and tears so
+    /// far), surface triangles and vertex count (for tests and diagnostics).
+    pub fn latest_topology(&self, object: usize) -> Option<(u32, Vec<[u32; 3]>, usize)> {
+        self.shared
+            .frames
+            .with_frame(|frame| {
+                let topology = frame.topology.get(object)?;
+                let vertices = frame.positions_mm.get(object)?.len();
+                Some((topology.version, topology.triangles.clone(), vertices))
+            })
+            .flatten()
+    }
+
     /// Why the server can no longer run, once a thread of it failed (the sim thread panicked; its devices were
     /// sent an explicit zero force first). A process embedding the server must stop when this is `Some`.
     pub fn failure(&self) -> Option<&str> {

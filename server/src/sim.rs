@@ -194,6 +194,21 @@ pub struct SimTool {
     grasp: Option<Grasp>,
     /// The tissue's pull on the tool through the grasp at the end of the last tick, N.
     grasp_force_n: Vec3,
+    /// A scalpel's edge in the world at the end of the last tick (None while inactive: a tool that comes back
+    /// does not sweep from where it left).
+    edge_world_mm: Option<[Vec3; 2]>,
+    /// The blade sweep's scratch.
+    cut_scratch: CutScratch,
+    /// The drag of cutting this tick, N (world frame, against the edge's motion).
+    cut_force_n: Vec3,
+    /// The edge is cutting: how recently it cut, 1 on a tick that cut, decaying with [`CUT_DRAG_TAU_S`]
+    /// (the edge crosses the mesh's facets one at a time; the drag of cutting is felt in between).
+    cut_level: f32,
+    /// The edge moved this tick.
+    edge_moving: bool,
+    /// The tool has reached its hand since it was (re)taken: until then it is being dragged from its entry
+    /// point, and a scalpel's edge does not cut along that path (the surgeon did not make it).
+    joined: bool,
 }
 
 impl SimTool {
@@ -282,6 +297,8 @@ pub struct ToolOutput {
     pub attachments: u16,
     /// A cautery tool burnt tissue this tick.
     pub burning: bool,
+    /// A scalpel's edge cut tissue this tick.
+    pub cutting: bool,
 }
 
 /// Times the anti-divergence guard may halve a tick's step (down to 1/16 of the planned one) before it gives
@@ -316,6 +333,10 @@ pub struct StepReport {
     pub attachments_slipped: u32,
     /// Nodes a cautery tool burnt this tick (summed over tools).
     pub nodes_burnt: u32,
+    /// Facets scalpels' edges cut this tick (a cut opens once it separates a vertex).
+    pub seams_cut: u32,
+    /// Vertices split off by cuts this tick.
+    pub vertices_split: u32,
 }
 
 /// The whole simulated scene.
@@ -413,6 +434,13 @@ impl Sim {
                     .sum::<f32>()
                     .sqrt()
             };
+            // A scalpel's edge reaches beyond its body: it enters clear of the tissue too.
+            let reach_mm = spec.instrument.scalpel().map_or(reach_mm, |s| {
+                s.edge_mm
+                    .iter()
+                    .map(|p| Vec3::from(*p).norm())
+                    .fold(reach_mm, f32::max)
+            });
             let origin = Vec3::from(spec.device_origin_in_world_mm);
             let entry_mm = entry_point_mm(&origin, reach_mm, &objects);
             tools.push(SimTool {
@@ -437,6 +465,12 @@ impl Sim {
                     .grasp()
                     .map(|g| Grasp::new(*g, objects.len())),
                 grasp_force_n: Vec3::zeros(),
+                edge_world_mm: None,
+                cut_scratch: CutScratch::default(),
+                cut_force_n: Vec3::zeros(),
+                cut_level: 0.0,
+                edge_moving: false,
+                joined: false,
                 name: spec.name.clone(),
                 device_id: spec.device_id.clone(),
                 shape_spec: spec.shape.clone(),
@@ -584,6 +618,10 @@ impl Sim {
     ) -> StepReport {
         let mut report = StepReport::default();
         self.apply_commands(dt_s, commands);
+        // Scalpels cut what their edges swept since the last tick, before anything reads the topology.
+        for t in 0..self.tools.len() {
+            self.cut_with(t, dt_s, &mut report);
+        }
 
         // Broad phase once per tick, on last tick's refitted surfaces, loosened by the margin.
         let margin = self.collision_margin_mm;
@@ -739,7 +777,7 @@ impl Sim {
             .grasp
             .as_ref()
             .map_or(0, |g| g.attachments().len() as u16);
-        force += tool.grasp_force_n;
+        force += tool.grasp_force_n + tool.cut_force_n;
         held += u32::from(attachments);
         let mut out = limit_force(force, tool.max_force_n, held);
         out.attachments = attachments;
@@ -747,7 +785,63 @@ impl Sim {
             out.jaws_closed = jaws.closed();
             out.jaw_angle_rad = jaws.angle_rad();
         }
+        out.cutting = tool.edge_moving && tool.cut_level > 0.5;
         out
+    }
+
+    /// A scalpel's edge, once its tool has reached the hand (see `SimTool::joined`), from where it was at the end
+    /// of the last tick to where the tool now holds it, cuts
+    /// every object it swept through ([`Self::cut`]), and the tool feels the drag of cutting against the edge's
+    /// motion while it cuts (fading over [`CUT_DRAG_TAU_S`] after the last facet it cut). No allocation unless
+    /// something is cut.
+    fn cut_with(&mut self, t: usize, dt_s: f32, report: &mut StepReport) {
+        let tool = &mut self.tools[t];
+        tool.cut_force_n = Vec3::zeros();
+        tool.cut_level *= (-dt_s / CUT_DRAG_TAU_S).exp();
+        tool.edge_moving = false;
+        let Some(spec) = tool.instrument.scalpel().copied() else {
+            return;
+        };
+        if !tool.active {
+            tool.edge_world_mm = None;
+            tool.cut_level = 0.0;
+            return;
+        }
+        if !tool.joined {
+            tool.joined = (tool.device_mm - tool.position_mm).norm() <= JOINED_MM;
+            tool.edge_world_mm = None;
+            if !tool.joined {
+                return;
+            }
+        }
+        let edge_now = spec
+            .edge_mm
+            .map(|p| tool.position_mm + tool.rotation * Vec3::from(p));
+        let Some(edge_before) = tool.edge_world_mm.replace(edge_now) else {
+            return;
+        };
+        let sweep = BladeSweep {
+            from_mm: edge_before,
+            to_mm: edge_now,
+        };
+        let mut scratch = std::mem::take(&mut tool.cut_scratch);
+        let mut severed = 0;
+        for o in 0..self.objects.len() {
+            let opening = self.cut(o, &sweep, &mut scratch);
+            severed += scratch.seams.len() as u32;
+            report.vertices_split += opening.new_vertices() as u32;
+        }
+        let tool = &mut self.tools[t];
+        tool.cut_scratch = scratch;
+        report.seams_cut += severed;
+        if severed > 0 {
+            tool.cut_level = 1.0;
+        }
+        let motion = (edge_now[0] + edge_now[1] - edge_before[0] - edge_before[1]) * 0.5;
+        if let Some(direction) = motion.try_normalize(MIN_CUT_SPEED_MM_S * dt_s) {
+            tool.edge_moving = true;
+            tool.cut_force_n = -direction * spec.cut_resistance_n * tool.cut_level;
+        }
     }
 
     /// A cautery tool with its button held burns the surface it touches (the nodes on or within its reach of the
@@ -1103,6 +1197,7 @@ impl Sim {
                 // a surface (a device that rejoins while pressing, or a pose that jumped while nobody drove
                 // the tool). The coupling brings it to the pose at its speed limit.
                 tool.coupling.reset(tool.entry_mm);
+                tool.joined = false;
                 tool.position_mm = tool.entry_mm;
                 tool.last_position_mm = tool.entry_mm;
                 tool.last_force_n = Vec3::zeros();
@@ -1114,6 +1209,18 @@ impl Sim {
         }
     }
 }
+
+/// How long the drag of cutting lasts after the edge last cut a facet, s (time constant of its decay): at a
+/// steady 10-20 mm/s the edge crosses a 1 mm mesh's facets every 50-100 ms, and the drag holds in between.
+const CUT_DRAG_TAU_S: f32 = 0.1;
+
+/// An edge slower than this, mm/s, is held still: it feels no drag and is not cutting (the coupled tool still
+/// settles by micrometres after the hand stops).
+const MIN_CUT_SPEED_MM_S: f32 = 1.0;
+
+/// A (re)taken tool has joined its hand once it is this close to the device pose, mm: the coupling's lag under a
+/// hard press is under 1 mm (3.3 N at 5 N/mm).
+const JOINED_MM: f32 = 1.0;
 
 /// Where a tool with origin `origin` and reach `reach_mm` enters the scene: `origin` if no rest node lies within
 /// its reach plus a 2 mm margin, else `origin` moved along the mean outward rest normal of those nodes, 1 mm at a

@@ -439,3 +439,80 @@ fn a_sheet_stretched_past_its_strain_limit_tears_and_one_within_it_does_not() {
     );
     println!("tore: {} vertices split", max_tears.new_vertices());
 }
+
+/// `worlds/cut.toml` (tool 0 a scalpel, edge from 2 mm above to 9 mm below its origin, device origin at world
+/// x = 0.5) as it ships.
+fn cut_world() -> Sim {
+    let (path, text) = world_text("cut.toml");
+    Sim::new(&parse_world(&path, &text).unwrap()).unwrap()
+}
+
+/// The scalpel's hand at device `y_mm`, its origin `height_mm` above the rest surface.
+fn blade_at(y_mm: f32, height_mm: f32) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        position_device_mm: [0.0, y_mm, height_mm],
+        ..ToolCommand::default()
+    }
+}
+
+#[test]
+fn a_scalpel_cuts_where_its_edge_sweeps_and_drags_against_its_motion() {
+    let mut sim = cut_world();
+    // Down from 10 mm to 1.5 mm above the surface (a plunge along the edge cuts nothing), then 10 mm along +y.
+    let mut split = 0;
+    for k in 0..300 {
+        let h = 10.0 - 8.5 * (k + 1) as f32 / 300.0;
+        let (out, report) = tick(&mut sim, blade_at(-5.0, h));
+        split += report.vertices_split;
+        assert!(!out.cutting, "the plunge cut");
+    }
+    for _ in 0..100 {
+        split += tick(&mut sim, blade_at(-5.0, 1.5)).1.vertices_split;
+    }
+    assert_eq!(split, 0, "a plunge along the edge split {split} vertices");
+    let (mut cutting_ticks, mut against) = (0, 0);
+    for k in 0..500 {
+        let y = -5.0 + 10.0 * (k + 1) as f32 / 500.0;
+        let (out, report) = tick(&mut sim, blade_at(y, 1.5));
+        split += report.vertices_split;
+        if out.cutting {
+            cutting_ticks += 1;
+            against += usize::from(out.force_world_n.y < -0.05);
+        }
+    }
+    let mut out = ToolOutput::default();
+    for _ in 0..50 {
+        out = tick(&mut sim, blade_at(5.0, 1.5)).0;
+    }
+    println!(
+        "10 mm line: {split} vertices split, cutting on {cutting_ticks} ticks, dragged back on {against}"
+    );
+    assert!(split >= 8, "a 10 mm line split {split} vertices");
+    assert!(
+        cutting_ticks > 100 && against == cutting_ticks,
+        "the drag did not oppose the motion"
+    );
+    assert!(!out.cutting, "a still edge cut");
+}
+
+#[test]
+fn a_scalpel_that_joins_with_its_edge_in_the_tissue_cuts_nothing_on_its_way_to_the_hand() {
+    let mut sim = cut_world();
+    // The hand is already down, 20 mm from the device origin: the tool enters clear of the tissue and is
+    // dragged to it through the sheet. That path is not the surgeon's cut.
+    let mut split = 0;
+    for _ in 0..400 {
+        split += tick(&mut sim, blade_at(-20.0, 1.5)).1.vertices_split;
+    }
+    assert_eq!(split, 0, "the drag to the hand cut {split} vertices");
+    // Once there, it cuts as it moves.
+    for k in 0..300 {
+        let y = -20.0 + 6.0 * (k + 1) as f32 / 300.0;
+        split += tick(&mut sim, blade_at(y, 1.5)).1.vertices_split;
+    }
+    assert!(
+        split >= 4,
+        "a 6 mm line after joining split {split} vertices"
+    );
+}

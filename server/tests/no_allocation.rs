@@ -250,4 +250,42 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     println!("cautery: {allocations} allocations in 1000 warm ticks burning {burnt} node-ticks");
     assert!(burnt > 0, "nothing burnt while counting");
     assert_eq!(allocations, 0, "a cautery tick allocated");
+
+    // A scalpel drawn back and forth along its own cut: the first pass cuts (a cut allocates: the topology
+    // grows), then the edge keeps sweeping through the tissue along the open slit, which finds nothing new.
+    let cut_path = path.with_file_name("cut.toml");
+    let mut sim = Sim::new(&load_world(&cut_path).unwrap()).unwrap();
+    let cut_ticks = |sim: &mut Sim, ticks: std::ops::Range<usize>| {
+        let mut out = [ToolOutput::default(); 2];
+        let (mut cut, mut split) = (0, 0);
+        for k in ticks {
+            let t = k as f32 * 0.001;
+            // Down to 1.5 mm above the surface in 0.3 s, then along y between -10 and +10 mm, 1 s a pass.
+            let y = 10.0 * (std::f32::consts::PI * (t - 0.3).max(0.0)).sin();
+            let at = ToolCommand {
+                active: true,
+                position_device_mm: [0.0, y, 1.5 + 8.0 * (1.0 - (t / 0.3).min(1.0))],
+                ..ToolCommand::default()
+            };
+            let r = sim.step(0.001, &[at], &mut out);
+            cut += r.seams_cut;
+            split += r.vertices_split;
+        }
+        (cut, split)
+    };
+    let (cut, split) = cut_ticks(&mut sim, 0..2500);
+    assert!(cut > 0 && split > 0, "the first passes cut nothing");
+    ALLOCATIONS.store(0, Ordering::Relaxed);
+    COUNTING.store(true, Ordering::Relaxed);
+    let (cut, split) = cut_ticks(&mut sim, 2500..4500);
+    COUNTING.store(false, Ordering::Relaxed);
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    println!(
+        "scalpel along its own slit: {allocations} allocations in 2000 warm ticks ({cut} facets cut, {split} vertices split)"
+    );
+    assert_eq!(
+        split, 0,
+        "the slit grew while counting: the test cannot tell"
+    );
+    assert_eq!(allocations, 0, "a scalpel tick allocated");
 }

@@ -572,6 +572,26 @@ fn bad_instrument_keys_name_the_key_and_line() {
             "a probe has no jaws",
         ),
         (
+            "{ kind = \"scalpel\", edge_from_mm = [0.0, 0.0, 1.0], edge_to_mm = [0.0, 0.0, 1.05] }",
+            "tools[0].instrument.edge_to_mm",
+            "at least 0.1 mm",
+        ),
+        (
+            "{ kind = \"scalpel\", edge_from_mm = [0.0, nan, 1.0] }",
+            "tools[0].instrument.edge_from_mm",
+            "finite",
+        ),
+        (
+            "{ kind = \"scalpel\", cut_resistance_n = 9.0 }",
+            "tools[0].instrument.cut_resistance_n",
+            "0 to 5 N",
+        ),
+        (
+            "{ kind = \"scalpel\", slip_force_n = 0.5 }",
+            "tools[0].instrument.slip_force_n",
+            "a scalpel takes",
+        ),
+        (
             "{ kind = \"grasper\", slip_force_n = -1.0 }",
             "tools[0].instrument.slip_force_n",
             "positive",

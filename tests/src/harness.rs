@@ -252,8 +252,9 @@ pub fn surgeon_scripts() -> (HandScript, HandScript) {
 
 /// The scripts of the two demo surgeons for `world`: [`surgeon_scripts`], except that a tool that is a grasper
 /// gets a grasp-and-pull (press 1.5 mm, close, pull 8 mm up and 6 mm outward, left to -x and right to +x, hold
-/// 2 s, open): coordinated pulling with two graspers; and a cautery tool burns a 12 mm line (0.5 mm in, current
-/// on for 2 s).
+/// 2 s, open): coordinated pulling with two graspers; a cautery tool burns a 12 mm line (0.5 mm in, current
+/// on for 2 s); and a scalpel draws its edge 40 mm along +y from 20 mm before its device origin (origin 1.5 mm
+/// above the surface, over 2 s).
 pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, HandScript) {
     let (left, right) = surgeon_scripts();
     let grasper = |device: &str| {
@@ -286,11 +287,27 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         stroke_mm: 12.0,
         stroke_s: 2.0,
     };
+    let scalpel = |device: &str| {
+        world
+            .tools
+            .iter()
+            .any(|t| t.device_id == device && t.instrument.scalpel().is_some())
+    };
+    let cut = HandScript::CutLine {
+        at_mm: [0.0, -20.0, 0.0],
+        height_mm: hapticserver::CUT_LINE_HEIGHT_MM,
+        approach_mm: 10.0,
+        descend_s: 1.0,
+        line_mm: [0.0, 40.0, 0.0],
+        line_s: 2.0,
+    };
     let pick = |device: &str, outward_mm: f32, otherwise: HandScript| {
         if grasper(device) {
             pull(outward_mm)
         } else if cautery(device) {
             burn.clone()
+        } else if scalpel(device) {
+            cut.clone()
         } else {
             otherwise
         }

@@ -156,6 +156,31 @@ fn a_recorded_grasp_session_replays_bit_for_bit() {
     assert_eq!(live.faults, 0);
 }
 
+/// A session in which a scalpel cuts the sheet under a grasper's pull replays bit for bit from its recording:
+/// the cut is re-derived from the recorded poses, tick for tick.
+#[test]
+fn a_recorded_cut_session_replays_bit_for_bit() {
+    let _serial = serial();
+    let dir = std::env::temp_dir().join(format!("sinew-cut-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("cut.mcap");
+    let (_, live) = record_two_surgeons_in("cut.toml", &path, Duration::from_secs(5)).unwrap();
+    let recording = read_recording(&path).unwrap();
+    assert!(recording.damage.is_none(), "{:?}", recording.damage);
+    let world = recording.load_world(&dir.join("world")).unwrap();
+    let outcome = replay(&recording, &world).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(outcome.exact(), "{outcome:?}");
+    assert!(outcome.forces_compared > 2000, "{outcome:?}");
+    let kinds: Vec<&str> = recording
+        .events
+        .iter()
+        .map(|(_, _, kind)| kind.as_str())
+        .collect();
+    assert!(kinds.contains(&"cut_begin"), "no cut event: {kinds:?}");
+    assert_eq!(live.faults, 0);
+}
+
 /// A cautery tip burns a line on the sheet over zenoh: every viewer's replica holds exactly the server's burn
 /// levels, a viewer joining afterwards gets them in its snapshot, and the rendered picture shows the burn.
 #[test]
@@ -229,4 +254,108 @@ fn a_cautery_line_reaches_every_viewer_and_the_picture() {
         "charred pixels: {dark_before} before, {dark_after} after"
     );
     assert_eq!(server.stats().sim_faults, 0);
+}
+
+/// A scalpel drawn across the sheet over zenoh while a grasper pulls it: the sheet is cut (vertices split,
+/// triangles re-pointed), every viewer's replica holds exactly the server's triangles and vertex count, a viewer
+/// joining afterwards gets the cut in its snapshot, and the slit opens in the replica.
+#[test]
+fn a_scalpel_cut_reaches_every_viewer_and_opens_under_the_grasper() {
+    let _serial = serial();
+    let world = load_shipped_world("cut.toml").unwrap();
+    let (left_script, right_script) = surgeon_scripts_for(&world);
+    let endpoint = free_loopback_endpoint().unwrap();
+    let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
+    let viewer = start_viewer("cut", "instructor", &endpoint).unwrap();
+    assert!(viewer.wait_for_snapshot(Duration::from_secs(5)));
+    let (_, rest_triangles, rest_vertices) = server.latest_topology(0).unwrap();
+    let left = start_sim_device("cut", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
+    let right = start_sim_device("cut", "right", right_script, &endpoint, Pacing::Sleep).unwrap();
+    // The line is drawn from 1 s to 3 s; wait until the cut stops growing.
+    assert!(
+        wait_until(Duration::from_secs(15), || {
+            server
+                .latest_topology(0)
+                .is_some_and(|(version, _, _)| version > 0)
+        }),
+        "the scalpel never cut"
+    );
+    // The slit opens: split vertices stand apart from their parents in the replica while the grasper pulls.
+    let opened_mm = |r: &sinew_viewer::SceneReplica| {
+        let o = &r.objects()[0];
+        let p = o.positions_mm();
+        let mut widest = 0.0f32;
+        for (old, new) in rest_triangles.iter().zip(o.triangles()) {
+            for (a, b) in old.iter().zip(new) {
+                if a != b && (*a as usize) < p.len() && (*b as usize) < p.len() {
+                    let (pa, pb) = (p[*a as usize], p[*b as usize]);
+                    let d = (0..3).map(|k| (pa[k] - pb[k]).powi(2)).sum::<f32>().sqrt();
+                    widest = widest.max(d);
+                }
+            }
+        }
+        widest
+    };
+    let mut widest_mm = 0.0f32;
+    let mut last = 0;
+    assert!(
+        wait_until(Duration::from_secs(10), || {
+            let now = server.latest_topology(0).map_or(0, |t| t.2);
+            let still = now == last;
+            last = now;
+            for _ in 0..8 {
+                widest_mm = widest_mm.max(viewer.with_replica(opened_mm));
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            still
+        }),
+        "the cut never stopped growing"
+    );
+    let (version, triangles, vertices) = server.latest_topology(0).unwrap();
+    println!(
+        "cut: {version} topology changes, {} vertices split, {} triangles re-pointed",
+        vertices - rest_vertices,
+        triangles
+            .iter()
+            .zip(&rest_triangles)
+            .filter(|(a, b)| a != b)
+            .count()
+    );
+    assert!(
+        vertices - rest_vertices >= 20,
+        "a 40 mm cut split {} vertices",
+        vertices - rest_vertices
+    );
+    assert_eq!(
+        triangles.len(),
+        rest_triangles.len(),
+        "a sheet's cut adds no triangle"
+    );
+    let same = |r: &sinew_viewer::SceneReplica| {
+        let o = &r.objects()[0];
+        o.triangles() == triangles.as_slice() && o.vertex_count() == vertices
+    };
+    assert!(
+        wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
+        "the viewer's mesh differs from the server's after the cut"
+    );
+    // The replica is as close to the server's true positions as quantization allows, new vertices included.
+    let error = replica_error(&server, &viewer, 0, Duration::from_secs(5)).unwrap();
+    assert!(error.max_error_mm <= error.bound_mm, "{error:?}");
+    let late = start_viewer("cut", "late", &endpoint).unwrap();
+    assert!(late.wait_for_snapshot(Duration::from_secs(5)));
+    late.with_replica(|r| {
+        assert!(same(r), "a late viewer's snapshot lacks the cut");
+        assert!(r.objects()[0].topology_epoch() > 0);
+        assert!(matches!(
+            r.tools()[0].instrument,
+            InstrumentInfo::Scalpel { .. }
+        ));
+    });
+    println!("the slit opened up to {widest_mm:.2} mm in the viewer while the grasper pulled");
+    assert!(widest_mm > 0.2, "the slit did not open: {widest_mm} mm");
+    let stats = server.stats();
+    assert_eq!(stats.sim_faults, 0);
+    drop(left);
+    drop(right);
 }

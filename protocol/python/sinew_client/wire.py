@@ -345,6 +345,7 @@ INSTRUMENT = (
         ("probe", []),
         ("grasper", [("jaw_length_mm", "f32"), ("open_angle_rad", "f32")]),
         ("cautery", []),
+        ("scalpel", [("edge_from_mm", V3), ("edge_to_mm", V3)]),
     ],
 )
 

@@ -64,6 +64,14 @@ pub enum InstrumentInfo {
     /// An active tip: the whole shape burns the surface it touches while its button is held
     /// (`MeshDelta.burn`).
     Cautery,
+    /// A sharp edge, a segment in the tool frame, that cuts what it sweeps through (`MeshDelta.topology`);
+    /// the shape is its blunt back. Protocol 7.
+    Scalpel {
+        /// One end of the edge, tool frame, mm.
+        edge_from_mm: [f32; 3],
+        /// The other end, tool frame, mm.
+        edge_to_mm: [f32; 3],
+    },
 }
 
 /// Static description of a tool.
@@ -188,6 +196,14 @@ impl Message for SceneSnapshot {
                         "jaw length not positive or opening outside 0 to pi",
                     ));
                 }
+            }
+            if let InstrumentInfo::Scalpel {
+                edge_from_mm,
+                edge_to_mm,
+            } = tool.instrument
+            {
+                check::finite("tools.instrument", &edge_from_mm)?;
+                check::finite("tools.instrument", &edge_to_mm)?;
             }
         }
         self.tool_states.validate()

@@ -391,5 +391,9 @@ pub fn instrument_info(spec: &crate::world::InstrumentSpec) -> sinew_protocol::I
             open_angle_rad: g.open_angle_rad,
         },
         crate::world::InstrumentSpec::Cautery(_) => sinew_protocol::InstrumentInfo::Cautery,
+        crate::world::InstrumentSpec::Scalpel(s) => sinew_protocol::InstrumentInfo::Scalpel {
+            edge_from_mm: s.edge_mm[0],
+            edge_to_mm: s.edge_mm[1],
+        },
     }
 }

@@ -45,7 +45,8 @@ pub struct ToolActivity {
 
 impl ToolActivity {
     /// What a tick's [`ToolOutput`] says of a tool driven (`active`) or not: a grasper grasps while its jaws
-    /// hold tissue, a cautery tool burns while its current burns tissue. Cutting instruments will add their flag.
+    /// hold tissue, a scalpel cuts while its edge cuts tissue, a cautery tool burns while its current burns
+    /// tissue.
     pub fn from_output(active: bool, out: &ToolOutput) -> Self {
         let force_n = out.force_world_n.norm();
         Self {
@@ -53,7 +54,7 @@ impl ToolActivity {
             near: active && (out.in_contact || out.plane_count > 0),
             in_contact: active && out.in_contact,
             grasping: active && out.attachments > 0,
-            cutting: false,
+            cutting: active && out.cutting,
             burning: active && out.burning,
             force_n: if force_n.is_finite() { force_n } else { 0.0 },
             tip_world_mm: out.device_world_mm.into(),

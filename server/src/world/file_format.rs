@@ -294,7 +294,8 @@ pub(crate) struct ToolSection {
     pub instrument: Option<Spanned<InstrumentSection>>,
 }
 
-/// `instrument = { kind = "probe" | "grasper", ... }` of a tool (see `world::instrument`).
+/// `instrument = { kind = "probe" | "grasper" | "cautery" | "scalpel", ... }` of a tool (see
+/// `world::instrument`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct InstrumentSection {
@@ -316,6 +317,11 @@ pub(crate) struct InstrumentSection {
     pub burn_per_s: Option<f32>,
     /// Cautery: surface this close to the tip burns too, mm.
     pub reach_mm: Option<f32>,
+    /// Scalpel: the sharp edge's ends in the tool frame, mm.
+    pub edge_from_mm: Option<[f32; 3]>,
+    pub edge_to_mm: Option<[f32; 3]>,
+    /// Scalpel: drag against the tool's motion while it cuts, N.
+    pub cut_resistance_n: Option<f32>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -324,6 +330,7 @@ pub(crate) enum InstrumentKindName {
     Probe,
     Grasper,
     Cautery,
+    Scalpel,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]

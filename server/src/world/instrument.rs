@@ -9,7 +9,9 @@
 //! halves on either side of the tool's local `y = 0` plane, hinged about the tool's local x axis at the back of
 //! the body: closing them takes the tissue the body touches on both sides (so a body that grazes tissue with one
 //! side only cannot grasp). `jaw_length_mm` and `open_angle_deg` are how the viewers draw them. A cautery
-//! tool's whole body is its active tip: while its button is held, the surface it touches burns.
+//! tool's whole body is its active tip: while its button is held, the surface it touches burns. A scalpel's
+//! sharp edge is a segment in the tool frame that passes through tissue and cuts what it sweeps; its body is
+//! the blunt back.
 
 /// What a tool is.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -20,6 +22,8 @@ pub enum InstrumentSpec {
     Grasper(GraspSpec),
     /// An active tip (a hook) that burns the tissue it touches while a button is held.
     Cautery(CauterySpec),
+    /// A sharp edge that cuts the tissue it sweeps through; the body (its blunt back) probes.
+    Scalpel(ScalpelSpec),
 }
 
 impl InstrumentSpec {
@@ -29,6 +33,7 @@ impl InstrumentSpec {
             InstrumentSpec::Probe => "probe",
             InstrumentSpec::Grasper(_) => "grasper",
             InstrumentSpec::Cautery(_) => "cautery",
+            InstrumentSpec::Scalpel(_) => "scalpel",
         }
     }
 
@@ -36,7 +41,7 @@ impl InstrumentSpec {
     pub fn grasp(&self) -> Option<&GraspSpec> {
         match self {
             InstrumentSpec::Grasper(g) => Some(g),
-            InstrumentSpec::Probe | InstrumentSpec::Cautery(_) => None,
+            InstrumentSpec::Probe | InstrumentSpec::Cautery(_) | InstrumentSpec::Scalpel(_) => None,
         }
     }
 
@@ -44,9 +49,37 @@ impl InstrumentSpec {
     pub fn cautery(&self) -> Option<&CauterySpec> {
         match self {
             InstrumentSpec::Cautery(c) => Some(c),
-            InstrumentSpec::Probe | InstrumentSpec::Grasper(_) => None,
+            InstrumentSpec::Probe | InstrumentSpec::Grasper(_) | InstrumentSpec::Scalpel(_) => None,
         }
     }
+
+    /// The blade, for a scalpel.
+    pub fn scalpel(&self) -> Option<&ScalpelSpec> {
+        match self {
+            InstrumentSpec::Scalpel(s) => Some(s),
+            InstrumentSpec::Probe | InstrumentSpec::Grasper(_) | InstrumentSpec::Cautery(_) => None,
+        }
+    }
+}
+
+/// A scalpel's blade: a sharp edge, a segment in the tool frame. Between two ticks the edge sweeps a surface;
+/// tissue it sweeps through is cut along the mesh's facets (`interaction::cut`). The edge does not push
+/// tissue (it passes through it); the tool's `shape` is the blunt back and probes as any body does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScalpelSpec {
+    /// The edge's two ends in the tool frame, mm.
+    pub edge_mm: [[f32; 3]; 2],
+    /// Drag the tool feels against its motion while the edge cuts, N.
+    pub cut_resistance_n: f32,
+}
+
+impl ScalpelSpec {
+    /// Defaults of `kind = "scalpel"`: an 8 mm edge from 1 mm to 9 mm below the tool origin along its local
+    /// -z (below a small blunt back at the origin), 0.15 N of drag while cutting.
+    pub const DEFAULT: ScalpelSpec = ScalpelSpec {
+        edge_mm: [[0.0, 0.0, -1.0], [0.0, 0.0, -9.0]],
+        cut_resistance_n: 0.15,
+    };
 }
 
 /// A cautery tool's parameters: its whole body is the active tip.

@@ -1219,6 +1219,9 @@ impl Context<'_> {
             ("max_attachments", section.max_attachments.is_some()),
             ("burn_per_s", section.burn_per_s.is_some()),
             ("reach_mm", section.reach_mm.is_some()),
+            ("edge_from_mm", section.edge_from_mm.is_some()),
+            ("edge_to_mm", section.edge_to_mm.is_some()),
+            ("cut_resistance_n", section.cut_resistance_n.is_some()),
         ];
         let (takes, kind_says): (&[&str], &str) = match section.kind {
             InstrumentKindName::Probe => (
@@ -1243,6 +1246,10 @@ impl Context<'_> {
                 &["button_mask", "burn_per_s", "reach_mm"],
                 "a cautery tool takes button_mask, burn_per_s and reach_mm",
             ),
+            InstrumentKindName::Scalpel => (
+                &["edge_from_mm", "edge_to_mm", "cut_resistance_n"],
+                "a scalpel takes edge_from_mm, edge_to_mm and cut_resistance_n",
+            ),
         };
         if let Some((name, _)) = given
             .iter()
@@ -1252,6 +1259,44 @@ impl Context<'_> {
         }
         match section.kind {
             InstrumentKindName::Probe => Ok(InstrumentSpec::Probe),
+            InstrumentKindName::Scalpel => {
+                let mut scalpel = crate::world::ScalpelSpec::DEFAULT;
+                for (k, (name, value)) in [
+                    ("edge_from_mm", section.edge_from_mm),
+                    ("edge_to_mm", section.edge_to_mm),
+                ]
+                .into_iter()
+                .enumerate()
+                {
+                    if let Some(p) = value {
+                        self.check(
+                            at,
+                            &key(name),
+                            p.iter().all(|c| c.is_finite() && c.abs() <= 500.0),
+                            "must be three finite numbers within 500 mm of the tool origin",
+                        )?;
+                        scalpel.edge_mm[k] = p;
+                    }
+                }
+                let [a, b] = scalpel.edge_mm;
+                let length =
+                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+                self.check(
+                    at,
+                    &key("edge_to_mm"),
+                    length >= 0.1,
+                    "the edge must be at least 0.1 mm long (edge_from_mm and edge_to_mm too close)",
+                )?;
+                self.take_checked(
+                    at,
+                    &key("cut_resistance_n"),
+                    section.cut_resistance_n,
+                    |f| (0.0..=5.0).contains(&f),
+                    "must be 0 to 5 N",
+                    &mut scalpel.cut_resistance_n,
+                )?;
+                Ok(InstrumentSpec::Scalpel(scalpel))
+            }
             InstrumentKindName::Cautery => {
                 let mut cautery = crate::world::CauterySpec::DEFAULT;
                 cautery.button_mask =
