@@ -3,7 +3,11 @@
 //! - probe: both tools press 1.5 mm and stroke +-4 mm along x with their jaws open (they act as probes);
 //! - grasp: both tools press, close their jaws on the sheet, pull it 3 mm up and back (1 s period), open, and
 //!   do it again every 2 s; the ticks that take hold (the closing edge) are also reported on their own;
-//! - cautery (worlds/cautery.toml): one tip 0.5 mm in, stroking +-8 mm, current off and then on.
+//! - cautery (worlds/cautery.toml): one tip 0.5 mm in, stroking +-8 mm, current off and then on;
+//! - cut (worlds/cut.toml): the scalpel drawn +-25 mm along y at 20 mm/s, first with its edge above the sheet,
+//!   then through it, each pass on a fresh line 3 mm further along x; the ticks that open the mesh are also
+//!   reported on their own, and the mesh deltas a viewer would get (one per 60 Hz publish frame) are encoded
+//!   and weighed, with and without a topology change in them.
 //!
 //! Figures are ratios to the probe phase of the same run, so they travel between machines.
 //!
@@ -12,8 +16,11 @@
 
 use std::time::Instant;
 
+use sinew_protocol::MeshDelta;
+use sinew_protocol::codec::{InstanceId, encode_to_vec};
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_server::interaction::JawInput;
+use sinew_server::replication::{ObjectReplication, ObjectTopology};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::load_world;
 
@@ -148,6 +155,111 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         grasp.takes.count(),
         us(grasp.takes.max_ns()),
         us(grasp.takes.max_ns()) / p50
+    );
+    cut_phase(&path.with_file_name("cut.toml"), ticks)?;
+    Ok(())
+}
+
+/// The scalpel of worlds/cut.toml drawn along y, its edge above the sheet (`height_mm` 12) or through it (1.5),
+/// a fresh line each pass; timed ticks, the ticks that split vertices, and the weight of the mesh deltas.
+fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::error::Error>> {
+    let mut sim = Sim::new(&load_world(path)?)?;
+    let object = &sim.objects[0];
+    let mut replication = ObjectReplication::new(
+        &object.name,
+        object.model.rest_positions_mm(),
+        object.model.triangles(),
+        40.0,
+    );
+    let mut topology = ObjectTopology::default();
+    let mut delta = MeshDelta::default();
+    let mut frame = 0;
+    let mut out = [ToolOutput::default(); 2];
+    // Pass k runs at device x = -21 + 3k mm, from y = -25 to +25 (k even) or back (k odd), 2.5 s a pass.
+    let at = |k: usize, height_mm: f32| {
+        let t = k as f32 * 0.001;
+        let pass = (t / 2.5) as usize;
+        let along = (t % 2.5) / 2.5;
+        let y = if pass.is_multiple_of(2) {
+            -25.0 + 50.0 * along
+        } else {
+            25.0 - 50.0 * along
+        };
+        ToolCommand {
+            active: true,
+            position_device_mm: [-21.0 + 3.0 * pass as f32, y, height_mm],
+            ..ToolCommand::default()
+        }
+    };
+    // Join above the sheet at the first line's start (not timed).
+    for _ in 0..500 {
+        sim.step(0.001, &[at(0, 12.0)], &mut out);
+    }
+    let mut air = LatencyHistogram::new();
+    for k in 0..ticks {
+        let started = Instant::now();
+        sim.step(0.001, &[at(k, 12.0)], &mut out);
+        air.record(started.elapsed());
+    }
+    // Down through the sheet at the start of the first line (not timed), then cut.
+    for j in 0..300 {
+        let h = 12.0 - 10.5 * (j + 1) as f32 / 300.0;
+        sim.step(0.001, &[at(0, h)], &mut out);
+    }
+    let (mut cutting, mut splitting) = (LatencyHistogram::new(), LatencyHistogram::new());
+    let (mut split, mut changes) = (0u32, 0u32);
+    let (mut plain_bytes, mut plain_count, mut topo_bytes, mut topo_count, mut topo_max) =
+        (0, 0, 0, 0, 0);
+    for k in 0..ticks {
+        let started = Instant::now();
+        let report = sim.step(0.001, &[at(k, 1.5)], &mut out);
+        let elapsed = started.elapsed();
+        cutting.record(elapsed);
+        if report.vertices_split > 0 {
+            splitting.record(elapsed);
+            changes += 1;
+        }
+        split += report.vertices_split;
+        if k % 16 == 15 {
+            frame += 1;
+            let object = &sim.objects[0];
+            topology.follow(object);
+            if replication.delta(
+                0,
+                &object.state.positions_mm,
+                &[],
+                Some(&topology),
+                frame,
+                &mut delta,
+            ) {
+                let bytes = encode_to_vec(InstanceId(1), &delta).len();
+                if delta.topology.is_some() {
+                    topo_bytes += bytes;
+                    topo_count += 1;
+                    topo_max = topo_max.max(bytes);
+                } else {
+                    plain_bytes += bytes;
+                    plain_count += 1;
+                }
+            }
+        }
+    }
+    let (a50, a99) = (air.percentile_us(50.0), air.percentile_us(99.0));
+    let (c50, c99) = (cutting.percentile_us(50.0), cutting.percentile_us(99.0));
+    println!(
+        "cut (worlds/cut.toml, scalpel +-25 mm along y at 20 mm/s): edge above the sheet p50 {a50:.0} / p99 {a99:.0} us; through it p50 {c50:.0} us (x{:.2}) / p99 {c99:.0} us (x{:.2}); {split} vertices split in {changes} ticks, worst of them {:.0} us (x{:.2} the edge-above p50)",
+        c50 / a50,
+        c99 / a99,
+        splitting.max_ns() as f32 / 1000.0,
+        splitting.max_ns() as f32 / 1000.0 / a50,
+    );
+    let mean = |bytes: usize, count: usize| bytes.checked_div(count).unwrap_or(0);
+    println!(
+        "cut mesh deltas (60 Hz): {topo_count} with a topology change, mean {} B, max {topo_max} B; {plain_count} without, mean {} B; {} vertices and {} triangles in the mesh",
+        mean(topo_bytes, topo_count),
+        mean(plain_bytes, plain_count),
+        sim.objects[0].model.node_count(),
+        sim.objects[0].model.triangles().len()
     );
     Ok(())
 }

@@ -540,7 +540,13 @@ impl Sim {
         }
         state.forces_n.resize(n, Vec3::zeros());
         state.external_forces_n.resize(n, Vec3::zeros());
-        if let Ok(collider) = SurfaceCollider::new(&state.positions_mm, model.triangles()) {
+        let mut retargeted = opening.changed_triangles.clone();
+        retargeted.sort_unstable();
+        if o.collider
+            .retopologize(&state.positions_mm, model.triangles(), &retargeted)
+            .is_err()
+            && let Ok(collider) = SurfaceCollider::new(&state.positions_mm, model.triangles())
+        {
             o.collider = collider.with_refit_margin(REFIT_MARGIN_MM);
         }
         o.marks = NodeMarks::new(n);

@@ -204,6 +204,56 @@ impl SurfaceCollider {
         self.changed.len()
     }
 
+    /// Follow a topology change (a cut or a tear): `positions_mm` holds the vertices (new ones appended),
+    /// `triangles` the surface, whose `changed` triangles were re-pointed and whose triangles past the ones this
+    /// collider holds were appended. Re-pointed leaves are refitted and new ones inserted: the tree is kept, not
+    /// rebuilt. Refuses (changing nothing) a triangle list shorter than the one held or an index out of range.
+    /// Allocates (a cut is an event, not the steady tick).
+    pub fn retopologize(
+        &mut self,
+        positions_mm: &[Vec3],
+        triangles: &[[u32; 3]],
+        changed: &[u32],
+    ) -> Result<(), SurfaceColliderError> {
+        let n = positions_mm.len();
+        for (t, tri) in triangles.iter().enumerate() {
+            if let Some(&vertex) = tri.iter().find(|&&v| v as usize >= n) {
+                return Err(SurfaceColliderError::IndexOutOfRange {
+                    triangle: t,
+                    vertex,
+                    vertices: n,
+                });
+            }
+        }
+        let held = self.triangles.len();
+        if triangles.len() < held {
+            return Err(SurfaceColliderError::Empty);
+        }
+        self.vertices.clear();
+        self.vertices.extend(positions_mm.iter().map(to_parry));
+        self.triangles.clear();
+        self.triangles.extend_from_slice(triangles);
+        let (start, list) = crate::incidence::incidence(n, triangles);
+        self.vertex_triangle_start = start;
+        self.vertex_triangles = list;
+        self.triangle_marks = NodeMarks::new(triangles.len());
+        self.changed.clear();
+        self.changed.reserve(triangles.len());
+        for &t in changed.iter().filter(|&&t| (t as usize) < held) {
+            if self.update_leaf(t) {
+                self.changed.push(t);
+            }
+        }
+        self.refit_changed();
+        for t in held..triangles.len() {
+            let aabb =
+                triangle_aabb(&self.vertices, &self.triangles[t]).loosened(self.refit_margin_mm);
+            self.leaf_boxes.push(aabb);
+            self.bvh.insert(aabb, t as u32);
+        }
+        Ok(())
+    }
+
     /// Refit the paths above `self.changed`: one partial pass when few leaves changed, one bottom-up pass
     /// over the whole tree when many did.
     fn refit_changed(&mut self) {

@@ -403,87 +403,123 @@ pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::Mo
         parts.mass_kg[v as usize] = m * measure[v as usize] / family[p as usize];
     }
 
-    // Springs: the elements' unique edges. Each takes its parents' spring's stiffness and damping, scaled by
-    // the share of that spring's elements it now borders: an edge a seam split between two sides gives each
-    // side's copy half, so a split vertex, with half the mass, keeps the stiffness-to-mass ratio (and the
-    // stable step) it had.
-    let old_edges = element_edges(model.triangles(), &model.tets().tets, volume);
-    let all_edges = element_edges(&parts.triangles, &parts.tets, volume);
-    let mut edges: Vec<[u32; 2]> = all_edges.clone();
-    edges.dedup();
-    let count = |list: &[[u32; 2]], e: [u32; 2]| -> usize {
-        let lo = list.partition_point(|x| *x < e);
-        list[lo..].iter().take_while(|x| **x == e).count()
+    // Springs: an edge no changed element has keeps its spring. The edges of the changed elements, before and
+    // after, are reconsidered: each takes the stiffness and damping of the spring between its ends' parents,
+    // scaled by the share of that spring's elements it now borders (an edge a seam split between two sides
+    // gives each side's copy half, so a split vertex, with half the mass, keeps the stiffness-to-mass ratio and
+    // the stable step it had); one no element has any more is gone.
+    let (old_elements, new_elements): (Vec<&[u32]>, Vec<&[u32]>) = if volume {
+        (
+            model.tets().tets.iter().map(|t| &t[..]).collect(),
+            parts.tets.iter().map(|t| &t[..]).collect(),
+        )
+    } else {
+        (
+            model.triangles().iter().map(|t| &t[..]).collect(),
+            parts.triangles.iter().map(|t| &t[..]).collect(),
+        )
     };
-    let mean = |values: &[f32]| values.iter().sum::<f32>() / values.len().max(1) as f32;
-    let (k_mean, c_mean) = (
-        mean(&parts.edge_stiffness_n_per_mm),
-        mean(&parts.edge_damping_n_s_per_mm),
-    );
-    let mut stiffness = Vec::with_capacity(edges.len());
-    let mut damping = Vec::with_capacity(edges.len());
-    for &[a, b] in &edges {
-        let (pa, pb) = (parent(a), parent(b));
-        let key = [pa.min(pb), pa.max(pb)];
-        match parts.edges.binary_search(&key) {
-            Ok(e) => {
-                let (was, now) = (count(&old_edges, key), count(&all_edges, [a, b]));
-                let share = if was == 0 || now == 0 {
-                    1.0
-                } else {
-                    (now as f32 / was as f32).min(1.0)
-                };
-                stiffness.push(parts.edge_stiffness_n_per_mm[e] * share);
-                damping.push(parts.edge_damping_n_s_per_mm[e] * share);
-            }
-            Err(_) => {
-                stiffness.push(k_mean);
-                damping.push(c_mean);
+    let mut affected: Vec<[u32; 2]> = Vec::new();
+    for &e in &opening.changed_elements {
+        for element in [old_elements[e as usize], new_elements[e as usize]] {
+            for (i, &p) in element.iter().enumerate() {
+                for &q in &element[i + 1..] {
+                    affected.push([p.min(q), p.max(q)]);
+                }
             }
         }
+    }
+    affected.sort_unstable();
+    affected.dedup();
+    let mut ends: Vec<u32> = affected.iter().flatten().copied().collect();
+    ends.sort_unstable();
+    ends.dedup();
+    let mut ring: Vec<(u32, u32)> = Vec::new();
+    for (e, element) in new_elements.iter().enumerate() {
+        for &v in element.iter() {
+            if ends.binary_search(&v).is_ok() {
+                ring.push((v, e as u32));
+            }
+        }
+    }
+    ring.sort_unstable();
+    let now_count = |[a, b]: [u32; 2]| -> usize {
+        let from = ring.partition_point(|&(v, _)| v < a);
+        ring[from..]
+            .iter()
+            .take_while(|&&(v, _)| v == a)
+            .filter(|&&(_, e)| new_elements[e as usize].contains(&b))
+            .count()
+    };
+    let was_count = |[a, b]: [u32; 2]| -> usize {
+        let around = if volume {
+            model.node_tets(a as usize)
+        } else {
+            model.node_triangles(a as usize)
+        };
+        around
+            .iter()
+            .filter(|&&e| old_elements[e as usize].contains(&b))
+            .count()
+    };
+    let mut reconsidered: Vec<([u32; 2], f32, f32)> = Vec::with_capacity(affected.len());
+    for &edge in &affected {
+        let now = now_count(edge);
+        if now == 0 {
+            continue;
+        }
+        let (pa, pb) = (parent(edge[0]), parent(edge[1]));
+        let key = [pa.min(pb), pa.max(pb)];
+        let Ok(s) = parts.edges.binary_search(&key) else {
+            continue; // no spring joined the parents (an edge of a new surface triangle only)
+        };
+        let was = was_count(key);
+        let share = if was == 0 {
+            1.0
+        } else {
+            (now as f32 / was as f32).min(1.0)
+        };
+        reconsidered.push((
+            edge,
+            parts.edge_stiffness_n_per_mm[s] * share,
+            parts.edge_damping_n_s_per_mm[s] * share,
+        ));
+    }
+    // Merge the kept springs (in order) with the reconsidered ones (in order).
+    let total = parts.edges.len() + reconsidered.len();
+    let (mut edges, mut stiffness, mut damping) = (
+        Vec::with_capacity(total),
+        Vec::with_capacity(total),
+        Vec::with_capacity(total),
+    );
+    let mut next = reconsidered.iter().peekable();
+    for (s, &edge) in parts.edges.iter().enumerate() {
+        while let Some(&&(e, k, c)) = next.peek() {
+            if e > edge {
+                break;
+            }
+            edges.push(e);
+            stiffness.push(k);
+            damping.push(c);
+            next.next();
+        }
+        if affected.binary_search(&edge).is_ok() {
+            continue;
+        }
+        edges.push(edge);
+        stiffness.push(parts.edge_stiffness_n_per_mm[s]);
+        damping.push(parts.edge_damping_n_s_per_mm[s]);
+    }
+    for &(e, k, c) in next {
+        edges.push(e);
+        stiffness.push(k);
+        damping.push(c);
     }
     parts.edges = edges;
     parts.edge_stiffness_n_per_mm = stiffness;
     parts.edge_damping_n_s_per_mm = damping;
     parts.global_bulk_modulus_n_per_mm2 = 0.0;
     (parts, opening)
-}
-
-/// Every edge of the elements, once per element that has it, sorted: a volume's tetrahedra (its surface
-/// triangles are faces of them), else a sheet's triangles. Springs not on any element (none today) have no
-/// entry.
-fn element_edges(triangles: &[[u32; 3]], tets: &[[u32; 4]], volume: bool) -> Vec<[u32; 2]> {
-    let mut edges = Vec::new();
-    if volume {
-        for tet in tets {
-            for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
-                let (p, q) = (tet[i], tet[j]);
-                edges.push([p.min(q), p.max(q)]);
-            }
-        }
-        // Surface edges that no tetrahedron has (none in a valid volume) still get a spring.
-        edges.sort_unstable();
-        let mut loose = Vec::new();
-        for tri in triangles {
-            for k in 0..3 {
-                let (p, q) = (tri[k], tri[(k + 1) % 3]);
-                let e = [p.min(q), p.max(q)];
-                if edges.binary_search(&e).is_err() {
-                    loose.push(e);
-                }
-            }
-        }
-        edges.extend(loose);
-    } else {
-        for tri in triangles {
-            for k in 0..3 {
-                let (p, q) = (tri[k], tri[(k + 1) % 3]);
-                edges.push([p.min(q), p.max(q)]);
-            }
-        }
-    }
-    edges.sort_unstable();
-    edges
 }
 
 #[cfg(test)]
