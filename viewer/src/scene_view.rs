@@ -26,6 +26,8 @@ pub const BACKGROUND_RGB: [u8; 3] = [28, 31, 38];
 const TISSUE: Color = Color::new(0.92, 0.46, 0.50, 1.0);
 /// Tool, free.
 const TOOL_STEEL: Color = Color::new(0.62, 0.65, 0.70, 1.0);
+/// A scalpel's edge: bright steel, so it stands out against the blunt back.
+const BLADE_STEEL: Color = Color::new(0.90, 0.92, 0.95, 1.0);
 /// Tool touching tissue.
 const TOOL_CONTACT: Color = Color::new(0.90, 0.22, 0.16, 1.0);
 /// Ambient light level (kiss3d default 0.2).
@@ -129,6 +131,63 @@ struct ToolNode {
     tool_from_node: Quat,
     /// A grasper's two jaws, and where they hinge (tool frame, mm) and how long they are.
     jaws: Option<Jaws>,
+    /// A scalpel's edge.
+    blade: Option<Blade>,
+}
+
+/// A scalpel's edge as drawn: a thin capsule from one end to the other, in the tool frame.
+struct Blade {
+    node: SceneNode3d,
+    /// Middle of the edge, tool frame, mm.
+    centre_mm: Vec3,
+    /// Rotation from the capsule's own axis (kiss3d's y) to the edge, tool frame.
+    tool_from_node: Quat,
+}
+
+impl Blade {
+    /// Edge radius as drawn, mm.
+    const RADIUS_MM: f32 = 0.25;
+
+    fn add(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
+        let sinew_protocol::InstrumentInfo::Scalpel {
+            edge_from_mm,
+            edge_to_mm,
+        } = info.instrument
+        else {
+            return None;
+        };
+        let (from, to) = (Vec3::from(edge_from_mm), Vec3::from(edge_to_mm));
+        let along = to - from;
+        let length_mm = along.length();
+        if !length_mm.is_finite() || length_mm <= 0.0 {
+            return None;
+        }
+        let node = group
+            .add_capsule(Self::RADIUS_MM, length_mm)
+            .set_color(BLADE_STEEL)
+            .set_metallic(0.8)
+            .set_roughness(0.2)
+            .set_visible(false);
+        Some(Self {
+            node,
+            centre_mm: 0.5 * (from + to),
+            tool_from_node: Quat::from_rotation_arc(Vec3::Y, along / length_mm),
+        })
+    }
+
+    /// Place the edge on a tool at `state` (world from tool).
+    fn place(&mut self, state: &ToolState) {
+        let [x, y, z, w] = state.orientation_xyzw;
+        let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
+        self.node
+            .set_position(Vec3::from(state.position_mm) + world_from_tool * self.centre_mm)
+            .set_rotation(world_from_tool * self.tool_from_node)
+            .set_visible(true);
+    }
+
+    fn hide(&mut self) {
+        self.node.set_visible(false);
+    }
 }
 
 /// A grasper's jaws as drawn: two capsules hinged about the tool's local x axis at `hinge_mm`, each running
@@ -289,6 +348,7 @@ impl SceneView {
                 tool: info.tool,
                 node: add_tool_shape(&mut group, info),
                 jaws: Jaws::add(&mut group, info),
+                blade: Blade::add(&mut group, info),
                 tool_from_node: match info.shape {
                     ToolShape::Capsule { .. } => Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
                     ToolShape::Sphere { .. } | ToolShape::Mesh { .. } => Quat::IDENTITY,
@@ -344,11 +404,17 @@ impl SceneView {
                     if let Some(jaws) = &mut tool.jaws {
                         jaws.place(state, colour);
                     }
+                    if let Some(blade) = &mut tool.blade {
+                        blade.place(state);
+                    }
                 }
                 None => {
                     tool.node.set_visible(false);
                     if let Some(jaws) = &mut tool.jaws {
                         jaws.hide();
+                    }
+                    if let Some(blade) = &mut tool.blade {
+                        blade.hide();
                     }
                 }
             }
