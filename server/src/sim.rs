@@ -93,6 +93,10 @@ pub struct SimObject {
     first_split_vertex: u32,
     /// The parent of each split vertex, in id order.
     split_parents: Vec<u32>,
+    /// The material's tear strain (a sheet tears where a spring is stretched past it); `None`: never tears.
+    tear_strain: Option<f32>,
+    /// Scratch of the tear test: the facets torn this tick.
+    torn: Vec<Facet>,
 }
 
 impl SimObject {
@@ -335,7 +339,9 @@ pub struct StepReport {
     pub nodes_burnt: u32,
     /// Facets scalpels' edges cut this tick (a cut opens once it separates a vertex).
     pub seams_cut: u32,
-    /// Vertices split off by cuts this tick.
+    /// Springs of sheets stretched past their material's tear strain this tick.
+    pub seams_torn: u32,
+    /// Vertices split off by cuts and tears this tick.
     pub vertices_split: u32,
 }
 
@@ -408,6 +414,8 @@ impl Sim {
                 topology_version: 0,
                 first_split_vertex: model.node_count() as u32,
                 split_parents: Vec::new(),
+                tear_strain: spec.material.tear_strain,
+                torn: Vec::with_capacity(256),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
@@ -751,6 +759,21 @@ impl Sim {
             }
         }
 
+        // Sheets overstretched this tick tear before the grasps measure their pull.
+        for o in 0..self.objects.len() {
+            let object = &mut self.objects[o];
+            let Some(strain) = object.tear_strain else {
+                continue;
+            };
+            let mut torn = std::mem::take(&mut object.torn);
+            torn.clear();
+            torn_seams(&object.model, &object.state.positions_mm, strain, &mut torn);
+            if !torn.is_empty() {
+                report.seams_torn += torn.len() as u32;
+                report.vertices_split += self.open_seams(o, &torn).new_vertices() as u32;
+            }
+            self.objects[o].torn = torn;
+        }
         for t in 0..self.tools.len() {
             self.update_grasp(t, dt_s, &mut report);
         }

@@ -516,3 +516,47 @@ fn a_scalpel_that_joins_with_its_edge_in_the_tissue_cuts_nothing_on_its_way_to_t
         "a 6 mm line after joining split {split} vertices"
     );
 }
+
+#[test]
+fn a_sheet_with_a_tear_strain_tears_under_a_hard_grasped_pull_and_one_without_does_not() {
+    let grasper = "{ kind = \"grasper\", slip_force_n = 20.0 }";
+    let pull = |tear: Option<&str>| -> (u32, u32, usize) {
+        let mut sim = pad_edited(IntegratorName::SymplecticEuler, grasper, |t| {
+            let key = "drag_per_s = 150.0";
+            assert!(t.contains(key));
+            match tear {
+                Some(strain) => t.replacen(key, &format!("{key}\ntear_strain = {strain}"), 1),
+                None => t,
+            }
+        });
+        for k in 0..400 {
+            let depth = -6.0 + 8.0 * (k + 1) as f32 / 400.0;
+            tick(&mut sim, tool_at(0.0, depth, false));
+        }
+        for _ in 0..100 {
+            tick(&mut sim, tool_at(0.0, 2.0, true));
+        }
+        // Lift the grasped sheet 12 mm over 1 s, and hold.
+        let (mut torn, mut split) = (0, 0);
+        for k in 0..1500 {
+            let lift = 12.0 * ((k + 1) as f32 / 1000.0).min(1.0);
+            let (_, report) = tick(&mut sim, tool_at(0.0, 2.0 - lift, true));
+            torn += report.seams_torn;
+            split += report.vertices_split;
+        }
+        let held = sim.tools[0].grasp().unwrap().attachments().len();
+        (torn, split, held)
+    };
+    let (_, whole_split, whole_held) = pull(None);
+    let (_, tough_split, _) = pull(Some("5.0"));
+    let (torn, split, held) = pull(Some("0.25"));
+    println!(
+        "12 mm grasped lift: no tear strain {whole_split} split; 5.0 -> {tough_split} split; 0.25 -> {torn} springs torn, {split} vertices split, {held} of {whole_held} points still held"
+    );
+    assert_eq!(whole_split, 0);
+    assert_eq!(tough_split, 0, "a 500% strain limit tore");
+    assert!(
+        torn > 0 && split > 0,
+        "a 25% strain limit never tore under a 12 mm lift"
+    );
+}

@@ -217,6 +217,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             law: SpringLaw::Linear,
             global_bulk_modulus_n_per_mm2: 0.0,
             tet_bulk_modulus_n_per_mm2: 0.0,
+            tear_strain: None,
         },
         fixed: [[-1.0, -half], [1.0, half]]
             .iter()

@@ -654,3 +654,36 @@ fn bad_instrument_keys_name_the_key_and_line() {
     let (_, message, _) = refused(&world, None);
     assert!(message.contains("unknown field `grip`"), "{message}");
 }
+
+#[test]
+fn a_tear_strain_out_of_range_or_on_a_volume_is_refused() {
+    let good = GOOD_WORLD.replace(
+        "anchor_stiffness_n_per_mm = 0.001",
+        "anchor_stiffness_n_per_mm = 0.001\ntear_strain = 0.5",
+    );
+    let world = load_world(&write_world(&good, None)).unwrap();
+    assert_eq!(world.objects[0].material.tear_strain, Some(0.5));
+    let bad = good.replace("tear_strain = 0.5", "tear_strain = 0.0");
+    let (error, message, _) = refused(&bad, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "objects[0].material.tear_strain",
+            line_of(&bad, "tear_strain = 0.0")
+        )
+    );
+    assert!(message.contains("above 0"), "{message}");
+    let volume = msh_world().replace(
+        "density_kg_per_m3 = 1000.0",
+        "density_kg_per_m3 = 1000.0\ntear_strain = 0.5",
+    );
+    let (error, message) = msh_refused(&volume, &TWO_TETS_MSH.replace("{Z}", "4"));
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "objects[0].material.tear_strain",
+            line_of(&volume, "tear_strain = 0.5")
+        )
+    );
+    assert!(message.contains("only a sheet tears"), "{message}");
+}

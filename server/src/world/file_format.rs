@@ -246,6 +246,9 @@ pub(crate) struct MaterialSection {
     /// Per-tetrahedron volume preservation, kPa.
     #[serde(default)]
     pub tet_bulk_modulus_kpa: Option<Spanned<f32>>,
+    /// A sheet tears where a spring is stretched past this strain (length over rest, minus one).
+    #[serde(default)]
+    pub tear_strain: Option<Spanned<f32>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -153,6 +153,8 @@ pub struct MaterialSpec {
     pub global_bulk_modulus_n_per_mm2: f32,
     /// Per-tetrahedron volume preservation, N/mm^2 (0 = off).
     pub tet_bulk_modulus_n_per_mm2: f32,
+    /// A sheet tears where a spring is stretched past this strain (length / rest - 1); `None`: it never tears.
+    pub tear_strain: Option<f32>,
 }
 
 /// A set of fixed nodes.
@@ -729,6 +731,26 @@ impl Context<'_> {
                 &key("anchor_stiffness_n_per_mm"),
             )?,
             drag_per_s: self.non_negative(&m.drag_per_s, &key("drag_per_s"))?,
+            tear_strain: match &m.tear_strain {
+                None => None,
+                Some(at) => {
+                    if is_volume {
+                        return Err(self.invalid(
+                            at,
+                            &key("tear_strain"),
+                            "only a sheet tears yet: a volume mesh (.msh or extrude) does not take it",
+                        ));
+                    }
+                    let strain = *at.get_ref();
+                    self.check(
+                        at,
+                        &key("tear_strain"),
+                        strain.is_finite() && strain > 0.0 && strain <= 100.0,
+                        "must be a strain above 0 and at most 100 (0.5 tears a spring stretched to 1.5 times its rest length)",
+                    )?;
+                    Some(strain)
+                }
+            },
         })
     }
 
