@@ -102,6 +102,20 @@ impl std::fmt::Debug for SurfaceCollider {
     }
 }
 
+/// Every corner of `triangles` names one of `n` vertices.
+fn check_indices(n: usize, triangles: &[[u32; 3]]) -> Result<(), SurfaceColliderError> {
+    for (t, tri) in triangles.iter().enumerate() {
+        if let Some(&vertex) = tri.iter().find(|&&v| v as usize >= n) {
+            return Err(SurfaceColliderError::IndexOutOfRange {
+                triangle: t,
+                vertex,
+                vertices: n,
+            });
+        }
+    }
+    Ok(())
+}
+
 fn triangle_aabb(vertices: &[Vector], t: &[u32; 3]) -> Aabb {
     Triangle::new(
         vertices[t[0] as usize],
@@ -121,15 +135,7 @@ impl SurfaceCollider {
             return Err(SurfaceColliderError::Empty);
         }
         let n = positions_mm.len();
-        for (t, tri) in triangles.iter().enumerate() {
-            if let Some(&vertex) = tri.iter().find(|&&v| v as usize >= n) {
-                return Err(SurfaceColliderError::IndexOutOfRange {
-                    triangle: t,
-                    vertex,
-                    vertices: n,
-                });
-            }
-        }
+        check_indices(n, triangles)?;
         let vertices: Vec<Vector> = positions_mm.iter().map(to_parry).collect();
         let leaf_boxes: Vec<Aabb> = triangles
             .iter()
@@ -216,15 +222,7 @@ impl SurfaceCollider {
         changed: &[u32],
     ) -> Result<(), SurfaceColliderError> {
         let n = positions_mm.len();
-        for (t, tri) in triangles.iter().enumerate() {
-            if let Some(&vertex) = tri.iter().find(|&&v| v as usize >= n) {
-                return Err(SurfaceColliderError::IndexOutOfRange {
-                    triangle: t,
-                    vertex,
-                    vertices: n,
-                });
-            }
-        }
+        check_indices(n, triangles)?;
         let held = self.triangles.len();
         if triangles.len() < held {
             return Err(SurfaceColliderError::Empty);

@@ -18,7 +18,7 @@ use parry3d::query::{Ray, RayCast};
 use parry3d::shape::Triangle;
 
 use crate::collision::glam_boundary::to_parry;
-use crate::tissue::seams::{Facet, NO_VERTEX};
+use crate::tissue::seams::{Facet, NO_VERTEX, facet_without};
 use crate::tissue::{MassSpringModel, Vec3};
 
 /// A blade segment's ends at the start and at the end of a tick, world frame, mm.
@@ -111,16 +111,9 @@ fn seams_among<const K: usize>(
             continue;
         }
         for skip in 0..K {
-            let mut f = [NO_VERTEX; 3];
-            let mut n = 0;
-            for (k, &v) in element.iter().enumerate() {
-                if k != skip {
-                    f[n] = v;
-                    n += 1;
-                }
-            }
-            f[..n].sort_unstable();
-            scratch.facets.push((f, e as u32));
+            scratch
+                .facets
+                .push((facet_without(element, skip), e as u32));
         }
     }
     scratch.facets.sort_unstable();

@@ -63,9 +63,9 @@ impl Opening {
     }
 }
 
-/// The facet of `element` opposite corner `skip`, or its facet with every corner (for `K - 1` corners): the
-/// sorted ids of the corners other than `skip`.
-fn facet_without<const K: usize>(element: &[u32; K], skip: usize) -> Facet {
+/// The facet of `element` opposite corner `skip`: the sorted ids of the corners other than `skip` (an edge of a
+/// triangle, a face of a tetrahedron).
+pub fn facet_without<const K: usize>(element: &[u32; K], skip: usize) -> Facet {
     let mut f = [NO_VERTEX; 3];
     let mut n = 0;
     for (k, &v) in element.iter().enumerate() {
