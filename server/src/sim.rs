@@ -415,7 +415,7 @@ impl Sim {
                 first_split_vertex: model.node_count() as u32,
                 split_parents: Vec::new(),
                 tear_strain: spec.material.tear_strain,
-                torn: Vec::with_capacity(256),
+                torn: Vec::new(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
@@ -768,6 +768,9 @@ impl Sim {
             let mut torn = std::mem::take(&mut object.torn);
             torn.clear();
             torn_seams(&object.model, &object.state.positions_mm, strain, &mut torn);
+            // A capped number a tick (the first in spring order: deterministic), so a sheet pulled far past its
+            // limit at once rips over a few ticks rather than in one long tick.
+            torn.truncate(MAX_TEARS_PER_TICK);
             if !torn.is_empty() {
                 report.seams_torn += torn.len() as u32;
                 report.vertices_split += self.open_seams(o, &torn).new_vertices() as u32;
@@ -1246,6 +1249,9 @@ const CUT_DRAG_TAU_S: f32 = 0.1;
 /// An edge slower than this, mm/s, is held still: it feels no drag and is not cutting (the coupled tool still
 /// settles by micrometres after the hand stops).
 const MIN_CUT_SPEED_MM_S: f32 = 1.0;
+
+/// Most springs one object tears in one tick.
+const MAX_TEARS_PER_TICK: usize = 32;
 
 /// A (re)taken tool has joined its hand once it is this close to the device pose, mm: the coupling's lag under a
 /// hard press is under 1 mm (3.3 N at 5 N/mm).
