@@ -117,6 +117,26 @@ pub enum HandScript {
         /// Duration of the line, s.
         line_s: f32,
     },
+    /// Lower the tool to `height_mm` above the surface point with the jaws open (scissors' blades reach below
+    /// the hinge, into the tissue) over `descend_s`; then `snips` times: close the jaws (button 1 held, gripper
+    /// at 0) for the first half of `snip_s`, open them and move `step_mm` along during the second half. Then
+    /// hold, open.
+    SnipLine {
+        /// Surface point where the line starts, mm.
+        at_mm: [f32; 3],
+        /// Height of the tool origin (the hinge) above the surface while snipping, mm.
+        height_mm: f32,
+        /// Starting height above the surface, mm.
+        approach_mm: f32,
+        /// Duration of the descent, s.
+        descend_s: f32,
+        /// The move between two snips, mm.
+        step_mm: [f32; 3],
+        /// How many snips.
+        snips: u32,
+        /// Duration of one snip (close, then open and move), s.
+        snip_s: f32,
+    },
     /// The target is set from outside (a test, a replay); the hand holds the last target it saw.
     Follow(Arc<LatestValue<[f32; 3]>>),
 }
@@ -124,6 +144,13 @@ pub enum HandScript {
 /// Height of the tool origin above the surface during `cut-line`, mm: a scalpel's edge starts 1 mm below its
 /// origin by default, so it reaches from 0.5 mm above the surface into the tissue.
 pub const CUT_LINE_HEIGHT_MM: f32 = 1.5;
+
+/// Height of the hinge above the surface during `snip-line`, mm: 12 mm blades opened 40 degrees then reach
+/// 5.5 mm into the tissue and take a 3.7 mm bite each snip.
+pub const SNIP_LINE_HEIGHT_MM: f32 = 6.0;
+
+/// The move between two snips of `snip-line`, mm (a snip's bite overlaps the last).
+pub const SNIP_STEP_MM: f32 = 3.0;
 
 /// Opening of a scripted gripper's open jaws, rad (40 degrees).
 pub const SCRIPT_JAW_OPEN_RAD: f32 = 0.698;
@@ -211,6 +238,17 @@ impl fmt::Debug for HandScript {
                 .debug_struct("CutLine")
                 .field("at_mm", at_mm)
                 .field("line_mm", line_mm)
+                .finish(),
+            HandScript::SnipLine {
+                at_mm,
+                step_mm,
+                snips,
+                ..
+            } => f
+                .debug_struct("SnipLine")
+                .field("at_mm", at_mm)
+                .field("step_mm", step_mm)
+                .field("snips", snips)
                 .finish(),
             HandScript::Follow(target) => f.debug_tuple("Follow").field(&target.peek()).finish(),
         }
@@ -383,6 +421,37 @@ impl HandScript {
                 }
                 Some(target)
             }
+            HandScript::SnipLine {
+                at_mm,
+                height_mm,
+                approach_mm,
+                descend_s,
+                step_mm,
+                snips,
+                snip_s,
+            } => {
+                let mut target = press_target(*at_mm, -height_mm, *approach_mm, *descend_s, t_s);
+                let snip_t = snip_phase(t_s, *descend_s, *snips, *snip_s);
+                if let Some((done, moving)) = snip_t {
+                    // `done` snips finished moving; in the second half of a snip the hand moves one step.
+                    let share = done as f32 + moving;
+                    let rate = if moving > 0.0 && moving < 1.0 {
+                        2.0 / snip_s.max(1e-3)
+                    } else {
+                        0.0
+                    };
+                    for ((x, v), d) in target
+                        .position_mm
+                        .iter_mut()
+                        .zip(target.velocity_mm_s.iter_mut())
+                        .zip(step_mm)
+                    {
+                        *x += d * share;
+                        *v = d * rate;
+                    }
+                }
+                Some(target)
+            }
             HandScript::Follow(mailbox) => mailbox.peek().map(HandTarget::at_rest),
         }
     }
@@ -424,6 +493,18 @@ impl HandScript {
                     ..open
                 }
             }
+            HandScript::SnipLine {
+                descend_s,
+                snips,
+                snip_s,
+                ..
+            } => match snip_phase(t_s, *descend_s, *snips, *snip_s) {
+                Some((done, moving)) if done < *snips && moving == 0.0 => ScriptGrip {
+                    buttons: 1,
+                    jaw_angle_rad: 0.0,
+                },
+                _ => open,
+            },
             _ => open,
         }
     }
@@ -432,6 +513,24 @@ impl HandScript {
     pub fn start_mm(&self) -> [f32; 3] {
         self.target(0.0).map_or([0.0; 3], |t| t.position_mm)
     }
+}
+
+/// Where a `snip-line` is at script time `t_s`: `None` before its first snip, else the snips whose move is
+/// done and the share (0 to 1) of the current snip's move made (0 while the jaws are closing: the first half
+/// of each snip). After the last snip: `(snips, 0.0)`.
+fn snip_phase(t_s: f64, descend_s: f32, snips: u32, snip_s: f32) -> Option<(u32, f32)> {
+    let since_s = t_s - f64::from(descend_s);
+    if since_s.is_nan() || since_s < 0.0 {
+        return None;
+    }
+    let period_s = f64::from(snip_s.max(1e-3));
+    let k = (since_s / period_s).floor();
+    if k >= f64::from(snips) {
+        return Some((snips, 0.0));
+    }
+    let phase = since_s / period_s - k;
+    let moving = ((phase - 0.5) * 2.0).clamp(0.0, 1.0) as f32;
+    Some((k as u32, moving))
 }
 
 /// A scripted pull starts this long after the jaws close, s: the grasp takes hold on the closing tick, the
@@ -443,7 +542,7 @@ const GRIP_LEAD_S: f64 = 0.2;
 pub enum ScriptError {
     /// Not one of the script names.
     #[error(
-        "unknown script `{0}`: expected one of hold, press, press-stroke, grasp-pull, cauterize, cut-line"
+        "unknown script `{0}`: expected one of hold, press, press-stroke, grasp-pull, cauterize, cut-line, snip-line"
     )]
     UnknownScript(String),
     /// A vector option is not three comma-separated numbers.
@@ -477,6 +576,9 @@ pub enum ScriptKind {
     /// `cut-line`: [`HandScript::CutLine`] (down to [`CUT_LINE_HEIGHT_MM`] above the surface, then a
     /// `stroke_mm` line along +y over 2 s).
     CutLine,
+    /// `snip-line`: [`HandScript::SnipLine`] (hinge down to [`SNIP_LINE_HEIGHT_MM`] above the surface, then
+    /// `stroke_mm` / 3 mm snips 3 mm apart along +y, 0.4 s each).
+    SnipLine,
 }
 
 impl ScriptKind {
@@ -489,6 +591,7 @@ impl ScriptKind {
             ScriptKind::GraspPull => "grasp-pull",
             ScriptKind::Cauterize => "cauterize",
             ScriptKind::CutLine => "cut-line",
+            ScriptKind::SnipLine => "snip-line",
         }
     }
 
@@ -540,6 +643,15 @@ impl ScriptKind {
                 line_mm: [0.0, o.stroke_mm, 0.0],
                 line_s: 2.0,
             },
+            ScriptKind::SnipLine => HandScript::SnipLine {
+                at_mm: o.at_mm,
+                height_mm: SNIP_LINE_HEIGHT_MM,
+                approach_mm: o.approach_mm,
+                descend_s: o.descend_s,
+                step_mm: [0.0, SNIP_STEP_MM, 0.0],
+                snips: (o.stroke_mm / SNIP_STEP_MM).ceil().max(1.0) as u32,
+                snip_s: 0.4,
+            },
         })
     }
 }
@@ -554,6 +666,7 @@ impl FromStr for ScriptKind {
             "grasp-pull" | "grasp_pull" => Ok(ScriptKind::GraspPull),
             "cauterize" => Ok(ScriptKind::Cauterize),
             "cut-line" | "cut_line" => Ok(ScriptKind::CutLine),
+            "snip-line" | "snip_line" => Ok(ScriptKind::SnipLine),
             other => Err(ScriptError::UnknownScript(other.to_owned())),
         }
     }
@@ -797,5 +910,33 @@ mod tests {
         assert_eq!(script.grip(4.4).buttons, 1);
         assert_eq!(script.grip(4.6).buttons, 0);
         assert!((z(&script, 5.0) - 5.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn snip_line_closes_in_place_then_opens_and_moves_one_step() {
+        let script = ScriptKind::SnipLine
+            .build(&ScriptOptions {
+                at_mm: [0.0, 0.0, 0.0],
+                stroke_mm: 9.0,
+                descend_s: 1.0,
+                ..ScriptOptions::default()
+            })
+            .unwrap();
+        let y = |t: f64| script.target(t).unwrap().position_mm[1];
+        // Descending: open, at the start.
+        assert_eq!(script.grip(0.5).buttons, 0);
+        assert!((z(&script, 1.0) - SNIP_LINE_HEIGHT_MM).abs() < 1e-4);
+        // First snip: closed and still for 0.2 s, then open while moving 3 mm.
+        assert_eq!(script.grip(1.1).buttons, 1);
+        assert_eq!(y(1.1), 0.0);
+        assert_eq!(script.grip(1.3).buttons, 0);
+        assert!((y(1.3) - 1.5).abs() < 1e-4);
+        assert!((y(1.4) - SNIP_STEP_MM).abs() < 1e-4);
+        // Three snips for 9 mm; then open and still at 9 mm.
+        assert_eq!(script.grip(1.9).buttons, 1);
+        assert!((y(1.9) - 2.0 * SNIP_STEP_MM).abs() < 1e-4);
+        assert_eq!(script.grip(2.5).buttons, 0);
+        assert!((y(3.0) - 9.0).abs() < 1e-4);
+        assert_eq!(script.target(3.0).unwrap().velocity_mm_s, [0.0; 3]);
     }
 }

@@ -52,7 +52,7 @@ struct Args {
     /// Scene name.
     #[arg(long, default_value = "pad")]
     scene: String,
-    /// Simulated hand script: hold, press, press-stroke, grasp-pull, cauterize or cut-line.
+    /// Simulated hand script: hold, press, press-stroke, grasp-pull, cauterize, cut-line or snip-line.
     #[arg(long, default_value = "press")]
     script: ScriptKind,
     /// Press depth below the surface point, mm (negative: above it).

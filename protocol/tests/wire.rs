@@ -213,13 +213,22 @@ fn snapshot(rng: &mut fastrand::Rng) -> SceneSnapshot {
                         triangles: vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]],
                     },
                 },
-                instrument: if rng.bool() {
-                    InstrumentInfo::Probe
-                } else {
-                    InstrumentInfo::Grasper {
+                instrument: match rng.u8(0..5) {
+                    0 => InstrumentInfo::Probe,
+                    1 => InstrumentInfo::Grasper {
                         jaw_length_mm: 0.5 + rng.f32() * 10.0,
                         open_angle_rad: rng.f32() * 3.0,
-                    }
+                    },
+                    2 => InstrumentInfo::Cautery,
+                    3 => InstrumentInfo::Scalpel {
+                        edge_from_mm: v3(rng),
+                        edge_to_mm: v3(rng),
+                    },
+                    _ => InstrumentInfo::Scissors {
+                        hinge_mm: v3(rng),
+                        blade_length_mm: 0.5 + rng.f32() * 20.0,
+                        open_angle_rad: rng.f32() * 1.5,
+                    },
                 },
             })
             .collect(),
@@ -535,6 +544,17 @@ fn out_of_domain_fields_are_refused_by_name() {
             "topology.corners",
             TopologyDelta {
                 added: vec![[0, 0, good.first_vertex + good.parents.len() as u32]],
+                ..good.clone()
+            },
+        ),
+        (
+            "topology.parents",
+            TopologyDelta {
+                first_vertex: 10,
+                parents: vec![0; TopologyDelta::MAX_ITEMS + 1],
+                retargeted: Vec::new(),
+                corners: Vec::new(),
+                added: Vec::new(),
                 ..good.clone()
             },
         ),

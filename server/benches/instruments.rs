@@ -4,7 +4,7 @@
 //! - grasp: both tools press, close their jaws on the sheet, pull it 3 mm up and back (1 s period), open, and
 //!   do it again every 2 s; the ticks that take hold (the closing edge) are also reported on their own;
 //! - cautery (worlds/cautery.toml): one tip 0.5 mm in, stroking +-8 mm, current off and then on;
-//! - cut (worlds/cut.toml): the scalpel drawn +-25 mm along y at 20 mm/s, first with its edge above the sheet,
+//! - cut (worlds/cut_under_tension.toml): the scalpel drawn +-25 mm along y at 20 mm/s, first with its edge above the sheet,
 //!   then through it, each pass on a fresh line 3 mm further along x; the ticks that open the mesh are also
 //!   reported on their own, and the mesh deltas a viewer would get (one per 60 Hz publish frame) are encoded
 //!   and weighed, with and without a topology change in them.
@@ -156,11 +156,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         us(grasp.takes.max_ns()),
         us(grasp.takes.max_ns()) / p50
     );
-    cut_phase(&path.with_file_name("cut.toml"), ticks)?;
+    cut_phase(&path.with_file_name("cut_under_tension.toml"), ticks)?;
     Ok(())
 }
 
-/// The scalpel of worlds/cut.toml drawn along y, its edge above the sheet (`height_mm` 12) or through it (1.5),
+/// The scalpel of worlds/cut_under_tension.toml drawn along y, its edge above the sheet (`height_mm` 12) or through it (1.5),
 /// a fresh line each pass; timed ticks, the ticks that split vertices, and the weight of the mesh deltas.
 fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::error::Error>> {
     let mut sim = Sim::new(&load_world(path)?)?;
@@ -247,7 +247,7 @@ fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::er
     let (a50, a99) = (air.percentile_us(50.0), air.percentile_us(99.0));
     let (c50, c99) = (cutting.percentile_us(50.0), cutting.percentile_us(99.0));
     println!(
-        "cut (worlds/cut.toml, scalpel +-25 mm along y at 20 mm/s): edge above the sheet p50 {a50:.0} / p99 {a99:.0} us; through it p50 {c50:.0} us (x{:.2}) / p99 {c99:.0} us (x{:.2}); {split} vertices split in {changes} ticks, worst of them {:.0} us (x{:.2} the edge-above p50)",
+        "cut (worlds/cut_under_tension.toml, scalpel +-25 mm along y at 20 mm/s): edge above the sheet p50 {a50:.0} / p99 {a99:.0} us; through it p50 {c50:.0} us (x{:.2}) / p99 {c99:.0} us (x{:.2}); {split} vertices split in {changes} ticks, worst of them {:.0} us (x{:.2} the edge-above p50)",
         c50 / a50,
         c99 / a99,
         splitting.max_ns() as f32 / 1000.0,

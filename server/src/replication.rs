@@ -219,7 +219,16 @@ impl ObjectReplication {
         self.sent_version = topology.version;
         self.sent_epoch += 1;
         change.epoch = self.sent_epoch;
-        Some(change)
+        let too_big = [
+            change.parents.len(),
+            change.retargeted.len(),
+            change.added.len(),
+        ]
+        .iter()
+        .any(|&n| n > TopologyDelta::MAX_ITEMS);
+        // Too big for one delta: the epoch is spent unsent, so every replica finds a gap (this delta names
+        // vertices it lacks, the next change skips an epoch) and re-queries the snapshot, which carries it.
+        (!too_big).then_some(change)
     }
 
     /// The object's full replicated state.
@@ -264,5 +273,39 @@ mod tests {
         assert_eq!(snap.frame, 5);
         let back = rep.bounds().dequantize(snap.positions_q[1]);
         assert!((back[2] - 1.0).abs() <= rep.bounds().max_error_mm());
+    }
+
+    #[test]
+    fn a_change_too_big_for_one_delta_spends_its_epoch_and_the_snapshot_carries_it() {
+        let rest = vec![Vec3::zeros(), Vec3::x(), Vec3::y()];
+        let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0);
+        let mut out = MeshDelta::default();
+        let small = ObjectTopology {
+            version: 1,
+            triangles: vec![[3, 1, 2]],
+            first_split: 3,
+            parents: vec![0],
+        };
+        let mut x = rest.clone();
+        x.push(Vec3::zeros());
+        assert!(rep.delta(0, &x, &[], Some(&small), 1, &mut out));
+        let change = out.topology.clone().unwrap();
+        assert_eq!((change.epoch, change.parents.len()), (1, 1));
+        // A change of 65537 new vertices: no topology in the delta, the epoch spent, the snapshot complete.
+        let n = TopologyDelta::MAX_ITEMS + 1;
+        let big = ObjectTopology {
+            version: 2,
+            triangles: vec![[3, 1, 2]],
+            first_split: 3,
+            parents: std::iter::once(0)
+                .chain(std::iter::repeat_n(1, n))
+                .collect(),
+        };
+        x.resize(4 + n, Vec3::zeros());
+        rep.delta(0, &x, &[], Some(&big), 2, &mut out);
+        assert!(out.topology.is_none());
+        let snap = rep.snapshot(0);
+        assert_eq!(snap.topology_epoch, 2);
+        assert_eq!(snap.positions_q.len(), 4 + n);
     }
 }

@@ -95,6 +95,10 @@ pub struct SimObject {
     split_parents: Vec<u32>,
     /// The material's tear strain (a sheet tears where a spring is stretched past it); `None`: never tears.
     tear_strain: Option<f32>,
+    /// The material's drag against a sharp edge cutting it, N.
+    cut_resistance_n: f32,
+    /// The share of rest length a spring between two fully burnt nodes loses (0: burns do not shrink).
+    burn_shrink: f32,
     /// Scratch of the tear test: the facets torn this tick.
     torn: Vec<Facet>,
 }
@@ -124,6 +128,24 @@ impl SimObject {
     /// How burnt each node is, 0 to 65535 (the 0-255 level is `value >> 8`).
     pub fn burn(&self) -> &[u16] {
         &self.burn
+    }
+
+    /// With a material that shrinks when burnt, set the rest length of node `i`'s springs from their ends'
+    /// burn: a spring between two charred nodes loses `burn_shrink` of its length. No allocation.
+    fn shrink_springs_of(&mut self, i: usize) {
+        if self.burn_shrink <= 0.0 {
+            return;
+        }
+        for k in 0..self.model.node_springs(i).len() {
+            let s = self.model.node_springs(i)[k];
+            let j = self.model.other_end(s, i);
+            let (Some(&a), Some(&b)) = (self.burn.get(i), self.burn.get(j)) else {
+                continue;
+            };
+            let burnt = (f32::from(a) + f32::from(b)) / (2.0 * f32::from(u16::MAX));
+            self.model
+                .set_spring_rest_share(s, 1.0 - self.burn_shrink * burnt);
+        }
     }
 
     /// The guard's absolute test on this tick: over the active region only when region-tracked (nothing
@@ -201,6 +223,10 @@ pub struct SimTool {
     /// A scalpel's edge in the world at the end of the last tick (None while inactive: a tool that comes back
     /// does not sweep from where it left).
     edge_world_mm: Option<[Vec3; 2]>,
+    /// Scissors' jaw opening at the end of the last tick, rad (None while inactive or not yet joined).
+    blade_angle_rad: Option<f32>,
+    /// The drag of the tissue this tool's edge cut last, N (its material's `cut_resistance_n`).
+    cut_resistance_n: f32,
     /// The blade sweep's scratch.
     cut_scratch: CutScratch,
     /// The drag of cutting this tick, N (world frame, against the edge's motion).
@@ -415,6 +441,8 @@ impl Sim {
                 first_split_vertex: model.node_count() as u32,
                 split_parents: Vec::new(),
                 tear_strain: spec.material.tear_strain,
+                cut_resistance_n: spec.material.cut_resistance_n,
+                burn_shrink: spec.material.burn_shrink,
                 torn: Vec::new(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
@@ -442,10 +470,17 @@ impl Sim {
                     .sum::<f32>()
                     .sqrt()
             };
-            // A scalpel's edge reaches beyond its body: it enters clear of the tissue too.
+            // A scalpel's edge and scissors' blades reach beyond the body: they enter clear of the tissue too.
             let reach_mm = spec.instrument.scalpel().map_or(reach_mm, |s| {
                 s.edge_mm
                     .iter()
+                    .map(|p| Vec3::from(*p).norm())
+                    .fold(reach_mm, f32::max)
+            });
+            let reach_mm = spec.instrument.scissors().map_or(reach_mm, |s| {
+                s.blades_mm(s.open_angle_rad)
+                    .iter()
+                    .flatten()
                     .map(|p| Vec3::from(*p).norm())
                     .fold(reach_mm, f32::max)
             });
@@ -467,13 +502,18 @@ impl Sim {
                 estimate: NormalStiffnessEstimate::default(),
                 instrument: spec.instrument,
                 jaw_input: JawInput::default(),
-                jaws: spec.instrument.grasp().map(Jaws::new),
+                jaws: spec
+                    .instrument
+                    .jaws()
+                    .map(|(activation, open_rad)| Jaws::new(activation, open_rad)),
                 grasp: spec
                     .instrument
                     .grasp()
                     .map(|g| Grasp::new(*g, objects.len())),
                 grasp_force_n: Vec3::zeros(),
                 edge_world_mm: None,
+                blade_angle_rad: None,
+                cut_resistance_n: 0.0,
                 cut_scratch: CutScratch::default(),
                 cut_force_n: Vec3::zeros(),
                 cut_level: 0.0,
@@ -521,7 +561,9 @@ impl Sim {
         let Some(o) = self.objects.get_mut(object) else {
             return Opening::default();
         };
-        if seams.is_empty() {
+        // Nothing new: the facets cut before and still joined did not open with this model, and will not now
+        // (a blade sweeping again through a crack it made finds them again; no allocation).
+        if seams.iter().all(|f| o.severed.binary_search(f).is_ok()) {
             return Opening::default();
         }
         // Facets cut before that have not come apart yet (a crack inside a volume, a slit that has not reached
@@ -565,6 +607,11 @@ impl Sim {
             .as_ref()
             .map(|r| RegionTracker::new(&model, r.params()));
         o.model = model;
+        for i in 0..n {
+            if o.burn[i] > 0 {
+                o.shrink_springs_of(i);
+            }
+        }
         o.topology_version += 1;
         o.split_parents.extend_from_slice(&opening.parents);
         all.retain(|f| shared_by_two(&o.model, f));
@@ -821,59 +868,108 @@ impl Sim {
         out
     }
 
-    /// A scalpel's edge, once its tool has reached the hand (see `SimTool::joined`), from where it was at the end
-    /// of the last tick to where the tool now holds it, cuts
-    /// every object it swept through ([`Self::cut`]), and the tool feels the drag of cutting against the edge's
-    /// motion while it cuts (fading over [`CUT_DRAG_TAU_S`] after the last facet it cut). No allocation unless
-    /// something is cut.
+    /// A sharp instrument, once its tool has reached the hand (see `SimTool::joined`), cuts what its blades
+    /// swept since the last tick ([`Self::cut`]): a scalpel's edge from where it was at the end of the last
+    /// tick to where the tool now holds it, and scissors' blades through the part of their opening they closed
+    /// this tick (in the tool's current pose: open scissors moved through tissue cut nothing). A scalpel's tool
+    /// feels the drag of cutting against the edge's motion while it cuts (the tissue's `cut_resistance_n`,
+    /// fading over [`CUT_DRAG_TAU_S`] after the last facet it cut). No allocation unless something is cut.
     fn cut_with(&mut self, t: usize, dt_s: f32, report: &mut StepReport) {
         let tool = &mut self.tools[t];
         tool.cut_force_n = Vec3::zeros();
         tool.cut_level *= (-dt_s / CUT_DRAG_TAU_S).exp();
         tool.edge_moving = false;
-        let Some(spec) = tool.instrument.scalpel().copied() else {
+        let (scalpel, scissors) = (
+            tool.instrument.scalpel().copied(),
+            tool.instrument.scissors().copied(),
+        );
+        if scalpel.is_none() && scissors.is_none() {
             return;
-        };
+        }
+        if let (Some(jaws), Some(_)) = (&mut tool.jaws, scissors) {
+            if tool.active {
+                jaws.update(&tool.jaw_input, dt_s);
+            } else {
+                jaws.open();
+            }
+        }
         if !tool.active {
             tool.edge_world_mm = None;
+            tool.blade_angle_rad = None;
             tool.cut_level = 0.0;
             return;
         }
         if !tool.joined {
             tool.joined = (tool.device_mm - tool.position_mm).norm() <= JOINED_MM;
             tool.edge_world_mm = None;
+            tool.blade_angle_rad = None;
             if !tool.joined {
                 return;
             }
         }
-        let edge_now = spec
-            .edge_mm
-            .map(|p| tool.position_mm + tool.rotation * Vec3::from(p));
-        let Some(edge_before) = tool.edge_world_mm.replace(edge_now) else {
-            return;
-        };
-        let sweep = BladeSweep {
-            from_mm: edge_before,
-            to_mm: edge_now,
-        };
-        let mut scratch = std::mem::take(&mut tool.cut_scratch);
+        let world = |p: [f32; 3]| tool.position_mm + tool.rotation * Vec3::from(p);
+        if let Some(spec) = scalpel {
+            let edge_now = spec.edge_mm.map(world);
+            let Some(edge_before) = tool.edge_world_mm.replace(edge_now) else {
+                return;
+            };
+            let sweep = BladeSweep {
+                from_mm: edge_before,
+                to_mm: edge_now,
+            };
+            let severed = self.cut_everything(t, &sweep, report);
+            let tool = &mut self.tools[t];
+            if severed > 0 {
+                tool.cut_level = 1.0;
+            }
+            let motion = (edge_now[0] + edge_now[1] - edge_before[0] - edge_before[1]) * 0.5;
+            if let Some(direction) = motion.try_normalize(MIN_CUT_SPEED_MM_S * dt_s) {
+                tool.edge_moving = true;
+                tool.cut_force_n = -direction * tool.cut_resistance_n * tool.cut_level;
+            }
+        } else if let (Some(spec), Some(jaws)) = (scissors, &tool.jaws) {
+            let angle_rad = jaws.angle_rad();
+            let Some(before_rad) = tool.blade_angle_rad.replace(angle_rad) else {
+                return;
+            };
+            if angle_rad >= before_rad {
+                return;
+            }
+            // Closing: each blade cuts the wedge of the opening it passed through. The resistance of a snip is
+            // in the grip, which no device renders: the tool feels no drag.
+            let (was, now) = (spec.blades_mm(before_rad), spec.blades_mm(angle_rad));
+            let sweeps = [0, 1].map(|k| BladeSweep {
+                from_mm: was[k].map(world),
+                to_mm: now[k].map(world),
+            });
+            let mut severed = 0;
+            for sweep in &sweeps {
+                severed += self.cut_everything(t, sweep, report);
+            }
+            let tool = &mut self.tools[t];
+            tool.edge_moving = true;
+            if severed > 0 {
+                tool.cut_level = 1.0;
+            }
+        }
+    }
+
+    /// Cut every object along one sweep of tool `t`'s blade; returns the seams cut, and takes the drag of the
+    /// tissue cut (the last object that was).
+    fn cut_everything(&mut self, t: usize, sweep: &BladeSweep, report: &mut StepReport) -> u32 {
+        let mut scratch = std::mem::take(&mut self.tools[t].cut_scratch);
         let mut severed = 0;
         for o in 0..self.objects.len() {
-            let opening = self.cut(o, &sweep, &mut scratch);
-            severed += scratch.seams.len() as u32;
+            let opening = self.cut(o, sweep, &mut scratch);
+            if !scratch.seams.is_empty() {
+                severed += scratch.seams.len() as u32;
+                self.tools[t].cut_resistance_n = self.objects[o].cut_resistance_n;
+            }
             report.vertices_split += opening.new_vertices() as u32;
         }
-        let tool = &mut self.tools[t];
-        tool.cut_scratch = scratch;
+        self.tools[t].cut_scratch = scratch;
         report.seams_cut += severed;
-        if severed > 0 {
-            tool.cut_level = 1.0;
-        }
-        let motion = (edge_now[0] + edge_now[1] - edge_before[0] - edge_before[1]) * 0.5;
-        if let Some(direction) = motion.try_normalize(MIN_CUT_SPEED_MM_S * dt_s) {
-            tool.edge_moving = true;
-            tool.cut_force_n = -direction * spec.cut_resistance_n * tool.cut_level;
-        }
+        severed
     }
 
     /// A cautery tool with its button held burns the surface it touches (the nodes on or within its reach of the
@@ -889,6 +985,7 @@ impl Sim {
         // Fixed point: 256 units per burn level; at least one unit a tick so a slow rate still burns.
         let step = (spec.burn_per_s * dt_s * 256.0).clamp(1.0, 65535.0) as u16;
         let mut burnt = 0;
+        let mut shrunk = false;
         for (o, object) in self.objects.iter_mut().enumerate() {
             for &node in &tool.contacts[o].candidates {
                 let i = node as usize;
@@ -904,8 +1001,14 @@ impl Sim {
                 {
                     *level = level.saturating_add(step);
                     burnt += 1;
+                    object.shrink_springs_of(i);
+                    shrunk |= object.burn_shrink > 0.0;
                 }
             }
+        }
+        if shrunk {
+            // The rest lengths changed after the guard measured this tick's energy.
+            self.last_energy_n_mm = None;
         }
         burnt
     }

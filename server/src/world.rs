@@ -17,7 +17,9 @@ pub use exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 pub use file_format::{IntegratorName, LengthUnit};
 pub use grid_sheet::{grid_sheet, to_obj_text};
-pub use instrument::{CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec};
+pub use instrument::{
+    CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
+};
 pub use loader::{
     FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ToolShapeSpec, ToolSpec, World, WorldError,
     load_world, parse_world,

@@ -101,3 +101,77 @@ fn the_surface_burns_only_where_the_live_tip_touched() {
             .all(|(&level, p)| level == 0 || p.x < 0.0)
     );
 }
+
+/// Burn a 10 mm line on cautery.toml's pad with `burn_shrink` = `shrink`; then lift the tip and let the pad
+/// settle. The length of the burnt line's middle 6 mm (world x -15 to -9 on y = 0), mm, and the guard's
+/// faults.
+fn burnt_line_length_mm(shrink: Option<f32>) -> (f32, u32) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/cautery.toml");
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    if let Some(shrink) = shrink {
+        let key = "drag_per_s = 150.0";
+        assert!(text.contains(key));
+        text = text.replacen(key, &format!("{key}\nburn_shrink = {shrink}"), 1);
+    }
+    let world = sinew_server::world::parse_world(&path, &text).unwrap();
+    let mut sim = Sim::new(&world).unwrap();
+    let mut out = [ToolOutput::default(); 2];
+    let mut faults = 0;
+    for k in 0..500 {
+        let depth = -5.0 + 5.5 * ((k + 1) as f32 / 500.0).min(1.0);
+        faults += sim
+            .step(0.001, &commands(0.0, depth, false), &mut out)
+            .faults;
+    }
+    // Current on along the line, 2 s: every node on it chars.
+    for k in 0..2000 {
+        let x =
+            10.0 * (k as f32 / 1000.0).min(1.0) - 10.0 * ((k as f32 - 1000.0) / 1000.0).max(0.0);
+        faults += sim.step(0.001, &commands(x, 0.5, true), &mut out).faults;
+    }
+    // Lift and settle 1 s.
+    for _ in 0..1000 {
+        faults += sim
+            .step(0.001, &commands(5.0, -8.0, false), &mut out)
+            .faults;
+    }
+    let pad = &sim.objects[0];
+    let rest = pad.model.rest_positions_mm();
+    let at = |x: f32| {
+        rest.iter()
+            .position(|p| (p.x - x).abs() < 1e-3 && p.y.abs() < 1e-3)
+            .unwrap()
+    };
+    let (a, b) = (at(-15.0), at(-9.0));
+    assert!(
+        pad.burn()[a] > 0 && pad.burn()[b] > 0,
+        "the line's ends did not burn"
+    );
+    let x = &pad.state.positions_mm;
+    ((x[b] - x[a]).norm(), faults)
+}
+
+#[test]
+fn a_material_that_shrinks_when_burnt_contracts_along_the_burn_and_one_that_does_not_keeps_its_length()
+ {
+    let (plain_mm, plain_faults) = burnt_line_length_mm(None);
+    let (shrunk_mm, shrunk_faults) = burnt_line_length_mm(Some(0.3));
+    println!(
+        "burnt 6 mm: {plain_mm:.3} mm without shrink, {shrunk_mm:.3} mm with burn_shrink = 0.3"
+    );
+    assert_eq!(
+        plain_faults + shrunk_faults,
+        0,
+        "the guard reset the tissue"
+    );
+    assert!(
+        (plain_mm - 6.0).abs() < 0.05,
+        "unshrunk burn changed length: {plain_mm}"
+    );
+    // The burnt springs' rest lengths shrink by up to 30%; their anchors and the unburnt sheet around them
+    // hold the line back to about 2% (0.11 mm of 6 when measured).
+    assert!(
+        shrunk_mm < plain_mm - 0.05,
+        "a 30% shrink left the burn {shrunk_mm} mm long (unshrunk {plain_mm})"
+    );
+}

@@ -1,7 +1,8 @@
 //! Cutting and tearing on virtual time, on the shipped pad (a sheet) and tet block (a volume): a blade drawn
 //! across parts the tissue along its path and every id made before stays valid; the cut opens under tension
 //! and pulls back less than whole tissue; a grasp made before a cut holds through it; every integrator steps
-//! the cut tissue; a volume cut through shows its cut faces as a closed surface; an overstretched sheet tears.
+//! the cut tissue; a volume cut through shows its cut faces as a closed surface; an overstretched sheet tears;
+//! scissors cut only as they close, between their blades, and a line of snips parts a sheet or opens a block.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use nalgebra::Vector3;
@@ -128,6 +129,27 @@ fn pieces<const K: usize>(elements: &[[u32; K]], vertices: usize) -> usize {
     roots.sort_unstable();
     roots.dedup();
     roots.len()
+}
+
+/// The surface is closed and consistently wound: every directed edge once, with its twin.
+fn assert_closed_surface(triangles: &[[u32; 3]]) {
+    let mut directed: Vec<[u32; 2]> = triangles
+        .iter()
+        .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+        .collect();
+    directed.sort_unstable();
+    let unique = {
+        let mut d = directed.clone();
+        d.dedup();
+        d.len()
+    };
+    assert_eq!(unique, directed.len(), "a directed edge is used twice");
+    for [a, b] in &directed {
+        assert!(
+            directed.binary_search(&[*b, *a]).is_ok(),
+            "edge {a}-{b} has no twin: the surface is open"
+        );
+    }
 }
 
 fn total_mass(sim: &Sim, object: usize) -> f64 {
@@ -375,25 +397,7 @@ fn a_blade_through_the_tet_block_parts_it_into_two_closed_surfaces() {
         model.triangles().len() > surface_before,
         "no cut face shown"
     );
-    // The surface of each piece is closed and consistently wound: every directed edge once, with its twin.
-    let mut directed: Vec<[u32; 2]> = model
-        .triangles()
-        .iter()
-        .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-        .collect();
-    directed.sort_unstable();
-    let unique = {
-        let mut d = directed.clone();
-        d.dedup();
-        d.len()
-    };
-    assert_eq!(unique, directed.len(), "a directed edge is used twice");
-    for [a, b] in &directed {
-        assert!(
-            directed.binary_search(&[*b, *a]).is_ok(),
-            "edge {a}-{b} has no twin: the surface is open"
-        );
-    }
+    assert_closed_surface(model.triangles());
     // It still steps.
     for _ in 0..300 {
         tick(&mut sim, ToolCommand::default());
@@ -564,4 +568,146 @@ fn a_sheet_with_a_tear_strain_tears_under_a_hard_grasped_pull_and_one_without_do
         torn > 0 && split > 0,
         "a 25% strain limit never tore under a 12 mm lift"
     );
+}
+
+/// Scissors' hand at device (0.5, `y_mm`), hinge `height_mm` above the rest surface, the button closing them or
+/// not (0.5 mm off the device origin's x: the blades' plane does not run along a row of the pad's vertices).
+fn scissors_at(y_mm: f32, height_mm: f32, closed: bool) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        position_device_mm: [0.5, y_mm, height_mm],
+        jaws: JawInput {
+            buttons: u32::from(closed),
+            jaw_angle_rad: 0.0,
+        },
+        ..ToolCommand::default()
+    }
+}
+
+/// Snip at device `y_mm` (hinge `height_mm` above the surface): go there open (100 ticks), close for 200 ticks,
+/// open for 100, stepping tool `tool` of `tools`, `on_tick` after each tick. The vertices split.
+fn snip(
+    sim: &mut Sim,
+    tool: usize,
+    tools: usize,
+    y_mm: f32,
+    height_mm: f32,
+    mut on_tick: impl FnMut(&ToolOutput, &StepReport),
+) -> u32 {
+    let mut split = 0;
+    let mut commands = vec![ToolCommand::default(); tools];
+    let mut out = vec![ToolOutput::default(); tools];
+    for k in 0..400 {
+        commands[tool] = scissors_at(y_mm, height_mm, (100..300).contains(&k));
+        let report = sim.step(0.001, &commands, &mut out);
+        assert_eq!(report.faults, 0, "the guard reset the tissue");
+        assert!(out[tool].force_world_n.iter().all(|c| c.is_finite()));
+        on_tick(&out[tool], &report);
+        split += report.vertices_split;
+    }
+    split
+}
+
+#[test]
+fn scissors_cut_only_between_their_blades_as_they_close_and_a_line_of_snips_parts_the_sheet() {
+    // The pad's tool (device origin at world x = -18) as scissors: 12 mm blades opened 40 degrees.
+    let mut sim = pad_with(
+        IntegratorName::SymplecticEuler,
+        "{ kind = \"scissors\", blade_length_mm = 12.0, open_angle_deg = 40.0 }",
+    );
+    let height_mm = 6.0;
+    // Open scissors lowered through the sheet and moved 10 mm along it cut nothing.
+    let mut split = 0;
+    for k in 0..600 {
+        let h = 20.0 - (20.0 - height_mm) * ((k + 1) as f32 / 400.0).min(1.0);
+        split += tick(&mut sim, scissors_at(-30.0, h, false))
+            .1
+            .vertices_split;
+    }
+    for k in 0..500 {
+        let y = -30.0 + 10.0 * (k + 1) as f32 / 500.0;
+        let (out, report) = tick(&mut sim, scissors_at(y, height_mm, false));
+        split += report.vertices_split;
+        assert!(!out.cutting, "open scissors cut while moving");
+    }
+    assert_eq!(split, 0, "open scissors split {split} vertices");
+    // One snip at y = 0: the cut lies between the blades, within the bite they span at the sheet.
+    let first = sim.objects[0].model.node_count();
+    let mut cutting = 0;
+    let split = snip(&mut sim, 0, 1, 0.0, height_mm, |out, _| {
+        cutting += usize::from(out.cutting);
+    });
+    let half_bite_mm = height_mm * (20.0f32 - 3.0).to_radians().tan();
+    let model = &sim.objects[0].model;
+    let (_, parents) = sim.objects[0].split_parents();
+    let spread = parents
+        .iter()
+        .map(|&p| model.rest_positions_mm()[p as usize])
+        .fold((f32::MAX, f32::MIN, 0.0f32), |(lo, hi, dx), p| {
+            (lo.min(p.y), hi.max(p.y), dx.max((p.x + 17.5).abs()))
+        });
+    println!(
+        "one snip: {split} vertices split (ids {first}..), parents' y {:.2}..{:.2} mm, |x| <= {:.2} mm; \
+         bite +-{half_bite_mm:.2} mm; cutting on {cutting} ticks",
+        spread.0, spread.1, spread.2
+    );
+    assert!(split >= 2, "a snip split {split} vertices");
+    assert!(cutting > 0, "the output never said cutting");
+    assert!(
+        spread.0 >= -half_bite_mm - 1.5 && spread.1 <= half_bite_mm + 1.5 && spread.2 <= 1.5,
+        "the snip cut outside its blades: {spread:?}"
+    );
+    // A line of snips 3 mm apart across the whole sheet (its fixed rim included) parts it in two.
+    let mut y = -33.0;
+    while y <= 33.0 {
+        snip(&mut sim, 0, 1, y, height_mm, |_, _| {});
+        y += 3.0;
+    }
+    let model = &sim.objects[0].model;
+    assert_eq!(
+        pieces(model.triangles(), model.node_count()),
+        2,
+        "a line of snips across the sheet did not part it"
+    );
+    for _ in 0..300 {
+        tick(&mut sim, scissors_at(33.0, 20.0, false));
+    }
+    assert!(sim.objects[0].state.is_finite());
+}
+
+#[test]
+fn scissors_snipping_into_the_tet_block_open_it_and_its_surface_stays_closed() {
+    // worlds/cut.toml: tool 1 is a pair of scissors over the block (object 1), device origin at its centre.
+    let mut sim = cut_world();
+    assert!(sim.tools[1].instrument.scissors().is_some());
+    let surface_before = sim.objects[1].model.triangles().len();
+    let tets_before = sim.objects[1].model.tets().tets.len();
+    let mut commands = vec![ToolCommand::default(); 2];
+    let mut out = vec![ToolOutput::default(); 2];
+    for k in 0..500 {
+        let h = 20.0 - 14.0 * ((k + 1) as f32 / 400.0).min(1.0);
+        commands[1] = scissors_at(-9.0, h, false);
+        assert_eq!(sim.step(0.001, &commands, &mut out).faults, 0);
+    }
+    let mut split = 0;
+    for k in 0..7 {
+        split += snip(&mut sim, 1, 2, -9.0 + 3.0 * k as f32, 6.0, |_, _| {});
+    }
+    let model = &sim.objects[1].model;
+    println!(
+        "7 snips into the block: {split} vertices split, surface {surface_before} -> {} triangles",
+        model.triangles().len()
+    );
+    assert!(split >= 4, "seven snips split {split} vertices");
+    assert_eq!(
+        model.tets().tets.len(),
+        tets_before,
+        "a cut adds no tetrahedron"
+    );
+    assert!(
+        model.triangles().len() > surface_before,
+        "the snips show no cut face"
+    );
+    assert_closed_surface(model.triangles());
+    assert!(sim.objects[1].state.is_finite());
 }

@@ -218,6 +218,8 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             global_bulk_modulus_n_per_mm2: 0.0,
             tet_bulk_modulus_n_per_mm2: 0.0,
             tear_strain: None,
+            cut_resistance_n: MaterialSpec::DEFAULT_CUT_RESISTANCE_N,
+            burn_shrink: 0.0,
         },
         fixed: [[-1.0, -half], [1.0, half]]
             .iter()

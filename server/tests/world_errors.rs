@@ -559,6 +559,18 @@ fn bad_instrument_keys_name_the_key_and_line() {
         "{ kind = \"grasper\", activation = \"angle\", close_below_deg = 5.0, open_above_deg = 15.0, slip_force_n = 0.5 }",
     );
     let world = load_world(&write_world(&good, None)).unwrap();
+    let scissors = load_world(&write_world(
+        &with("{ kind = \"scissors\", activation = \"angle\", blade_length_mm = 15.0, hinge_mm = [0.0, 0.0, 2.0] }"),
+        None,
+    ))
+    .unwrap();
+    let blades = scissors.tools[0].instrument.scissors().copied().unwrap();
+    assert_eq!(blades.blade_length_mm, 15.0);
+    assert_eq!(blades.hinge_mm, [0.0, 0.0, 2.0]);
+    assert_eq!(
+        blades.activation,
+        sinew_server::world::GraspSpec::ANGLE_DEFAULT
+    );
     let grasp = world.tools[0].instrument.grasp().copied().unwrap();
     assert_eq!(grasp.slip_force_n, 0.5);
     assert!(matches!(
@@ -582,9 +594,34 @@ fn bad_instrument_keys_name_the_key_and_line() {
             "finite",
         ),
         (
-            "{ kind = \"scalpel\", cut_resistance_n = 9.0 }",
+            "{ kind = \"scalpel\", cut_resistance_n = 0.2 }",
             "tools[0].instrument.cut_resistance_n",
-            "0 to 5 N",
+            "[objects.material] cut_resistance_n",
+        ),
+        (
+            "{ kind = \"scissors\", blade_length_mm = 0.5 }",
+            "tools[0].instrument.blade_length_mm",
+            "1 to 200 mm",
+        ),
+        (
+            "{ kind = \"scissors\", open_angle_deg = 4.0 }",
+            "tools[0].instrument.open_angle_deg",
+            "more than 6",
+        ),
+        (
+            "{ kind = \"scissors\", hinge_mm = [0.0, 0.0, inf] }",
+            "tools[0].instrument.hinge_mm",
+            "finite",
+        ),
+        (
+            "{ kind = \"scissors\", edge_from_mm = [0.0, 0.0, 1.0] }",
+            "tools[0].instrument.edge_from_mm",
+            "scissors take",
+        ),
+        (
+            "{ kind = \"scissors\", activation = \"angle\", close_below_deg = 20.0, open_above_deg = 10.0 }",
+            "tools[0].instrument.open_above_deg",
+            "hysteresis",
         ),
         (
             "{ kind = \"scalpel\", slip_force_n = 0.5 }",
@@ -686,4 +723,44 @@ fn a_tear_strain_out_of_range_or_on_a_volume_is_refused() {
         )
     );
     assert!(message.contains("only a sheet tears"), "{message}");
+}
+
+#[test]
+fn a_cut_resistance_or_burn_shrink_out_of_range_is_refused_by_key_and_line() {
+    let good = GOOD_WORLD.replace(
+        "anchor_stiffness_n_per_mm = 0.001",
+        "anchor_stiffness_n_per_mm = 0.001\ncut_resistance_n = 0.4\nburn_shrink = 0.2",
+    );
+    let world = load_world(&write_world(&good, None)).unwrap();
+    assert_eq!(world.objects[0].material.cut_resistance_n, 0.4);
+    assert_eq!(world.objects[0].material.burn_shrink, 0.2);
+    for (from, to, key, says) in [
+        (
+            "cut_resistance_n = 0.4",
+            "cut_resistance_n = -1.0",
+            "objects[0].material.cut_resistance_n",
+            "0 to 5 N",
+        ),
+        (
+            "burn_shrink = 0.2",
+            "burn_shrink = 0.9",
+            "objects[0].material.burn_shrink",
+            "0 to 0.5",
+        ),
+        (
+            "burn_shrink = 0.2",
+            "burn_shrink = nan",
+            "objects[0].material.burn_shrink",
+            "0 to 0.5",
+        ),
+    ] {
+        let bad = good.replace(from, to);
+        let (error, message, _) = refused(&bad, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&bad, to)),
+            "{message}"
+        );
+        assert!(message.contains(says), "{message}");
+    }
 }

@@ -254,7 +254,8 @@ pub fn surgeon_scripts() -> (HandScript, HandScript) {
 /// gets a grasp-and-pull (press 1.5 mm, close, pull 8 mm up and 6 mm outward, left to -x and right to +x, hold
 /// 2 s, open): coordinated pulling with two graspers; a cautery tool burns a 12 mm line (0.5 mm in, current
 /// on for 2 s); and a scalpel draws its edge 40 mm along +y from 20 mm before its device origin (origin 1.5 mm
-/// above the surface, over 2 s).
+/// above the surface, over 2 s); scissors snip a 30 mm line of 10 bites 3 mm apart along +y from 12 mm before the
+/// device origin (hinge 6 mm above the surface, 0.4 s a snip).
 pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, HandScript) {
     let (left, right) = surgeon_scripts();
     let grasper = |device: &str| {
@@ -301,6 +302,22 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         line_mm: [0.0, 40.0, 0.0],
         line_s: 2.0,
     };
+    let scissors = |device: &str| {
+        world
+            .tools
+            .iter()
+            .any(|t| t.device_id == device && t.instrument.scissors().is_some())
+    };
+    // Snips 3 mm apart along y from y = -12 mm, 10 of them: a 30 mm line of bites.
+    let snip = HandScript::SnipLine {
+        at_mm: [0.0, -12.0, 0.0],
+        height_mm: hapticserver::SNIP_LINE_HEIGHT_MM,
+        approach_mm: 14.0,
+        descend_s: 1.0,
+        step_mm: [0.0, hapticserver::SNIP_STEP_MM, 0.0],
+        snips: 10,
+        snip_s: 0.4,
+    };
     let pick = |device: &str, outward_mm: f32, otherwise: HandScript| {
         if grasper(device) {
             pull(outward_mm)
@@ -308,6 +325,8 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
             burn.clone()
         } else if scalpel(device) {
             cut.clone()
+        } else if scissors(device) {
+            snip.clone()
         } else {
             otherwise
         }

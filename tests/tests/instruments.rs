@@ -165,8 +165,8 @@ fn record_and_replay_exactly(world_file: &str) -> Vec<String> {
         .collect()
 }
 
-/// A session in which a scalpel cuts the sheet under a grasper's pull replays bit for bit from its recording:
-/// the cut is re-derived from the recorded poses, tick for tick.
+/// A session in which a scalpel cuts the sheet and scissors snip the block (worlds/cut.toml) replays bit for
+/// bit from its recording: every cut is re-derived from the recorded poses, tick for tick.
 #[test]
 fn a_recorded_cut_session_replays_bit_for_bit() {
     let kinds = record_and_replay_exactly("cut.toml");
@@ -257,15 +257,29 @@ fn a_cautery_line_reaches_every_viewer_and_the_picture() {
 #[test]
 fn a_scalpel_cut_reaches_every_viewer_and_opens_under_the_grasper() {
     let _serial = serial();
-    let world = load_shipped_world("cut.toml").unwrap();
+    let world = load_shipped_world("cut_under_tension.toml").unwrap();
     let (left_script, right_script) = surgeon_scripts_for(&world);
     let endpoint = free_loopback_endpoint().unwrap();
     let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
-    let viewer = start_viewer("cut", "instructor", &endpoint).unwrap();
+    let viewer = start_viewer("cut-under-tension", "instructor", &endpoint).unwrap();
     assert!(viewer.wait_for_snapshot(Duration::from_secs(5)));
     let (_, rest_triangles, rest_vertices) = server.latest_topology(0).unwrap();
-    let left = start_sim_device("cut", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
-    let right = start_sim_device("cut", "right", right_script, &endpoint, Pacing::Sleep).unwrap();
+    let left = start_sim_device(
+        "cut-under-tension",
+        "left",
+        left_script,
+        &endpoint,
+        Pacing::Sleep,
+    )
+    .unwrap();
+    let right = start_sim_device(
+        "cut-under-tension",
+        "right",
+        right_script,
+        &endpoint,
+        Pacing::Sleep,
+    )
+    .unwrap();
     // The line is drawn from 1 s to 3 s; wait until the cut stops growing.
     assert!(
         wait_until(Duration::from_secs(15), || {
@@ -337,7 +351,7 @@ fn a_scalpel_cut_reaches_every_viewer_and_opens_under_the_grasper() {
     // The replica is as close to the server's true positions as quantization allows, new vertices included.
     let error = replica_error(&server, &viewer, 0, Duration::from_secs(5)).unwrap();
     assert!(error.max_error_mm <= error.bound_mm, "{error:?}");
-    let late = start_viewer("cut", "late", &endpoint).unwrap();
+    let late = start_viewer("cut-under-tension", "late", &endpoint).unwrap();
     assert!(late.wait_for_snapshot(Duration::from_secs(5)));
     late.with_replica(|r| {
         assert!(same(r), "a late viewer's snapshot lacks the cut");
@@ -351,6 +365,95 @@ fn a_scalpel_cut_reaches_every_viewer_and_opens_under_the_grasper() {
     assert!(widest_mm > 0.2, "the slit did not open: {widest_mm} mm");
     let stats = server.stats();
     assert_eq!(stats.sim_faults, 0);
+    drop(left);
+    drop(right);
+}
+
+/// worlds/cut.toml over zenoh: the scalpel cuts the sheet while the scissors snip a line into the block. Both
+/// objects' topology reaches every viewer exactly (a late one through its snapshot), the viewers see the blades
+/// close and open, and the snipped block shows its cut faces as new surface triangles.
+#[test]
+fn scissors_snips_into_the_block_reach_every_viewer_with_the_blades() {
+    let _serial = serial();
+    let world = load_shipped_world("cut.toml").unwrap();
+    let (left_script, right_script) = surgeon_scripts_for(&world);
+    let endpoint = free_loopback_endpoint().unwrap();
+    let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
+    let viewer = start_viewer("cut", "instructor", &endpoint).unwrap();
+    assert!(viewer.wait_for_snapshot(Duration::from_secs(5)));
+    let (_, block_rest_triangles, block_rest_vertices) = server.latest_topology(1).unwrap();
+    let left = start_sim_device("cut", "left", left_script, &endpoint, Pacing::Sleep).unwrap();
+    let right = start_sim_device("cut", "right", right_script, &endpoint, Pacing::Sleep).unwrap();
+    // The viewer sees the scissors' blades closed (a snip) and open again.
+    let (mut saw_closed, mut saw_open_after) = (false, false);
+    assert!(
+        wait_until(Duration::from_secs(15), || {
+            let angle = viewer.with_replica(|r| {
+                r.tool_states()
+                    .tools
+                    .iter()
+                    .find(|t| t.tool == 1)
+                    .map_or(f32::NAN, |t| t.jaw_angle_rad)
+            });
+            saw_open_after |= saw_closed && angle > 0.5;
+            saw_closed |= angle < 0.05;
+            saw_open_after
+        }),
+        "the viewer never saw the blades close and open (closed seen: {saw_closed})"
+    );
+    // The snip line takes 1 s of descent and 10 snips of 0.4 s: wait until both objects stop changing.
+    let mut last = (0, 0);
+    assert!(
+        wait_until(Duration::from_secs(20), || {
+            std::thread::sleep(Duration::from_millis(500));
+            let now = (
+                server.latest_topology(0).map_or(0, |t| t.0),
+                server.latest_topology(1).map_or(0, |t| t.0),
+            );
+            let still = now == last && now.0 > 0 && now.1 > 0;
+            last = now;
+            still
+        }),
+        "the cuts never settled: topology versions {last:?}"
+    );
+    let (version, triangles, vertices) = server.latest_topology(1).unwrap();
+    println!(
+        "scissors: {version} changes to the block, {} vertices split, surface {} -> {} triangles",
+        vertices - block_rest_vertices,
+        block_rest_triangles.len(),
+        triangles.len()
+    );
+    assert!(
+        vertices - block_rest_vertices >= 10,
+        "ten snips split too little"
+    );
+    assert!(
+        triangles.len() > block_rest_triangles.len(),
+        "the block shows no cut face"
+    );
+    let same = |r: &sinew_viewer::SceneReplica| {
+        (0..2).all(|o| {
+            let (_, t, v) = server.latest_topology(o).unwrap();
+            let replica = &r.objects()[o];
+            replica.triangles() == t.as_slice() && replica.vertex_count() == v
+        })
+    };
+    assert!(
+        wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
+        "the viewer's meshes differ from the server's after the cuts"
+    );
+    let error = replica_error(&server, &viewer, 1, Duration::from_secs(5)).unwrap();
+    assert!(error.max_error_mm <= error.bound_mm, "{error:?}");
+    let late = start_viewer("cut", "late", &endpoint).unwrap();
+    assert!(late.wait_for_snapshot(Duration::from_secs(5)));
+    late.with_replica(|r| {
+        assert!(same(r), "a late viewer's snapshot lacks the cuts");
+        assert!(matches!(
+            r.tools()[1].instrument,
+            InstrumentInfo::Scissors { blade_length_mm, .. } if blade_length_mm == 12.0
+        ));
+    });
+    assert_eq!(server.stats().sim_faults, 0);
     drop(left);
     drop(right);
 }

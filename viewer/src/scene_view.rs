@@ -190,35 +190,56 @@ impl Blade {
     }
 }
 
-/// A grasper's jaws as drawn: two capsules hinged about the tool's local x axis at `hinge_mm`, each running
-/// `length_mm` along the tool's -z, opened by +-half the jaw angle.
+/// A grasper's jaws or scissors' blades as drawn: two capsules hinged about the tool's local x axis at
+/// `hinge_mm`, each running `length_mm` along the tool's -z, opened by +-half the jaw angle.
 struct Jaws {
     nodes: [SceneNode3d; 2],
     hinge_mm: Vec3,
     length_mm: f32,
+    /// Blades keep their steel; a grasper's jaws take the tool's colour.
+    colour: Option<Color>,
 }
 
 impl Jaws {
     /// Jaw radius as drawn, mm.
     const RADIUS_MM: f32 = 0.8;
+    /// Blade radius as drawn, mm.
+    const BLADE_RADIUS_MM: f32 = 0.3;
 
     fn add(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
-        let sinew_protocol::InstrumentInfo::Grasper { jaw_length_mm, .. } = info.instrument else {
-            return None;
+        let (hinge_mm, length_mm, radius_mm, colour) = match info.instrument {
+            sinew_protocol::InstrumentInfo::Grasper { jaw_length_mm, .. } => (
+                Vec3::new(0.0, 0.0, info.shape.bounding_radius_mm()),
+                jaw_length_mm,
+                Self::RADIUS_MM,
+                None,
+            ),
+            sinew_protocol::InstrumentInfo::Scissors {
+                hinge_mm,
+                blade_length_mm,
+                ..
+            } => (
+                Vec3::from(hinge_mm),
+                blade_length_mm,
+                Self::BLADE_RADIUS_MM,
+                Some(BLADE_STEEL),
+            ),
+            _ => return None,
         };
-        let length_mm = jaw_length_mm.max(0.1);
+        let length_mm = length_mm.max(0.1);
         let jaw = |group: &mut SceneNode3d| {
             group
-                .add_capsule(Self::RADIUS_MM, length_mm)
-                .set_color(TOOL_STEEL)
+                .add_capsule(radius_mm, length_mm)
+                .set_color(colour.unwrap_or(TOOL_STEEL))
                 .set_metallic(0.5)
                 .set_roughness(0.35)
                 .set_visible(false)
         };
         Some(Self {
             nodes: [jaw(group), jaw(group)],
-            hinge_mm: Vec3::new(0.0, 0.0, info.shape.bounding_radius_mm()),
+            hinge_mm,
             length_mm,
+            colour,
         })
     }
 
@@ -237,7 +258,7 @@ impl Jaws {
                         * tool_from_jaw
                         * Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
                 )
-                .set_color(colour)
+                .set_color(self.colour.unwrap_or(colour))
                 .set_visible(true);
         }
     }

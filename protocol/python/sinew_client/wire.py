@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 7
+PROTOCOL_VERSION = 8
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -346,6 +346,7 @@ INSTRUMENT = (
         ("grasper", [("jaw_length_mm", "f32"), ("open_angle_rad", "f32")]),
         ("cautery", []),
         ("scalpel", [("edge_from_mm", V3), ("edge_to_mm", V3)]),
+        ("scissors", [("hinge_mm", V3), ("blade_length_mm", "f32"), ("open_angle_rad", "f32")]),
     ],
 )
 

@@ -59,6 +59,11 @@ pub struct TopologyDelta {
 }
 
 impl TopologyDelta {
+    /// Most new vertices, re-pointed triangles or added triangles one change may carry: a larger change is
+    /// refused (a replica re-queries the snapshot instead, which carries any size). A scalpel at the coupling's
+    /// speed limit splits a few hundred vertices per publish frame at most.
+    pub const MAX_ITEMS: usize = 1 << 16;
+
     /// The vertex count after this change.
     pub fn vertex_count(&self) -> u64 {
         u64::from(self.first_vertex) + self.parents.len() as u64
@@ -69,6 +74,18 @@ impl TopologyDelta {
     pub fn validate(&self) -> Result<(), FieldError> {
         if self.epoch == 0 {
             return Err(("topology.epoch", "0 is the epoch before any change"));
+        }
+        for (field, len) in [
+            ("topology.parents", self.parents.len()),
+            ("topology.retargeted", self.retargeted.len()),
+            ("topology.added", self.added.len()),
+        ] {
+            if len > Self::MAX_ITEMS {
+                return Err((
+                    field,
+                    "more than 65536 items in one change: re-query the snapshot",
+                ));
+            }
         }
         if self.retargeted.len() != self.corners.len() {
             return Err(("topology.corners", "length differs from retargeted"));

@@ -72,6 +72,17 @@ pub enum InstrumentInfo {
         /// The other end, tool frame, mm.
         edge_to_mm: [f32; 3],
     },
+    /// Two sharp blades hinged about the tool's local x axis at `hinge_mm`, each `blade_length_mm` long along
+    /// the tool's -z and turned by half of `ToolState.jaw_angle_rad` to either side (+y, -y); closing them cuts
+    /// what lies between them (`MeshDelta.topology`). The shape probes. Protocol 8.
+    Scissors {
+        /// The hinge, tool frame, mm.
+        hinge_mm: [f32; 3],
+        /// Length of each blade from the hinge, mm.
+        blade_length_mm: f32,
+        /// Opening of the open blades, rad.
+        open_angle_rad: f32,
+    },
 }
 
 /// Static description of a tool.
@@ -204,6 +215,22 @@ impl Message for SceneSnapshot {
             {
                 check::finite("tools.instrument", &edge_from_mm)?;
                 check::finite("tools.instrument", &edge_to_mm)?;
+            }
+            if let InstrumentInfo::Scissors {
+                hinge_mm,
+                blade_length_mm,
+                open_angle_rad,
+            } = tool.instrument
+            {
+                check::finite("tools.instrument", &hinge_mm)?;
+                check::finite("tools.instrument", &[blade_length_mm, open_angle_rad])?;
+                if blade_length_mm <= 0.0 || !(0.0..=std::f32::consts::PI).contains(&open_angle_rad)
+                {
+                    return Err((
+                        "tools.instrument",
+                        "blade length not positive or opening outside 0 to pi",
+                    ));
+                }
             }
         }
         self.tool_states.validate()

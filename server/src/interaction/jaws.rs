@@ -4,7 +4,7 @@
 //! hysteresis and a drawn opening angle. Pure and allocation-free: it runs on the sim tick and replays bit for
 //! bit from the recorded poses.
 
-use crate::world::{GraspSpec, JawActivation};
+use crate::world::JawActivation;
 
 /// What the device says about the jaws this tick (`DevicePose.buttons`, `DevicePose.jaw_angle_rad`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -29,13 +29,13 @@ impl Jaws {
     /// ratchet-less handle closes.
     pub const SLEW_RAD_S: f32 = 8.0;
 
-    /// Open jaws.
-    pub fn new(spec: &GraspSpec) -> Self {
+    /// Open jaws, driven by `activation`, opening to `open_angle_rad`.
+    pub fn new(activation: JawActivation, open_angle_rad: f32) -> Self {
         Self {
-            activation: spec.activation,
-            open_angle_rad: spec.open_angle_rad,
+            activation,
+            open_angle_rad,
             closed: false,
-            angle_rad: spec.open_angle_rad,
+            angle_rad: open_angle_rad,
         }
     }
 
@@ -90,10 +90,15 @@ impl Jaws {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::world::GraspSpec;
+
+    fn jaws_of(spec: &GraspSpec) -> Jaws {
+        Jaws::new(spec.activation, spec.open_angle_rad)
+    }
 
     #[test]
     fn a_button_closes_at_once_and_the_drawn_angle_slews() {
-        let mut jaws = Jaws::new(&GraspSpec::DEFAULT);
+        let mut jaws = jaws_of(&GraspSpec::DEFAULT);
         assert!(!jaws.closed());
         let press = JawInput {
             buttons: 1,
@@ -115,7 +120,7 @@ mod tests {
             activation: GraspSpec::ANGLE_DEFAULT,
             ..GraspSpec::DEFAULT
         };
-        let mut jaws = Jaws::new(&spec);
+        let mut jaws = jaws_of(&spec);
         let at = |deg: f32| JawInput {
             buttons: 0,
             jaw_angle_rad: deg.to_radians(),

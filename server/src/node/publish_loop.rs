@@ -391,6 +391,11 @@ pub fn instrument_info(spec: &crate::world::InstrumentSpec) -> sinew_protocol::I
             open_angle_rad: g.open_angle_rad,
         },
         crate::world::InstrumentSpec::Cautery(_) => sinew_protocol::InstrumentInfo::Cautery,
+        crate::world::InstrumentSpec::Scissors(s) => sinew_protocol::InstrumentInfo::Scissors {
+            hinge_mm: s.hinge_mm,
+            blade_length_mm: s.blade_length_mm,
+            open_angle_rad: s.open_angle_rad,
+        },
         crate::world::InstrumentSpec::Scalpel(s) => sinew_protocol::InstrumentInfo::Scalpel {
             edge_from_mm: s.edge_mm[0],
             edge_to_mm: s.edge_mm[1],

@@ -437,6 +437,18 @@ impl MassSpringModel {
         if a == i { b } else { a }
     }
 
+    /// Set spring `s`'s rest length to `share` of its ends' distance at rest (tissue that shrinks, as burnt
+    /// tissue does); `share` is clamped to 0.1..=1. No allocation.
+    pub fn set_spring_rest_share(&mut self, s: u32, share: f32) {
+        let s = s as usize;
+        let (Some(&a), Some(&b)) = (self.springs.a.get(s), self.springs.b.get(s)) else {
+            return;
+        };
+        let rest_mm =
+            (self.rest_positions_mm[a as usize] - self.rest_positions_mm[b as usize]).norm();
+        self.springs.rest_mm[s] = rest_mm * share.clamp(0.1, 1.0);
+    }
+
     /// Triangles incident to node `i`.
     pub fn node_triangles(&self, i: usize) -> &[u32] {
         &self.node_triangles

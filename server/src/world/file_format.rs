@@ -249,6 +249,12 @@ pub(crate) struct MaterialSection {
     /// A sheet tears where a spring is stretched past this strain (length over rest, minus one).
     #[serde(default)]
     pub tear_strain: Option<Spanned<f32>>,
+    /// Drag a sharp edge feels against its motion while it cuts this tissue, N.
+    #[serde(default)]
+    pub cut_resistance_n: Option<Spanned<f32>>,
+    /// Share of its rest length a spring loses between fully burnt ends (cautery shrinks tissue), 0 to 0.5.
+    #[serde(default)]
+    pub burn_shrink: Option<Spanned<f32>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -297,7 +303,7 @@ pub(crate) struct ToolSection {
     pub instrument: Option<Spanned<InstrumentSection>>,
 }
 
-/// `instrument = { kind = "probe" | "grasper" | "cautery" | "scalpel", ... }` of a tool (see
+/// `instrument = { kind = "probe" | "grasper" | "cautery" | "scalpel" | "scissors", ... }` of a tool (see
 /// `world::instrument`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -323,8 +329,12 @@ pub(crate) struct InstrumentSection {
     /// Scalpel: the sharp edge's ends in the tool frame, mm.
     pub edge_from_mm: Option<[f32; 3]>,
     pub edge_to_mm: Option<[f32; 3]>,
-    /// Scalpel: drag against the tool's motion while it cuts, N.
+    /// Refused: the drag of cutting is the tissue's (`[objects.material] cut_resistance_n`).
     pub cut_resistance_n: Option<f32>,
+    /// Scissors: each blade's length from the hinge, mm.
+    pub blade_length_mm: Option<f32>,
+    /// Scissors: the hinge in the tool frame, mm.
+    pub hinge_mm: Option<[f32; 3]>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -334,6 +344,7 @@ pub(crate) enum InstrumentKindName {
     Grasper,
     Cautery,
     Scalpel,
+    Scissors,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]

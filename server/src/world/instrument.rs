@@ -11,7 +11,11 @@
 //! side only cannot grasp). `jaw_length_mm` and `open_angle_deg` are how the viewers draw them. A cautery
 //! tool's whole body is its active tip: while its button is held, the surface it touches burns. A scalpel's
 //! sharp edge is a segment in the tool frame that passes through tissue and cuts what it sweeps; its body is
-//! the blunt back.
+//! the blunt back. A pair of scissors has two sharp blades hinged about the tool's local x axis at `hinge_mm`,
+//! running along its local -z and opening in its local y-z plane: as the jaws close, each blade sweeps the
+//! part of the opening it passes through and cuts what it sweeps (the blades shear past each other by
+//! [`ScissorsSpec::CROSSING_RAD`] when closed, so tissue between them is cut when they meet). Moving open
+//! scissors cuts nothing; the body (`shape`) probes.
 
 /// What a tool is.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,6 +28,8 @@ pub enum InstrumentSpec {
     Cautery(CauterySpec),
     /// A sharp edge that cuts the tissue it sweeps through; the body (its blunt back) probes.
     Scalpel(ScalpelSpec),
+    /// Two sharp blades that cut what lies between them as they close; the body probes.
+    Scissors(ScissorsSpec),
 }
 
 impl InstrumentSpec {
@@ -34,6 +40,16 @@ impl InstrumentSpec {
             InstrumentSpec::Grasper(_) => "grasper",
             InstrumentSpec::Cautery(_) => "cautery",
             InstrumentSpec::Scalpel(_) => "scalpel",
+            InstrumentSpec::Scissors(_) => "scissors",
+        }
+    }
+
+    /// What drives the jaws and how far they open (rad), for an instrument with jaws (a grasper, scissors).
+    pub fn jaws(&self) -> Option<(JawActivation, f32)> {
+        match self {
+            InstrumentSpec::Grasper(g) => Some((g.activation, g.open_angle_rad)),
+            InstrumentSpec::Scissors(s) => Some((s.activation, s.open_angle_rad)),
+            InstrumentSpec::Probe | InstrumentSpec::Cautery(_) | InstrumentSpec::Scalpel(_) => None,
         }
     }
 
@@ -41,7 +57,7 @@ impl InstrumentSpec {
     pub fn grasp(&self) -> Option<&GraspSpec> {
         match self {
             InstrumentSpec::Grasper(g) => Some(g),
-            InstrumentSpec::Probe | InstrumentSpec::Cautery(_) | InstrumentSpec::Scalpel(_) => None,
+            _ => None,
         }
     }
 
@@ -49,7 +65,7 @@ impl InstrumentSpec {
     pub fn cautery(&self) -> Option<&CauterySpec> {
         match self {
             InstrumentSpec::Cautery(c) => Some(c),
-            InstrumentSpec::Probe | InstrumentSpec::Grasper(_) | InstrumentSpec::Scalpel(_) => None,
+            _ => None,
         }
     }
 
@@ -57,29 +73,80 @@ impl InstrumentSpec {
     pub fn scalpel(&self) -> Option<&ScalpelSpec> {
         match self {
             InstrumentSpec::Scalpel(s) => Some(s),
-            InstrumentSpec::Probe | InstrumentSpec::Grasper(_) | InstrumentSpec::Cautery(_) => None,
+            _ => None,
+        }
+    }
+
+    /// The blades, for scissors.
+    pub fn scissors(&self) -> Option<&ScissorsSpec> {
+        match self {
+            InstrumentSpec::Scissors(s) => Some(s),
+            _ => None,
         }
     }
 }
 
 /// A scalpel's blade: a sharp edge, a segment in the tool frame. Between two ticks the edge sweeps a surface;
 /// tissue it sweeps through is cut along the mesh's facets (`interaction::cut`). The edge does not push
-/// tissue (it passes through it); the tool's `shape` is the blunt back and probes as any body does.
+/// tissue (it passes through it); the tool's `shape` is the blunt back and probes as any body does. The drag
+/// felt while cutting is the tissue's (its material's `cut_resistance_n`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScalpelSpec {
     /// The edge's two ends in the tool frame, mm.
     pub edge_mm: [[f32; 3]; 2],
-    /// Drag the tool feels against its motion while the edge cuts, N.
-    pub cut_resistance_n: f32,
 }
 
 impl ScalpelSpec {
     /// Defaults of `kind = "scalpel"`: an 8 mm edge from 1 mm to 9 mm below the tool origin along its local
-    /// -z (below a small blunt back at the origin), 0.15 N of drag while cutting.
+    /// -z (below a small blunt back at the origin).
     pub const DEFAULT: ScalpelSpec = ScalpelSpec {
         edge_mm: [[0.0, 0.0, -1.0], [0.0, 0.0, -9.0]],
-        cut_resistance_n: 0.15,
     };
+}
+
+/// A pair of scissors: two straight blades hinged about the tool's local x axis at `hinge_mm`, each running
+/// `blade_length_mm` along the tool's -z and turned by half the jaw opening to either side (+y, -y).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScissorsSpec {
+    /// What opens and closes the blades.
+    pub activation: JawActivation,
+    /// Opening of the open blades, rad.
+    pub open_angle_rad: f32,
+    /// Length of each blade from the hinge, mm.
+    pub blade_length_mm: f32,
+    /// The hinge in the tool frame, mm.
+    pub hinge_mm: [f32; 3],
+}
+
+impl ScissorsSpec {
+    /// Defaults of `kind = "scissors"`: a button closes two 12 mm blades opened 40 degrees, hinged at the tool
+    /// origin.
+    pub const DEFAULT: ScissorsSpec = ScissorsSpec {
+        activation: JawActivation::Button { mask: 1 },
+        open_angle_rad: 40.0 * std::f32::consts::PI / 180.0,
+        blade_length_mm: 12.0,
+        hinge_mm: [0.0, 0.0, 0.0],
+    };
+
+    /// How far each closed blade has passed the other's line, rad (3 degrees): scissors' blades shear past
+    /// each other, so tissue between them is cut by the time they close.
+    pub const CROSSING_RAD: f32 = 3.0 * std::f32::consts::PI / 180.0;
+
+    /// Blades cut from this far out from the hinge, mm (the crotch itself does not cut).
+    pub const CROTCH_MM: f32 = 0.2;
+
+    /// The two blades' ends (crotch, tip) in the tool frame at jaw opening `jaw_angle_rad`, mm: the +y blade
+    /// first.
+    pub fn blades_mm(&self, jaw_angle_rad: f32) -> [[[f32; 3]; 2]; 2] {
+        let half = 0.5 * jaw_angle_rad.clamp(0.0, self.open_angle_rad) - Self::CROSSING_RAD;
+        let (sin, cos) = half.sin_cos();
+        let h = self.hinge_mm;
+        let blade = |sign: f32| {
+            let at = |r: f32| [h[0], h[1] + sign * r * sin, h[2] - r * cos];
+            [at(Self::CROTCH_MM), at(self.blade_length_mm)]
+        };
+        [blade(1.0), blade(-1.0)]
+    }
 }
 
 /// A cautery tool's parameters: its whole body is the active tip.

@@ -155,6 +155,15 @@ pub struct MaterialSpec {
     pub tet_bulk_modulus_n_per_mm2: f32,
     /// A sheet tears where a spring is stretched past this strain (length / rest - 1); `None`: it never tears.
     pub tear_strain: Option<f32>,
+    /// Drag a sharp edge feels against its motion while it cuts this tissue, N.
+    pub cut_resistance_n: f32,
+    /// Share of its rest length a spring loses when both its ends are fully burnt (0: burns do not shrink).
+    pub burn_shrink: f32,
+}
+
+impl MaterialSpec {
+    /// Default of `cut_resistance_n`, N.
+    pub const DEFAULT_CUT_RESISTANCE_N: f32 = 0.15;
 }
 
 /// A set of fixed nodes.
@@ -751,6 +760,32 @@ impl Context<'_> {
                     Some(strain)
                 }
             },
+            cut_resistance_n: match &m.cut_resistance_n {
+                None => MaterialSpec::DEFAULT_CUT_RESISTANCE_N,
+                Some(at) => {
+                    let drag = *at.get_ref();
+                    self.check(
+                        at,
+                        &key("cut_resistance_n"),
+                        drag.is_finite() && (0.0..=5.0).contains(&drag),
+                        "must be 0 to 5 N",
+                    )?;
+                    drag
+                }
+            },
+            burn_shrink: match &m.burn_shrink {
+                None => 0.0,
+                Some(at) => {
+                    let shrink = *at.get_ref();
+                    self.check(
+                        at,
+                        &key("burn_shrink"),
+                        shrink.is_finite() && (0.0..=0.5).contains(&shrink),
+                        "must be 0 to 0.5 (the share of rest length a fully burnt spring loses)",
+                    )?;
+                    shrink
+                }
+            },
         })
     }
 
@@ -1219,13 +1254,80 @@ impl Context<'_> {
         Ok(mask)
     }
 
+    /// The `activation` keys of an instrument with jaws (a grasper, scissors): a button (default 1) or a
+    /// gripper's angle with its hysteresis band, each key checked.
+    fn jaw_activation(
+        &self,
+        i: usize,
+        at: &Spanned<InstrumentSection>,
+    ) -> Result<crate::world::JawActivation, WorldError> {
+        use crate::world::{GraspSpec, JawActivation};
+        let section = at.get_ref();
+        let key = |k: &str| format!("tools[{i}].instrument.{k}");
+        let rad = |deg: f32| deg.to_radians();
+        let angle_keys = section.close_below_deg.is_some() || section.open_above_deg.is_some();
+        let activation = match section.activation.unwrap_or(ActivationName::Button) {
+            ActivationName::Button => {
+                if angle_keys {
+                    return Err(self.invalid(
+                        at,
+                        &key("close_below_deg"),
+                        "the jaw angle thresholds need activation = \"angle\"",
+                    ));
+                }
+                JawActivation::Button {
+                    mask: self.button_mask(at, &key("button_mask"), section.button_mask)?,
+                }
+            }
+            ActivationName::Angle => {
+                if section.button_mask.is_some() {
+                    return Err(self.invalid(
+                        at,
+                        &key("button_mask"),
+                        "a button mask needs activation = \"button\"",
+                    ));
+                }
+                let JawActivation::Angle {
+                    mut close_below_rad,
+                    mut open_above_rad,
+                } = GraspSpec::ANGLE_DEFAULT
+                else {
+                    unreachable!("the angle default is an angle activation")
+                };
+                if let Some(deg) = section.close_below_deg {
+                    close_below_rad = rad(deg);
+                }
+                if let Some(deg) = section.open_above_deg {
+                    open_above_rad = rad(deg);
+                }
+                self.check(
+                    at,
+                    &key("close_below_deg"),
+                    close_below_rad.is_finite() && close_below_rad >= 0.0,
+                    "must be a number >= 0",
+                )?;
+                self.check(
+                    at,
+                    &key("open_above_deg"),
+                    open_above_rad.is_finite() && open_above_rad > close_below_rad,
+                    "must be above close_below_deg (the hysteresis band)",
+                )?;
+                JawActivation::Angle {
+                    close_below_rad,
+                    open_above_rad,
+                }
+            }
+        };
+        Ok(activation)
+    }
+
     /// `tools[i].instrument`: every key checked for its kind and its range.
     fn instrument(
         &self,
         i: usize,
         at: &Spanned<InstrumentSection>,
     ) -> Result<crate::world::InstrumentSpec, WorldError> {
-        use crate::world::{GraspSpec, InstrumentSpec, JawActivation};
+        use crate::world::{GraspSpec, InstrumentSpec};
         let section = at.get_ref();
         let key = |k: &str| format!("tools[{i}].instrument.{k}");
         // Which keys each kind takes; any other given key is refused by name.
@@ -1244,6 +1346,8 @@ impl Context<'_> {
             ("edge_from_mm", section.edge_from_mm.is_some()),
             ("edge_to_mm", section.edge_to_mm.is_some()),
             ("cut_resistance_n", section.cut_resistance_n.is_some()),
+            ("blade_length_mm", section.blade_length_mm.is_some()),
+            ("hinge_mm", section.hinge_mm.is_some()),
         ];
         let (takes, kind_says): (&[&str], &str) = match section.kind {
             InstrumentKindName::Probe => (
@@ -1269,8 +1373,22 @@ impl Context<'_> {
                 "a cautery tool takes button_mask, burn_per_s and reach_mm",
             ),
             InstrumentKindName::Scalpel => (
-                &["edge_from_mm", "edge_to_mm", "cut_resistance_n"],
-                "a scalpel takes edge_from_mm, edge_to_mm and cut_resistance_n",
+                &["edge_from_mm", "edge_to_mm"],
+                "a scalpel takes edge_from_mm and edge_to_mm (the drag of cutting is the tissue's: \
+                 [objects.material] cut_resistance_n)",
+            ),
+            InstrumentKindName::Scissors => (
+                &[
+                    "activation",
+                    "button_mask",
+                    "close_below_deg",
+                    "open_above_deg",
+                    "open_angle_deg",
+                    "blade_length_mm",
+                    "hinge_mm",
+                ],
+                "scissors take activation, button_mask, close_below_deg, open_above_deg, open_angle_deg, \
+                 blade_length_mm and hinge_mm",
             ),
         };
         if let Some((name, _)) = given
@@ -1309,15 +1427,37 @@ impl Context<'_> {
                     length >= 0.1,
                     "the edge must be at least 0.1 mm long (edge_from_mm and edge_to_mm too close)",
                 )?;
+                Ok(InstrumentSpec::Scalpel(scalpel))
+            }
+            InstrumentKindName::Scissors => {
+                let mut scissors = crate::world::ScissorsSpec::DEFAULT;
+                scissors.activation = self.jaw_activation(i, at)?;
                 self.take_checked(
                     at,
-                    &key("cut_resistance_n"),
-                    section.cut_resistance_n,
-                    |f| (0.0..=5.0).contains(&f),
-                    "must be 0 to 5 N",
-                    &mut scalpel.cut_resistance_n,
+                    &key("open_angle_deg"),
+                    section.open_angle_deg.map(f32::to_radians),
+                    |v| v > 2.0 * crate::world::ScissorsSpec::CROSSING_RAD && v <= 1.6,
+                    "must be more than 6 and at most about 90 degrees",
+                    &mut scissors.open_angle_rad,
                 )?;
-                Ok(InstrumentSpec::Scalpel(scalpel))
+                self.take_checked(
+                    at,
+                    &key("blade_length_mm"),
+                    section.blade_length_mm,
+                    |v| (1.0..=200.0).contains(&v),
+                    "must be 1 to 200 mm",
+                    &mut scissors.blade_length_mm,
+                )?;
+                if let Some(p) = section.hinge_mm {
+                    self.check(
+                        at,
+                        &key("hinge_mm"),
+                        p.iter().all(|c| c.is_finite() && c.abs() <= 500.0),
+                        "must be three finite numbers within 500 mm of the tool origin",
+                    )?;
+                    scissors.hinge_mm = p;
+                }
+                Ok(InstrumentSpec::Scissors(scissors))
             }
             InstrumentKindName::Cautery => {
                 let mut cautery = crate::world::CauterySpec::DEFAULT;
@@ -1344,60 +1484,7 @@ impl Context<'_> {
             InstrumentKindName::Grasper => {
                 let mut grasp = GraspSpec::DEFAULT;
                 let rad = |deg: f32| deg.to_radians();
-                let angle_keys =
-                    section.close_below_deg.is_some() || section.open_above_deg.is_some();
-                grasp.activation = match section.activation.unwrap_or(ActivationName::Button) {
-                    ActivationName::Button => {
-                        if angle_keys {
-                            return Err(self.invalid(
-                                at,
-                                &key("close_below_deg"),
-                                "the jaw angle thresholds need activation = \"angle\"",
-                            ));
-                        }
-                        JawActivation::Button {
-                            mask: self.button_mask(at, &key("button_mask"), section.button_mask)?,
-                        }
-                    }
-                    ActivationName::Angle => {
-                        if section.button_mask.is_some() {
-                            return Err(self.invalid(
-                                at,
-                                &key("button_mask"),
-                                "a button mask needs activation = \"button\"",
-                            ));
-                        }
-                        let JawActivation::Angle {
-                            mut close_below_rad,
-                            mut open_above_rad,
-                        } = GraspSpec::ANGLE_DEFAULT
-                        else {
-                            unreachable!("the angle default is an angle activation")
-                        };
-                        if let Some(deg) = section.close_below_deg {
-                            close_below_rad = rad(deg);
-                        }
-                        if let Some(deg) = section.open_above_deg {
-                            open_above_rad = rad(deg);
-                        }
-                        self.check(
-                            at,
-                            &key("close_below_deg"),
-                            close_below_rad.is_finite() && close_below_rad >= 0.0,
-                            "must be a number >= 0",
-                        )?;
-                        self.check(
-                            at,
-                            &key("open_above_deg"),
-                            open_above_rad.is_finite() && open_above_rad > close_below_rad,
-                            "must be above close_below_deg (the hysteresis band)",
-                        )?;
-                        JawActivation::Angle {
-                            close_below_rad,
-                            open_above_rad,
-                        }
-                    }
-                };
+                grasp.activation = self.jaw_activation(i, at)?;
                 let positive = [
                     (
                         "open_angle_deg",
