@@ -99,6 +99,8 @@ pub struct SimObject {
     cut_resistance_n: f32,
     /// The share of rest length a spring between two fully burnt nodes loses (0: burns do not shrink).
     burn_shrink: f32,
+    /// Coulomb friction between a tool and this tissue (0: frictionless).
+    friction: f32,
     /// Scratch of the tear test: the facets torn this tick.
     torn: Vec<Facet>,
 }
@@ -443,6 +445,7 @@ impl Sim {
                 tear_strain: spec.material.tear_strain,
                 cut_resistance_n: spec.material.cut_resistance_n,
                 burn_shrink: spec.material.burn_shrink,
+                friction: spec.material.friction_coefficient,
                 torn: Vec::new(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
@@ -849,7 +852,7 @@ impl Sim {
         let mut force = Vec3::zeros();
         let mut held = 0;
         for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
-            force += contacts.reaction_force_n(&object.model, &object.state);
+            force += contacts.reaction_force_n(&object.model, &object.state, object.friction);
             held += contacts.held.len() as u32;
         }
         let attachments = tool
@@ -1275,6 +1278,7 @@ impl Sim {
                         &object.model,
                         &mut object.state,
                         grasped,
+                        object.friction,
                     );
                     if let Some(grasp) = &tool.grasp {
                         grasp.hold(

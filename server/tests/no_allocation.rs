@@ -125,6 +125,17 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     // The shipped world as it is.
     let mut sim = Sim::new(&load_world(&path).unwrap()).unwrap();
     assert_eq!(allocations_while_stepping(&mut sim, 600, 1000), 0);
+    // With friction: the nodes stick to the probes and slip as they stroke (each substep's anchors reuse
+    // their buffers).
+    let rough = text.replacen(
+        "drag_per_s = 150.0",
+        "drag_per_s = 150.0\nfriction_coefficient = 0.5",
+        1,
+    );
+    let mut sim = Sim::new(&parse_world(&path, &rough).unwrap()).unwrap();
+    let allocations = allocations_while_stepping(&mut sim, 600, 1000);
+    println!("friction: {allocations} allocations in 1000 warm ticks");
+    assert_eq!(allocations, 0, "a tick with friction allocated");
     // Region tracking, which rebuilds its sub-model inside ticks as the dent moves: the rebuilds reuse their
     // buffers once a full stroke cycle (1 s) has grown them.
     for method in [IntegratorName::SymplecticEuler, IntegratorName::Xpbd] {

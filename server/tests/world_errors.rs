@@ -726,14 +726,15 @@ fn a_tear_strain_out_of_range_or_on_a_volume_is_refused() {
 }
 
 #[test]
-fn a_cut_resistance_or_burn_shrink_out_of_range_is_refused_by_key_and_line() {
+fn a_cut_resistance_burn_shrink_or_friction_out_of_range_is_refused_by_key_and_line() {
     let good = GOOD_WORLD.replace(
         "anchor_stiffness_n_per_mm = 0.001",
-        "anchor_stiffness_n_per_mm = 0.001\ncut_resistance_n = 0.4\nburn_shrink = 0.2",
+        "anchor_stiffness_n_per_mm = 0.001\ncut_resistance_n = 0.4\nburn_shrink = 0.2\nfriction_coefficient = 0.3",
     );
     let world = load_world(&write_world(&good, None)).unwrap();
     assert_eq!(world.objects[0].material.cut_resistance_n, 0.4);
     assert_eq!(world.objects[0].material.burn_shrink, 0.2);
+    assert_eq!(world.objects[0].material.friction_coefficient, 0.3);
     for (from, to, key, says) in [
         (
             "cut_resistance_n = 0.4",
@@ -752,6 +753,12 @@ fn a_cut_resistance_or_burn_shrink_out_of_range_is_refused_by_key_and_line() {
             "burn_shrink = nan",
             "objects[0].material.burn_shrink",
             "0 to 0.5",
+        ),
+        (
+            "friction_coefficient = 0.3",
+            "friction_coefficient = 3.0",
+            "objects[0].material.friction_coefficient",
+            "0 to 2",
         ),
     ] {
         let bad = good.replace(from, to);

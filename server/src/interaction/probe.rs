@@ -7,8 +7,16 @@
 //! in over the tool (a deep dent's wall closing in) is held beside the shaft, and a node held under the tool
 //! stays under it even when one step carried it past the tool's core ([`ToolCollider::push_out_along`]); so a
 //! thin sheet never closes over a probe pressed deep into it. Held nodes act on the tool through its surface normal `n_i` there: with `f_i` the node's
-//! internal force, the tool feels `(f_i . n_i) n_i` when `f_i . n_i < 0` (frictionless, push-only). The sum
-//! points out of the tissue, grows with depth, and resists lateral strokes through the dent's walls.
+//! internal force, the tool feels `(f_i . n_i) n_i` when `f_i . n_i < 0` (push-only). The sum points out of the
+//! tissue, grows with depth, and resists lateral strokes through the dent's walls.
+//!
+//! Friction (Coulomb, stick-slip, with the material's coefficient `mu`): a held node sticks to the point of the
+//! tool surface where it was held last substep (kept in the tool frame, so it rides with the tool) while the
+//! tangential part of its internal force `f_t` stays within `mu |f_n|`; the tool feels `f_t`. Past that it slips:
+//! it moves from the stuck point toward where it would lie without friction by the excess force over its
+//! stiffness (`(|f_t| - mu |f_n|) / k_ii`, a return mapping), and the tool feels the kinetic `mu |f_n|` along
+//! `f_t`. So a probe stroked across the tissue drags the surface until the pull exceeds the friction, then
+//! slides; a still, deep press holds its nodes where they are instead of letting them creep round the tool.
 
 use nalgebra::UnitQuaternion;
 
@@ -28,6 +36,10 @@ pub struct ProbeContacts {
     in_front: Vec<u32>,
     /// The same for this tick, being built (swapped into `in_front` at the end of [`Self::project`]).
     in_front_now: Vec<u32>,
+    /// Where each held node sticks to the tool, tool frame, mm (sorted by node; friction only).
+    anchors: Vec<(u32, Vec3)>,
+    /// The same for this substep, being built.
+    anchors_now: Vec<(u32, Vec3)>,
 }
 
 impl ProbeContacts {
@@ -39,6 +51,8 @@ impl ProbeContacts {
             normals: Vec::with_capacity(capacity),
             in_front: Vec::with_capacity(capacity),
             in_front_now: Vec::with_capacity(capacity),
+            anchors: Vec::with_capacity(capacity),
+            anchors_now: Vec::with_capacity(capacity),
         }
     }
 
@@ -55,11 +69,15 @@ impl ProbeContacts {
         self.clear();
         self.in_front.clear();
         self.in_front_now.clear();
+        self.anchors.clear();
+        self.anchors_now.clear();
     }
 
-    /// Push every candidate node that is inside the tool out to its surface; record the held nodes.
-    /// Fixed nodes are not moved, nor the nodes in `grasped` (sorted: the tool's jaws hold them). No allocation
-    /// beyond capacity, never panics.
+    /// Push every candidate node that is inside the tool out to its surface; record the held nodes. With
+    /// `friction` (the material's Coulomb coefficient, 0: frictionless) a node held last substep sticks to its
+    /// point of the tool until it slips (module docs). Fixed nodes are not moved, nor the nodes in `grasped`
+    /// (sorted: the tool's jaws hold them). No allocation beyond capacity, never panics.
+    #[allow(clippy::too_many_arguments)] // one call site, in the substep loop: a struct would only rename them
     pub fn project(
         &mut self,
         tool: &ToolCollider,
@@ -68,10 +86,23 @@ impl ProbeContacts {
         model: &MassSpringModel,
         state: &mut TissueState,
         grasped: &[u32],
+        friction: f32,
     ) {
         self.held.clear();
         self.normals.clear();
         self.in_front_now.clear();
+        self.anchors_now.clear();
+        let friction = if friction.is_finite() {
+            friction.max(0.0)
+        } else {
+            0.0
+        };
+        let pressure = if friction > 0.0 && !self.anchors.is_empty() {
+            model.pressure_n_per_mm2(&state.positions_mm)
+        } else {
+            0.0
+        };
+        let to_tool = rotation.inverse();
         for &node in &self.candidates {
             let i = node as usize;
             if model.is_fixed(i) || grasped.binary_search(&node).is_ok() {
@@ -89,7 +120,41 @@ impl ProbeContacts {
                 if side == ContactSide::Front {
                     self.in_front_now.push(node);
                 }
-                state.positions_mm[i] = surface;
+                let anchor = self
+                    .anchors
+                    .binary_search_by_key(&node, |a| a.0)
+                    .ok()
+                    .map(|k| position_mm + rotation * self.anchors[k].1);
+                let placed = match anchor {
+                    Some(stuck) if friction > 0.0 => {
+                        state.positions_mm[i] = stuck;
+                        let f = model.node_force(
+                            i,
+                            &state.positions_mm,
+                            &state.velocities_mm_s,
+                            pressure,
+                        );
+                        let f_n = f.dot(&normal);
+                        let f_t = f - normal * f_n;
+                        let limit_n = friction * (-f_n).max(0.0);
+                        let excess_n = f_t.norm() - limit_n;
+                        let k = model.diagonal_stiffness_n_per_mm(i);
+                        let toward = surface - stuck;
+                        let gap = toward.norm();
+                        if excess_n <= 0.0 || k <= 0.0 || gap <= 0.0 {
+                            stuck
+                        } else {
+                            // Slip toward the frictionless point by the excess force over the stiffness.
+                            stuck + toward * (excess_n / k / gap).min(1.0)
+                        }
+                    }
+                    _ => surface,
+                };
+                state.positions_mm[i] = placed;
+                if friction > 0.0 {
+                    self.anchors_now
+                        .push((node, to_tool * (placed - position_mm)));
+                }
                 // A held node moves with the tool: it keeps no velocity of its own. Keeping the tangential
                 // part let held nodes creep round the frictionless tool, drop out of contact and snap back
                 // in a slow cycle (a ~40 mN, ~2 Hz force ripple under a still hand).
@@ -100,10 +165,18 @@ impl ProbeContacts {
         }
         self.in_front_now.sort_unstable();
         std::mem::swap(&mut self.in_front, &mut self.in_front_now);
+        self.anchors_now.sort_unstable_by_key(|a| a.0);
+        std::mem::swap(&mut self.anchors, &mut self.anchors_now);
     }
 
-    /// Force the tissue exerts on the tool through the held nodes, N. No allocation.
-    pub fn reaction_force_n(&self, model: &MassSpringModel, state: &TissueState) -> Vec3 {
+    /// Force the tissue exerts on the tool through the held nodes, N: each node's push along the tool's normal
+    /// and, with `friction`, its tangential pull up to `friction` times that push. No allocation.
+    pub fn reaction_force_n(
+        &self,
+        model: &MassSpringModel,
+        state: &TissueState,
+        friction: f32,
+    ) -> Vec3 {
         let mut force = Vec3::zeros();
         if self.held.is_empty() {
             return force;
@@ -119,6 +192,16 @@ impl ProbeContacts {
             let normal = f.dot(dir);
             if normal < 0.0 {
                 force += dir * normal;
+                if friction > 0.0 && friction.is_finite() {
+                    let f_t = f - dir * normal;
+                    let limit_n = -normal * friction;
+                    let t = f_t.norm();
+                    force += if t <= limit_n {
+                        f_t
+                    } else {
+                        f_t * (limit_n / t)
+                    };
+                }
             }
         }
         force

@@ -255,6 +255,9 @@ pub(crate) struct MaterialSection {
     /// Share of its rest length a spring loses between fully burnt ends (cautery shrinks tissue), 0 to 0.5.
     #[serde(default)]
     pub burn_shrink: Option<Spanned<f32>>,
+    /// Coulomb friction coefficient between tools and this tissue (0: frictionless).
+    #[serde(default)]
+    pub friction_coefficient: Option<Spanned<f32>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -159,6 +159,8 @@ pub struct MaterialSpec {
     pub cut_resistance_n: f32,
     /// Share of its rest length a spring loses when both its ends are fully burnt (0: burns do not shrink).
     pub burn_shrink: f32,
+    /// Coulomb friction coefficient between a tool and this tissue (0: frictionless).
+    pub friction_coefficient: f32,
 }
 
 impl MaterialSpec {
@@ -784,6 +786,19 @@ impl Context<'_> {
                         "must be 0 to 0.5 (the share of rest length a fully burnt spring loses)",
                     )?;
                     shrink
+                }
+            },
+            friction_coefficient: match &m.friction_coefficient {
+                None => 0.0,
+                Some(at) => {
+                    let mu = *at.get_ref();
+                    self.check(
+                        at,
+                        &key("friction_coefficient"),
+                        mu.is_finite() && (0.0..=2.0).contains(&mu),
+                        "must be 0 to 2 (Coulomb's coefficient; 0 is frictionless)",
+                    )?;
+                    mu
                 }
             },
         })
