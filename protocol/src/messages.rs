@@ -14,6 +14,6 @@ pub use hello::{ParticipantHello, Role};
 pub use local_model::{ContactPlane, LocalModel, MAX_CONTACT_PLANES, Sym3};
 pub use mesh_delta::{MeshDelta, TopologyDelta};
 pub use pose::{DevicePose, RenderMode};
-pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShape};
+pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShaft, ToolShape};
 pub use stats::{DeviceStats, ExerciseStats, RejectCounts, ServerStats, TrainingStats};
 pub use tools::{ToolState, ToolStates};

@@ -230,6 +230,10 @@ fn snapshot(rng: &mut fastrand::Rng) -> SceneSnapshot {
                         open_angle_rad: rng.f32() * 1.5,
                     },
                 },
+                shaft: rng.bool().then(|| ToolShaft {
+                    radius_mm: 0.1 + rng.f32() * 5.0,
+                    length_mm: 1.0 + rng.f32() * 100.0,
+                }),
             })
             .collect(),
         tool_states: tool_states(rng),

@@ -137,6 +137,10 @@ fn snapshot() -> SceneSnapshot {
                 jaw_length_mm: 8.0,
                 open_angle_rad: 0.5,
             },
+            shaft: Some(ToolShaft {
+                radius_mm: 2.5,
+                length_mm: 40.0,
+            }),
         }],
         tool_states: tool_states(),
     }

@@ -14,4 +14,4 @@ mod probe;
 pub use cut::{BladeSweep, CutScratch, swept_seams, torn_seams};
 pub use grasp::{Attachment, Grasp, GraspEvent, MAX_ATTACHMENTS};
 pub use jaws::{JawInput, Jaws};
-pub use probe::ProbeContacts;
+pub use probe::{ProbeContacts, ToolBody};

@@ -13,8 +13,8 @@ use crate::haptics::{
     VirtualCoupling, WorldPlane, nearest_surface_plane,
 };
 use crate::interaction::{
-    BladeSweep, CutScratch, Grasp, GraspEvent, JawInput, Jaws, ProbeContacts, swept_seams,
-    torn_seams,
+    BladeSweep, CutScratch, Grasp, GraspEvent, JawInput, Jaws, ProbeContacts, ToolBody,
+    swept_seams, torn_seams,
 };
 use crate::tissue::seams::{Facet, Opening, open_model, shared_by_two};
 use crate::tissue::{
@@ -225,6 +225,12 @@ pub struct SimTool {
     /// A scalpel's edge in the world at the end of the last tick (None while inactive: a tool that comes back
     /// does not sweep from where it left).
     edge_world_mm: Option<[Vec3; 2]>,
+    /// The shaft as the world gives it.
+    pub shaft_spec: Option<crate::world::ShaftSpec>,
+    /// The shaft (a capsule along the tool's z, from the origin up), which pushes tissue as the tip does.
+    shaft: Option<ToolCollider>,
+    /// Half the shaft's length, mm (its centre's height above the tool origin).
+    shaft_half_mm: f32,
     /// Scissors' jaw opening at the end of the last tick, rad (None while inactive or not yet joined).
     blade_angle_rad: Option<f32>,
     /// The drag of the tissue this tool's edge cut last, N (its material's `cut_resistance_n`).
@@ -244,6 +250,11 @@ pub struct SimTool {
 }
 
 impl SimTool {
+    /// The shaft's centre in the world, mm (the tool origin when it has none).
+    fn shaft_centre_mm(&self) -> Vec3 {
+        self.position_mm + self.rotation * Vec3::new(0.0, 0.0, self.shaft_half_mm)
+    }
+
     /// The latest finished contact-stiffness solve of this tool on object `object`.
     pub fn contact_response(&self, object: usize) -> Option<&crate::haptics::ContactResponse> {
         self.stiffness.get(object).and_then(|s| s.response())
@@ -515,6 +526,14 @@ impl Sim {
                     .map(|g| Grasp::new(*g, objects.len())),
                 grasp_force_n: Vec3::zeros(),
                 edge_world_mm: None,
+                shaft: spec.shaft.map(|s| {
+                    ToolCollider::Capsule(parry3d::shape::Capsule::new_z(
+                        0.5 * s.length_mm,
+                        s.radius_mm,
+                    ))
+                }),
+                shaft_half_mm: spec.shaft.map_or(0.0, |s| 0.5 * s.length_mm),
+                shaft_spec: spec.shaft,
                 blade_angle_rad: None,
                 cut_resistance_n: 0.0,
                 cut_scratch: CutScratch::default(),
@@ -690,12 +709,18 @@ impl Sim {
         // Broad phase once per tick, on last tick's refitted surfaces, loosened by the margin.
         let margin = self.collision_margin_mm;
         for tool in &mut self.tools {
+            let mut aabb = tool
+                .collider
+                .aabb(&tool.position_mm, &tool.rotation, margin);
+            if let Some(shaft) = &tool.shaft {
+                parry3d::bounding_volume::BoundingVolume::merge(
+                    &mut aabb,
+                    &shaft.aabb(&tool.shaft_centre_mm(), &tool.rotation, margin),
+                );
+            }
             for (object, contacts) in self.objects.iter_mut().zip(tool.contacts.iter_mut()) {
                 if tool.active {
                     contacts.clear();
-                    let aabb = tool
-                        .collider
-                        .aabb(&tool.position_mm, &tool.rotation, margin);
                     object
                         .collider
                         .nodes_near(&aabb, &mut object.marks, &mut contacts.candidates);
@@ -1271,10 +1296,14 @@ impl Sim {
                 };
                 for tool in self.tools.iter_mut().filter(|t| t.active) {
                     let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+                    let body = ToolBody {
+                        tip: &tool.collider,
+                        shaft: tool.shaft.as_ref().map(|s| (s, tool.shaft_centre_mm())),
+                        position_mm: tool.position_mm,
+                        rotation: tool.rotation,
+                    };
                     tool.contacts[o].project(
-                        &tool.collider,
-                        &tool.position_mm,
-                        &tool.rotation,
+                        &body,
                         &object.model,
                         &mut object.state,
                         grasped,

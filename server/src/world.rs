@@ -21,8 +21,8 @@ pub use instrument::{
     CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
 };
 pub use loader::{
-    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ToolShapeSpec, ToolSpec, World, WorldError,
-    load_world, parse_world,
+    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec, ToolShapeSpec, ToolSpec, World,
+    WorldError, load_world, parse_world,
 };
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};
 pub use tet_mesh::{TetMesh, VolumeMeshError, load_msh_mesh, parse_msh};

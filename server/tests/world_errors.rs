@@ -680,6 +680,34 @@ fn bad_instrument_keys_name_the_key_and_line() {
         }
         assert!(message.contains(says), "{instrument}: {message}");
     }
+    // A shaft: loads with its values, refused out of range by key and line.
+    let shaft_line = "shaft = { radius_mm = 2.5, length_mm = 40.0 }";
+    let shafted = GOOD_WORLD.replace(tool_line, &format!("{tool_line}\n{shaft_line}"));
+    let world = load_world(&write_world(&shafted, None)).unwrap();
+    assert_eq!(
+        world.tools[0].shaft,
+        Some(sinew_server::world::ShaftSpec {
+            radius_mm: 2.5,
+            length_mm: 40.0
+        })
+    );
+    for (bad, key) in [
+        ("radius_mm = 0.0", "tools[0].shaft.radius_mm"),
+        ("length_mm = 5000.0", "tools[0].shaft.length_mm"),
+    ] {
+        let from = if key.ends_with("radius_mm") {
+            "radius_mm = 2.5"
+        } else {
+            "length_mm = 40.0"
+        };
+        let world = shafted.replace(from, bad);
+        let (error, message, _) = refused(&world, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&world, "shaft = ")),
+            "{message}"
+        );
+    }
     // An unknown kind or key is a syntax error on its line.
     let world = with("{ kind = \"laser\" }");
     let (error, message, _) = refused(&world, None);

@@ -208,6 +208,7 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
                         jaw_length_mm: 8.0,
                         open_angle_rad: 0.7,
                     },
+                    shaft: None,
                 }],
                 tool_states: tools,
             },

@@ -99,6 +99,14 @@ fn two_graspers_pull_the_sheet_and_every_viewer_sees_jaws_and_tissue() {
                 matches!(tool.instrument, InstrumentInfo::Grasper { jaw_length_mm, .. } if jaw_length_mm == 8.0),
                 "{tool:?}"
             );
+            assert_eq!(
+                tool.shaft,
+                Some(sinew_protocol::ToolShaft {
+                    radius_mm: 2.5,
+                    length_mm: 40.0
+                }),
+                "the shaft did not reach the viewer"
+            );
         }
     });
 

@@ -589,6 +589,7 @@ mod tests {
                 device_id: "left".to_owned(),
                 shape: ToolShape::Sphere { radius_mm: 3.0 },
                 instrument: sinew_protocol::InstrumentInfo::Probe,
+                shaft: None,
             }],
             tool_states: ToolStates {
                 frame,

@@ -133,9 +133,11 @@ struct ToolNode {
     jaws: Option<Jaws>,
     /// A scalpel's edge.
     blade: Option<Blade>,
+    /// An instrument's shaft.
+    shaft: Option<Blade>,
 }
 
-/// A scalpel's edge as drawn: a thin capsule from one end to the other, in the tool frame.
+/// A scalpel's edge or an instrument's shaft as drawn: a capsule from one point to another, in the tool frame.
 struct Blade {
     node: SceneNode3d,
     /// Middle of the edge, tool frame, mm.
@@ -148,6 +150,7 @@ impl Blade {
     /// Edge radius as drawn, mm.
     const RADIUS_MM: f32 = 0.25;
 
+    /// A scalpel's edge.
     fn add(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
         let sinew_protocol::InstrumentInfo::Scalpel {
             edge_from_mm,
@@ -156,15 +159,42 @@ impl Blade {
         else {
             return None;
         };
-        let (from, to) = (Vec3::from(edge_from_mm), Vec3::from(edge_to_mm));
+        Self::rod(
+            group,
+            Vec3::from(edge_from_mm),
+            Vec3::from(edge_to_mm),
+            Self::RADIUS_MM,
+            BLADE_STEEL,
+        )
+    }
+
+    /// An instrument's shaft: from the tool origin up its local z.
+    fn shaft(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
+        let shaft = info.shaft?;
+        Self::rod(
+            group,
+            Vec3::ZERO,
+            Vec3::new(0.0, 0.0, shaft.length_mm),
+            shaft.radius_mm,
+            TOOL_STEEL,
+        )
+    }
+
+    fn rod(
+        group: &mut SceneNode3d,
+        from: Vec3,
+        to: Vec3,
+        radius_mm: f32,
+        colour: Color,
+    ) -> Option<Self> {
         let along = to - from;
         let length_mm = along.length();
-        if !length_mm.is_finite() || length_mm <= 0.0 {
+        if !length_mm.is_finite() || length_mm <= 0.0 || radius_mm.is_nan() || radius_mm <= 0.0 {
             return None;
         }
         let node = group
-            .add_capsule(Self::RADIUS_MM, length_mm)
-            .set_color(BLADE_STEEL)
+            .add_capsule(radius_mm, length_mm)
+            .set_color(colour)
             .set_metallic(0.8)
             .set_roughness(0.2)
             .set_visible(false);
@@ -370,6 +400,7 @@ impl SceneView {
                 node: add_tool_shape(&mut group, info),
                 jaws: Jaws::add(&mut group, info),
                 blade: Blade::add(&mut group, info),
+                shaft: Blade::shaft(&mut group, info),
                 tool_from_node: match info.shape {
                     ToolShape::Capsule { .. } => Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
                     ToolShape::Sphere { .. } | ToolShape::Mesh { .. } => Quat::IDENTITY,
@@ -428,11 +459,17 @@ impl SceneView {
                     if let Some(blade) = &mut tool.blade {
                         blade.place(state);
                     }
+                    if let Some(shaft) = &mut tool.shaft {
+                        shaft.place(state);
+                    }
                 }
                 None => {
                     tool.node.set_visible(false);
                     if let Some(jaws) = &mut tool.jaws {
                         jaws.hide();
+                    }
+                    if let Some(shaft) = &mut tool.shaft {
+                        shaft.hide();
                     }
                     if let Some(blade) = &mut tool.blade {
                         blade.hide();

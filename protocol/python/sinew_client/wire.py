@@ -352,12 +352,19 @@ INSTRUMENT = (
 
 
 @dataclass
+class ToolShaft:
+    radius_mm: float = wire_field("f32", default=0.0)
+    length_mm: float = wire_field("f32", default=0.0)
+
+
+@dataclass
 class ToolInfo:
     tool: int = wire_field("u16", default=0)
     name: str = wire_field("str", default="")
     device_id: str = wire_field("str", default="")
     shape: dict = wire_field(TOOL_SHAPE, default_factory=lambda: {"kind": "sphere", "radius_mm": 1.0})
     instrument: dict = wire_field(INSTRUMENT, default_factory=lambda: {"kind": "probe"})
+    shaft: Optional[ToolShaft] = wire_field(("opt", ToolShaft), default=None)
 
 
 @dataclass

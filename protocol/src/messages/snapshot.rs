@@ -98,6 +98,17 @@ pub struct ToolInfo {
     pub shape: ToolShape,
     /// What it is (probe, grasper). Protocol 6.
     pub instrument: InstrumentInfo,
+    /// Its shaft, which pushes tissue too. Protocol 8.
+    pub shaft: Option<ToolShaft>,
+}
+
+/// An instrument's shaft: a capsule from the tool origin up the tool's local +z. Protocol 8.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ToolShaft {
+    /// Radius, mm.
+    pub radius_mm: f32,
+    /// Length from the tool origin, mm.
+    pub length_mm: f32,
 }
 
 /// One deformable object's full replicated state.
@@ -215,6 +226,12 @@ impl Message for SceneSnapshot {
             {
                 check::finite("tools.instrument", &edge_from_mm)?;
                 check::finite("tools.instrument", &edge_to_mm)?;
+            }
+            if let Some(shaft) = tool.shaft {
+                check::finite("tools.shaft", &[shaft.radius_mm, shaft.length_mm])?;
+                if shaft.radius_mm <= 0.0 || shaft.length_mm <= 0.0 {
+                    return Err(("tools.shaft", "radius or length not positive"));
+                }
             }
             if let InstrumentInfo::Scissors {
                 hinge_mm,

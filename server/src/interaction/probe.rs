@@ -23,6 +23,43 @@ use nalgebra::UnitQuaternion;
 use crate::collision::{ContactSide, ToolCollider};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
+/// A tool's blunt body at its pose this tick: the tip (the tool's `shape`) and, if it has one, its shaft (a
+/// capsule, with its centre in the world).
+#[derive(Debug, Clone, Copy)]
+pub struct ToolBody<'a> {
+    /// The tip.
+    pub tip: &'a ToolCollider,
+    /// The shaft and its centre in the world, mm.
+    pub shaft: Option<(&'a ToolCollider, Vec3)>,
+    /// Tool origin in the world, mm.
+    pub position_mm: Vec3,
+    /// Tool orientation in the world.
+    pub rotation: UnitQuaternion<f32>,
+}
+
+impl ToolBody<'_> {
+    /// Push `point_mm` out of the tip, or else out of the shaft, along `push_dir` ([`ToolCollider::push_out_along`]).
+    fn push_out_along(
+        &self,
+        point_mm: &Vec3,
+        push_dir: &Vec3,
+        held_in_front: bool,
+    ) -> Option<(Vec3, Vec3, ContactSide)> {
+        self.tip
+            .push_out_along(
+                &self.position_mm,
+                &self.rotation,
+                point_mm,
+                push_dir,
+                held_in_front,
+            )
+            .or_else(|| {
+                let (shaft, centre) = self.shaft?;
+                shaft.push_out_along(&centre, &self.rotation, point_mm, push_dir, held_in_front)
+            })
+    }
+}
+
 /// The nodes one tool holds in one object, and the directions it pushes them. Reused every tick.
 #[derive(Debug, Clone, Default)]
 pub struct ProbeContacts {
@@ -77,12 +114,9 @@ impl ProbeContacts {
     /// `friction` (the material's Coulomb coefficient, 0: frictionless) a node held last substep sticks to its
     /// point of the tool until it slips (module docs). Fixed nodes are not moved, nor the nodes in `grasped`
     /// (sorted: the tool's jaws hold them). No allocation beyond capacity, never panics.
-    #[allow(clippy::too_many_arguments)] // one call site, in the substep loop: a struct would only rename them
     pub fn project(
         &mut self,
-        tool: &ToolCollider,
-        position_mm: &Vec3,
-        rotation: &UnitQuaternion<f32>,
+        body: &ToolBody,
         model: &MassSpringModel,
         state: &mut TissueState,
         grasped: &[u32],
@@ -102,6 +136,7 @@ impl ProbeContacts {
         } else {
             0.0
         };
+        let (position_mm, rotation) = (&body.position_mm, &body.rotation);
         let to_tool = rotation.inverse();
         for &node in &self.candidates {
             let i = node as usize;
@@ -110,13 +145,9 @@ impl ProbeContacts {
             }
             let push_dir = -model.rest_normals()[i];
             let held_in_front = self.in_front.binary_search(&node).is_ok();
-            if let Some((surface, normal, side)) = tool.push_out_along(
-                position_mm,
-                rotation,
-                &state.positions_mm[i],
-                &push_dir,
-                held_in_front,
-            ) {
+            if let Some((surface, normal, side)) =
+                body.push_out_along(&state.positions_mm[i], &push_dir, held_in_front)
+            {
                 if side == ContactSide::Front {
                     self.in_front_now.push(node);
                 }

@@ -82,6 +82,10 @@ impl ReplicationState {
                     },
                 },
                 instrument: instrument_info(&tool.instrument),
+                shaft: tool.shaft_spec.map(|s| sinew_protocol::ToolShaft {
+                    radius_mm: s.radius_mm,
+                    length_mm: s.length_mm,
+                }),
             })
             .collect();
         Self {

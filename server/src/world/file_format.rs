@@ -304,6 +304,17 @@ pub(crate) struct ToolSection {
     /// What the tool does beyond pushing (default: a probe).
     #[serde(default)]
     pub instrument: Option<Spanned<InstrumentSection>>,
+    /// The instrument's shaft: a capsule from the tool origin up its local +z, which pushes tissue too.
+    #[serde(default)]
+    pub shaft: Option<Spanned<ShaftSection>>,
+}
+
+/// `shaft = { radius_mm, length_mm }` of a tool.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ShaftSection {
+    pub radius_mm: f32,
+    pub length_mm: f32,
 }
 
 /// `instrument = { kind = "probe" | "grasper" | "cautery" | "scalpel" | "scissors", ... }` of a tool (see

@@ -246,6 +246,18 @@ pub struct ToolSpec {
     pub coupling: crate::haptics::CouplingParams,
     /// What the tool does beyond pushing (`instrument = { kind = ... }`; default a probe).
     pub instrument: crate::world::InstrumentSpec,
+    /// The instrument's shaft (`shaft = { radius_mm, length_mm }`), which pushes tissue as the tip does.
+    pub shaft: Option<ShaftSpec>,
+}
+
+/// An instrument's shaft: a capsule from the tool origin `length_mm` up the tool's local +z (toward the hand),
+/// `radius_mm` thick. It is blunt: it pushes the tissue it touches.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShaftSpec {
+    /// Radius, mm.
+    pub radius_mm: f32,
+    /// Length from the tool origin, mm.
+    pub length_mm: f32,
 }
 
 /// Read, parse and validate a world file (mesh paths are relative to it).
@@ -1229,6 +1241,28 @@ impl Context<'_> {
             None => crate::world::InstrumentSpec::Probe,
             Some(at) => self.instrument(i, at)?,
         };
+        let shaft = match &tool.shaft {
+            None => None,
+            Some(at) => {
+                let section = at.get_ref();
+                self.check(
+                    at,
+                    &key("shaft.radius_mm"),
+                    section.radius_mm.is_finite() && (0.1..=50.0).contains(&section.radius_mm),
+                    "must be 0.1 to 50 mm",
+                )?;
+                self.check(
+                    at,
+                    &key("shaft.length_mm"),
+                    section.length_mm.is_finite() && (1.0..=1000.0).contains(&section.length_mm),
+                    "must be 1 to 1000 mm",
+                )?;
+                Some(ShaftSpec {
+                    radius_mm: section.radius_mm,
+                    length_mm: section.length_mm,
+                })
+            }
+        };
         Ok(ToolSpec {
             name: tool.name.get_ref().clone(),
             device_id,
@@ -1237,6 +1271,7 @@ impl Context<'_> {
             max_force_n,
             coupling,
             instrument,
+            shaft,
         })
     }
 

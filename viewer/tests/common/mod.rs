@@ -76,6 +76,7 @@ pub fn sheet_snapshot(
             device_id: "left".to_owned(),
             shape: ToolShape::Sphere { radius_mm: 4.0 },
             instrument: sinew_protocol::InstrumentInfo::Probe,
+            shaft: None,
         }],
         tool_states: ToolStates {
             frame,
