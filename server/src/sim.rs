@@ -93,7 +93,7 @@ pub struct SimObject {
     first_split_vertex: u32,
     /// The parent of each split vertex, in id order.
     split_parents: Vec<u32>,
-    /// The material's tear strain (a sheet tears where a spring is stretched past it); `None`: never tears.
+    /// The material's tear strain (the tissue tears where a spring is stretched past it); `None`: never tears.
     tear_strain: Option<f32>,
     /// The material's drag against a sharp edge cutting it, N.
     cut_resistance_n: f32,
@@ -1386,7 +1386,7 @@ const CUT_DRAG_TAU_S: f32 = 0.1;
 /// settles by micrometres after the hand stops).
 const MIN_CUT_SPEED_MM_S: f32 = 1.0;
 
-/// Most springs one object tears in one tick.
+/// Most facets one object tears open in one tick.
 const MAX_TEARS_PER_TICK: usize = 32;
 
 /// A (re)taken tool has joined its hand once it is this close to the device pose, mm: the coupling's lag under a

@@ -711,3 +711,185 @@ fn scissors_snipping_into_the_tet_block_open_it_and_its_surface_stays_closed() {
     assert_closed_surface(model.triangles());
     assert!(sim.objects[1].state.is_finite());
 }
+
+/// A free band 40 x 6 mm (1 mm cells, no anchors) with `tear_strain = 0.3`, fixed at x = -20: its world.
+fn band_world() -> Sim {
+    let dir = std::env::temp_dir().join(format!("sinew-band-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (nx, ny) = (41usize, 7usize);
+    let mut obj = String::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            obj += &format!("v {} {} 0\n", i as f32 - 20.0, j as f32 - 3.0);
+        }
+    }
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            let v = |i: usize, j: usize| j * nx + i + 1;
+            obj += &format!("f {} {} {}\n", v(i, j), v(i + 1, j), v(i + 1, j + 1));
+            obj += &format!("f {} {} {}\n", v(i, j), v(i + 1, j + 1), v(i, j + 1));
+        }
+    }
+    std::fs::write(dir.join("band.obj"), obj).unwrap();
+    let text = r#"
+scene = "band"
+[sim]
+tick_hz = 1000
+publish_hz = 60
+pose_timeout_s = 0.1
+[collision]
+margin_mm = 2.0
+[[objects]]
+name = "band"
+mesh = "band.obj"
+units = "mm"
+integrator = "symplectic-euler"
+dt_s = 0.001
+quant_margin_mm = 40.0
+[objects.material]
+mass_kg = 0.05
+stiffness_n_per_mm = 0.015
+damping_n_s_per_mm = 0.000003
+drag_per_s = 50.0
+tear_strain = 0.3
+[[objects.fixed]]
+kind = "plane"
+point_mm = [-20.0, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+tolerance_mm = 0.01
+[[tools]]
+name = "probe"
+device = "left"
+shape = { kind = "sphere", radius_mm = 1.0 }
+device_origin_in_world_mm = [0.0, 0.0, 50.0]
+"#;
+    let path = dir.join("band.toml");
+    std::fs::write(&path, text).unwrap();
+    let sim = Sim::new(&parse_world(&path, text).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    sim
+}
+
+#[test]
+fn a_band_pulled_past_its_tear_strain_parts_and_not_before() {
+    let mut sim = band_world();
+    // Its far end (x = 20) is drawn out along +x, 16 mm (40% strain) over 16 s, as a hand holding it would.
+    let end: Vec<usize> = sim.objects[0]
+        .model
+        .rest_positions_mm()
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| (p.x - 20.0).abs() < 1e-3)
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(end.len(), 7);
+    let mut first_tear_mm = None;
+    // The largest spring strain in the band after each tick (while nothing has torn).
+    let max_strain = |sim: &Sim| {
+        let o = &sim.objects[0];
+        let springs = o.model.springs();
+        (0..springs.len())
+            .map(|s| {
+                let (a, b, rest, _, _) = springs.get(s);
+                (o.state.positions_mm[b] - o.state.positions_mm[a]).norm() / rest - 1.0
+            })
+            .fold(0.0f32, f32::max)
+    };
+    let mut strain_before_first_tear = 0.0;
+    let mut out = [ToolOutput::default(); 2];
+    for k in 0..16500 {
+        let pulled_mm = 16.0 * ((k + 1) as f32 / 16000.0).min(1.0);
+        let o = &mut sim.objects[0];
+        for &i in &end {
+            o.state.positions_mm[i].x = 20.0 + pulled_mm;
+            o.state.velocities_mm_s[i] = Vec3::zeros();
+        }
+        sim.note_state_changed();
+        let report = sim.step(0.001, &[], &mut out);
+        assert_eq!(report.faults, 0, "the guard reset the band");
+        if first_tear_mm.is_none() {
+            if report.seams_torn > 0 {
+                first_tear_mm = Some(pulled_mm);
+            } else {
+                strain_before_first_tear = max_strain(&sim);
+            }
+        }
+    }
+    let model = &sim.objects[0].model;
+    let fragments = pieces(model.triangles(), model.node_count());
+    // Parted: no chain of triangles joins the held end to the pulled end any more.
+    let (held, pulled) = (
+        model
+            .rest_positions_mm()
+            .iter()
+            .position(|p| p.x == -20.0)
+            .unwrap() as u32,
+        end[0] as u32,
+    );
+    let mut joined = model.triangles().to_vec();
+    joined.push([held, pulled, pulled]);
+    let parted = pieces(&joined, model.node_count()) < fragments;
+    println!(
+        "band: first tear at {first_tear_mm:?} mm of pull ({:.0}% on average; the most strained spring at \
+         {:.1}% after the tick before), parted {parted}, {fragments} pieces at 16 mm",
+        first_tear_mm.unwrap_or(0.0) / 40.0 * 100.0,
+        strain_before_first_tear * 100.0
+    );
+    first_tear_mm.expect("a 40% stretch never tore a band with a 30% limit");
+    // Nothing tore while every spring was within the limit; the band tore as its most strained spring (at the
+    // clamped end's corners, where the strain runs highest) passed it.
+    assert!(
+        (0.27..=0.3).contains(&strain_before_first_tear),
+        "the band tore with its springs at most {strain_before_first_tear} strained"
+    );
+    assert!(parted, "the band did not part");
+    assert!(sim.objects[0].state.is_finite());
+}
+
+#[test]
+fn a_tet_block_pulled_past_its_tear_strain_tears_and_its_surface_stays_closed() {
+    let (path, text) = world_text("tet_block.toml");
+    let key = "drag_per_s = 150.0";
+    assert!(text.contains(key));
+    let text = text.replacen(key, &format!("{key}\ntear_strain = 0.3"), 1);
+    let mut sim = Sim::new(&parse_world(&path, &text).unwrap()).unwrap();
+    let surface_before = sim.objects[0].model.triangles().len();
+    // A patch of the top face (within 4 mm of its centre) is drawn 10 mm up over 1 s, as a grasp would.
+    let patch: Vec<usize> = sim.objects[0]
+        .model
+        .rest_positions_mm()
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.z > -0.01 && p.x.abs() < 4.0 && p.y.abs() < 4.0)
+        .map(|(i, _)| i)
+        .collect();
+    assert!(!patch.is_empty());
+    let (mut torn, mut split) = (0, 0);
+    for k in 0..1500 {
+        let z = 10.0 * ((k + 1) as f32 / 1000.0).min(1.0);
+        let o = &mut sim.objects[0];
+        for &i in &patch {
+            o.state.positions_mm[i].z = z;
+            o.state.velocities_mm_s[i] = Vec3::zeros();
+        }
+        sim.note_state_changed();
+        let report = tick(&mut sim, ToolCommand::default()).1;
+        torn += report.seams_torn;
+        split += report.vertices_split;
+    }
+    let model = &sim.objects[0].model;
+    println!(
+        "block: {torn} faces torn, {split} vertices split, surface {surface_before} -> {} triangles",
+        model.triangles().len()
+    );
+    assert!(
+        torn > 0 && split > 0,
+        "a 10 mm pull on a 10 mm block never tore it"
+    );
+    assert!(
+        model.triangles().len() > surface_before,
+        "no torn face shows"
+    );
+    assert_closed_surface(model.triangles());
+    assert!(sim.objects[0].state.is_finite());
+}

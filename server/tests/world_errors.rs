@@ -721,7 +721,7 @@ fn bad_instrument_keys_name_the_key_and_line() {
 }
 
 #[test]
-fn a_tear_strain_out_of_range_or_on_a_volume_is_refused() {
+fn a_tear_strain_out_of_range_is_refused_and_a_volume_takes_one() {
     let good = GOOD_WORLD.replace(
         "anchor_stiffness_n_per_mm = 0.001",
         "anchor_stiffness_n_per_mm = 0.001\ntear_strain = 0.5",
@@ -738,19 +738,14 @@ fn a_tear_strain_out_of_range_or_on_a_volume_is_refused() {
         )
     );
     assert!(message.contains("above 0"), "{message}");
+    // A volume tears too.
     let volume = msh_world().replace(
         "density_kg_per_m3 = 1000.0",
         "density_kg_per_m3 = 1000.0\ntear_strain = 0.5",
     );
-    let (error, message) = msh_refused(&volume, &TWO_TETS_MSH.replace("{Z}", "4"));
-    assert_eq!(
-        invalid_key_and_line(&error),
-        (
-            "objects[0].material.tear_strain",
-            line_of(&volume, "tear_strain = 0.5")
-        )
-    );
-    assert!(message.contains("only a sheet tears"), "{message}");
+    let path = write_msh_world(&volume, &TWO_TETS_MSH.replace("{Z}", "4"));
+    let world = load_world(&path).unwrap();
+    assert_eq!(world.objects[0].material.tear_strain, Some(0.5));
 }
 
 #[test]

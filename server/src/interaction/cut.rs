@@ -18,7 +18,7 @@ use parry3d::query::{Ray, RayCast};
 use parry3d::shape::Triangle;
 
 use crate::collision::glam_boundary::to_parry;
-use crate::tissue::seams::{Facet, NO_VERTEX, facet_without};
+use crate::tissue::seams::{Facet, facet_without, shared_by_two};
 use crate::tissue::{MassSpringModel, Vec3};
 
 /// A blade segment's ends at the start and at the end of a tick, world frame, mm.
@@ -156,19 +156,24 @@ pub fn swept_seams(
     }
 }
 
-/// The seams that springs stretched past `max_strain` (length over rest, minus one) open in a sheet, appended
-/// to `out`: each such spring's edge, when two triangles share it (a border edge has nothing to separate).
-/// Springs of a volume do not tear yet. No allocation beyond `out`'s capacity.
+/// The seams that springs stretched past `max_strain` (length over rest, minus one) open, appended to `out`.
+/// A tear separates a spring's two ends: each element holding an overstretched spring (a sheet's triangle, a
+/// volume's tetrahedron) is cut away from the rest of the ring of the spring's first end, along the element's
+/// facet opposite the second end when another element shares it. The first end then splits, the spring's
+/// elements hang from its copy, and the load the spring carried passes to its neighbours, which tear in turn:
+/// the tear runs across the pull, and a band pulled past its limit parts. (A facet on the border has nothing to
+/// separate.) No allocation beyond `out`'s capacity.
 pub fn torn_seams(
     model: &MassSpringModel,
     positions_mm: &[Vec3],
     max_strain: f32,
     out: &mut Vec<Facet>,
 ) {
-    if !model.tets().tets.is_empty() || max_strain.is_nan() || max_strain <= 0.0 {
+    if max_strain.is_nan() || max_strain <= 0.0 {
         return;
     }
     let springs = model.springs();
+    let tets = &model.tets().tets;
     for s in 0..springs.len() {
         let (a, b, rest, _, _) = springs.get(s);
         if rest <= 0.0 {
@@ -178,14 +183,29 @@ pub fn torn_seams(
         if strain <= max_strain {
             continue;
         }
-        let shared = model
-            .node_triangles(a)
-            .iter()
-            .filter(|&&t| model.triangles()[t as usize].contains(&(b as u32)))
-            .count();
-        if shared == 2 {
-            out.push([a as u32, b as u32, NO_VERTEX]);
+        let b = b as u32;
+        if tets.is_empty() {
+            for &t in model.node_triangles(a) {
+                let triangle = &model.triangles()[t as usize];
+                if let Some(k) = triangle.iter().position(|&v| v == b) {
+                    push_if_shared(model, facet_without(triangle, k), out);
+                }
+            }
+        } else {
+            for &t in model.node_tets(a) {
+                let tet = &tets[t as usize];
+                if let Some(k) = tet.iter().position(|&v| v == b) {
+                    push_if_shared(model, facet_without(tet, k), out);
+                }
+            }
         }
+    }
+}
+
+/// Push `facet` when two elements share it.
+fn push_if_shared(model: &MassSpringModel, facet: Facet, out: &mut Vec<Facet>) {
+    if shared_by_two(model, &facet) {
+        out.push(facet);
     }
 }
 

@@ -153,7 +153,7 @@ pub struct MaterialSpec {
     pub global_bulk_modulus_n_per_mm2: f32,
     /// Per-tetrahedron volume preservation, N/mm^2 (0 = off).
     pub tet_bulk_modulus_n_per_mm2: f32,
-    /// A sheet tears where a spring is stretched past this strain (length / rest - 1); `None`: it never tears.
+    /// The tissue tears where a spring is stretched past this strain (length / rest - 1); `None`: it never tears.
     pub tear_strain: Option<f32>,
     /// Drag a sharp edge feels against its motion while it cuts this tissue, N.
     pub cut_resistance_n: f32,
@@ -757,13 +757,6 @@ impl Context<'_> {
             tear_strain: match &m.tear_strain {
                 None => None,
                 Some(at) => {
-                    if is_volume {
-                        return Err(self.invalid(
-                            at,
-                            &key("tear_strain"),
-                            "only a sheet tears yet: a volume mesh (.msh or extrude) does not take it",
-                        ));
-                    }
                     let strain = *at.get_ref();
                     self.check(
                         at,
