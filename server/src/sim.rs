@@ -16,10 +16,10 @@ use crate::interaction::{
     BladeSweep, CutScratch, Grasp, GraspEvent, JawInput, Jaws, ProbeContacts, ToolBody,
     swept_seams, torn_seams,
 };
-use crate::tissue::seams::{Facet, Opening, open_model, shared_by_two};
+use crate::tissue::seams::{Facet, Opening, open_model_into, shared_by_two};
 use crate::tissue::{
-    DivergenceGuard, Integrator, MassSpringModel, RegionTracker, TieSet, TissueState, Vec3,
-    Verdict, guard, integrator_for,
+    DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TieSet, TissueState,
+    Vec3, Verdict, guard, integrator_for,
 };
 use crate::world::{InstrumentSpec, IntegratorName, ToolShapeSpec, World};
 
@@ -101,6 +101,8 @@ pub struct SimObject {
     burn_shrink: f32,
     /// Coulomb friction between a tool and this tissue (0: frictionless).
     friction: f32,
+    /// Scratch of a topology change: the parts the model is rebuilt from.
+    parts: ModelParts,
     /// Scratch of the tear test: the facets torn this tick.
     torn: Vec<Facet>,
 }
@@ -458,6 +460,7 @@ impl Sim {
                 burn_shrink: spec.material.burn_shrink,
                 friction: spec.material.friction_coefficient,
                 torn: Vec::new(),
+                parts: ModelParts::default(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
@@ -594,13 +597,15 @@ impl Sim {
         all.extend_from_slice(seams);
         all.sort_unstable();
         all.dedup();
-        let (parts, opening) = open_model(&o.model, &all);
+        let opening = open_model_into(&o.model, &all, &mut o.parts);
         if opening.is_empty() {
             all.retain(|f| shared_by_two(&o.model, f));
             o.severed = all;
             return opening;
         }
-        let model = MassSpringModel::from_parts(parts);
+        // The model is rebuilt in place: its buffers are reused, not faulted in afresh.
+        o.model.rebuild_from(&o.parts);
+        let model = &o.model;
         let n = model.node_count();
         let state = &mut o.state;
         for &p in &opening.parents {
@@ -622,13 +627,12 @@ impl Sim {
             o.collider = collider.with_refit_margin(REFIT_MARGIN_MM);
         }
         o.marks = NodeMarks::new(n);
-        o.guard = DivergenceGuard::new(&model);
+        o.guard = DivergenceGuard::new(model);
         o.integrator = integrator_for(o.integrator_spec.0, o.integrator_spec.1);
         o.region = o
             .region
             .as_ref()
-            .map(|r| RegionTracker::new(&model, r.params()));
-        o.model = model;
+            .map(|r| RegionTracker::new(model, r.params()));
         for i in 0..n {
             if o.burn[i] > 0 {
                 o.shrink_springs_of(i);

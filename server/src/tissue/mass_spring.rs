@@ -230,7 +230,10 @@ impl MassSpringModel {
 
         self.build_order.clear();
         self.build_order.extend(0..parts.edges.len());
-        self.build_order.sort_unstable_by_key(|&e| parts.edges[e]);
+        // Parts made from a model (a cut's) come sorted already: checking is one pass, sorting is not.
+        if !parts.edges.is_sorted() {
+            self.build_order.sort_unstable_by_key(|&e| parts.edges[e]);
+        }
         self.springs.clear();
         for &e in &self.build_order {
             let [a, b] = parts.edges[e];
@@ -308,31 +311,44 @@ impl MassSpringModel {
     /// and material (fixed nodes are those with no acceleration per force). Allocates: for topology changes,
     /// not the tick.
     pub fn to_parts(&self) -> ModelParts {
+        let mut parts = ModelParts::default();
+        self.to_parts_into(&mut parts);
+        parts
+    }
+
+    /// [`Self::to_parts`] into `parts`, reusing its buffers (allocates only where this model is larger than
+    /// what they held).
+    pub fn to_parts_into(&self, parts: &mut ModelParts) {
         let springs = &self.springs;
-        ModelParts {
-            rest_positions_mm: self.rest_positions_mm.clone(),
-            mass_kg: self.mass_kg.clone(),
-            fixed: self.accel_per_force.iter().map(|&w| w == 0.0).collect(),
-            edges: springs
-                .a
-                .iter()
-                .zip(&springs.b)
-                .map(|(&a, &b)| [a, b])
-                .collect(),
-            edge_stiffness_n_per_mm: springs.stiffness_n_per_mm.clone(),
-            edge_damping_n_s_per_mm: springs.damping_n_s_per_mm.clone(),
-            law: Some(self.law),
-            anchor_stiffness_n_per_mm: self.anchor_stiffness_n_per_mm,
-            drag_per_s: self.drag_per_s,
-            gravity_mm_per_s2: self.gravity_mm_per_s2,
-            triangles: self.triangles.clone(),
-            tets: self.tets.tets.clone(),
-            tet_bulk_modulus_n_per_mm2: self.tets.bulk_modulus_n_per_mm2,
-            global_bulk_modulus_n_per_mm2: self
-                .global_volume
-                .as_ref()
-                .map_or(0.0, |g| g.bulk_modulus_n_per_mm2),
-        }
+        refill(&mut parts.rest_positions_mm, &self.rest_positions_mm);
+        refill(&mut parts.mass_kg, &self.mass_kg);
+        parts.fixed.clear();
+        parts
+            .fixed
+            .extend(self.accel_per_force.iter().map(|&w| w == 0.0));
+        parts.edges.clear();
+        parts
+            .edges
+            .extend(springs.a.iter().zip(&springs.b).map(|(&a, &b)| [a, b]));
+        refill(
+            &mut parts.edge_stiffness_n_per_mm,
+            &springs.stiffness_n_per_mm,
+        );
+        refill(
+            &mut parts.edge_damping_n_s_per_mm,
+            &springs.damping_n_s_per_mm,
+        );
+        parts.law = Some(self.law);
+        parts.anchor_stiffness_n_per_mm = self.anchor_stiffness_n_per_mm;
+        parts.drag_per_s = self.drag_per_s;
+        parts.gravity_mm_per_s2 = self.gravity_mm_per_s2;
+        refill(&mut parts.triangles, &self.triangles);
+        refill(&mut parts.tets, &self.tets.tets);
+        parts.tet_bulk_modulus_n_per_mm2 = self.tets.bulk_modulus_n_per_mm2;
+        parts.global_bulk_modulus_n_per_mm2 = self
+            .global_volume
+            .as_ref()
+            .map_or(0.0, |g| g.bulk_modulus_n_per_mm2);
     }
 
     /// An id no other model built in this process has (a clone keeps it: same topology). Caches keyed on a

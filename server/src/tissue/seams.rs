@@ -326,7 +326,19 @@ pub fn shared_by_two(model: &super::MassSpringModel, facet: &Facet) -> bool {
 /// of its ends. A cut surface is no longer closed, so the global volume term is turned off once anything opens.
 /// Allocates: for a cut or tear, not the steady tick.
 pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::ModelParts, Opening) {
-    let mut parts = model.to_parts();
+    let mut parts = super::ModelParts::default();
+    let opening = open_model_into(model, seams, &mut parts);
+    (parts, opening)
+}
+
+/// [`open_model`] into `parts`, reusing its buffers: the sim keeps one per object, so a cut does not fault in
+/// fresh pages for a whole model's worth of arrays.
+pub fn open_model_into(
+    model: &super::MassSpringModel,
+    seams: &[Facet],
+    parts: &mut super::ModelParts,
+) -> Opening {
+    model.to_parts_into(parts);
     let n = parts.rest_positions_mm.len() as u32;
     let volume = !parts.tets.is_empty();
     let mut opening = if volume {
@@ -350,7 +362,7 @@ pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::Mo
     if opening.is_empty() {
         opening.changed_elements.clear();
         opening.changed_triangles.clear();
-        return (parts, opening);
+        return opening;
     }
     let parent = |v: u32| -> u32 {
         if v < n {
@@ -408,20 +420,30 @@ pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::Mo
     // scaled by the share of that spring's elements it now borders (an edge a seam split between two sides
     // gives each side's copy half, so a split vertex, with half the mass, keeps the stiffness-to-mass ratio and
     // the stable step it had); one no element has any more is gone.
-    let (old_elements, new_elements): (Vec<&[u32]>, Vec<&[u32]>) = if volume {
-        (
-            model.tets().tets.iter().map(|t| &t[..]).collect(),
-            parts.tets.iter().map(|t| &t[..]).collect(),
-        )
+    let (old_tets, old_triangles) = (&model.tets().tets, model.triangles());
+    let (new_tets, new_triangles) = (&parts.tets, &parts.triangles);
+    let old_element = |e: usize| -> &[u32] {
+        if volume {
+            &old_tets[e]
+        } else {
+            &old_triangles[e]
+        }
+    };
+    let new_element = |e: usize| -> &[u32] {
+        if volume {
+            &new_tets[e]
+        } else {
+            &new_triangles[e]
+        }
+    };
+    let new_count = if volume {
+        new_tets.len()
     } else {
-        (
-            model.triangles().iter().map(|t| &t[..]).collect(),
-            parts.triangles.iter().map(|t| &t[..]).collect(),
-        )
+        new_triangles.len()
     };
     let mut affected: Vec<[u32; 2]> = Vec::new();
     for &e in &opening.changed_elements {
-        for element in [old_elements[e as usize], new_elements[e as usize]] {
+        for element in [old_element(e as usize), new_element(e as usize)] {
             for (i, &p) in element.iter().enumerate() {
                 for &q in &element[i + 1..] {
                     affected.push([p.min(q), p.max(q)]);
@@ -435,8 +457,8 @@ pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::Mo
     ends.sort_unstable();
     ends.dedup();
     let mut ring: Vec<(u32, u32)> = Vec::new();
-    for (e, element) in new_elements.iter().enumerate() {
-        for &v in element.iter() {
+    for e in 0..new_count {
+        for &v in new_element(e) {
             if ends.binary_search(&v).is_ok() {
                 ring.push((v, e as u32));
             }
@@ -448,7 +470,7 @@ pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::Mo
         ring[from..]
             .iter()
             .take_while(|&&(v, _)| v == a)
-            .filter(|&&(_, e)| new_elements[e as usize].contains(&b))
+            .filter(|&&(_, e)| new_element(e as usize).contains(&b))
             .count()
     };
     let was_count = |[a, b]: [u32; 2]| -> usize {
@@ -459,7 +481,7 @@ pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::Mo
         };
         around
             .iter()
-            .filter(|&&e| old_elements[e as usize].contains(&b))
+            .filter(|&&e| old_element(e as usize).contains(&b))
             .count()
     };
     let mut reconsidered: Vec<([u32; 2], f32, f32)> = Vec::with_capacity(affected.len());
@@ -519,7 +541,7 @@ pub fn open_model(model: &super::MassSpringModel, seams: &[Facet]) -> (super::Mo
     parts.edge_stiffness_n_per_mm = stiffness;
     parts.edge_damping_n_s_per_mm = damping;
     parts.global_bulk_modulus_n_per_mm2 = 0.0;
-    (parts, opening)
+    opening
 }
 
 #[cfg(test)]
