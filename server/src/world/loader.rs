@@ -767,45 +767,27 @@ impl Context<'_> {
                     Some(strain)
                 }
             },
-            cut_resistance_n: match &m.cut_resistance_n {
-                None => MaterialSpec::DEFAULT_CUT_RESISTANCE_N,
-                Some(at) => {
-                    let drag = *at.get_ref();
-                    self.check(
-                        at,
-                        &key("cut_resistance_n"),
-                        drag.is_finite() && (0.0..=5.0).contains(&drag),
-                        "must be 0 to 5 N",
-                    )?;
-                    drag
-                }
-            },
-            burn_shrink: match &m.burn_shrink {
-                None => 0.0,
-                Some(at) => {
-                    let shrink = *at.get_ref();
-                    self.check(
-                        at,
-                        &key("burn_shrink"),
-                        shrink.is_finite() && (0.0..=0.5).contains(&shrink),
-                        "must be 0 to 0.5 (the share of rest length a fully burnt spring loses)",
-                    )?;
-                    shrink
-                }
-            },
-            friction_coefficient: match &m.friction_coefficient {
-                None => 0.0,
-                Some(at) => {
-                    let mu = *at.get_ref();
-                    self.check(
-                        at,
-                        &key("friction_coefficient"),
-                        mu.is_finite() && (0.0..=2.0).contains(&mu),
-                        "must be 0 to 2 (Coulomb's coefficient; 0 is frictionless)",
-                    )?;
-                    mu
-                }
-            },
+            cut_resistance_n: self.optional_in(
+                &m.cut_resistance_n,
+                &key("cut_resistance_n"),
+                0.0..=5.0,
+                MaterialSpec::DEFAULT_CUT_RESISTANCE_N,
+                "must be 0 to 5 N",
+            )?,
+            burn_shrink: self.optional_in(
+                &m.burn_shrink,
+                &key("burn_shrink"),
+                0.0..=0.5,
+                0.0,
+                "must be 0 to 0.5 (the share of rest length a fully burnt spring loses)",
+            )?,
+            friction_coefficient: self.optional_in(
+                &m.friction_coefficient,
+                &key("friction_coefficient"),
+                0.0..=2.0,
+                0.0,
+                "must be 0 to 2 (Coulomb's coefficient; 0 is frictionless)",
+            )?,
         })
     }
 
@@ -1266,6 +1248,26 @@ impl Context<'_> {
             instrument,
             shaft,
         })
+    }
+
+    /// An optional number: `default` when absent, else the value if it is finite and within `range`; else the
+    /// error names `key` and its line.
+    fn optional_in(
+        &self,
+        value: &Option<Spanned<f32>>,
+        key: &str,
+        range: std::ops::RangeInclusive<f32>,
+        default: f32,
+        says: &str,
+    ) -> Result<f32, WorldError> {
+        match value {
+            None => Ok(default),
+            Some(at) => {
+                let v = *at.get_ref();
+                self.check(at, key, v.is_finite() && range.contains(&v), says)?;
+                Ok(v)
+            }
+        }
     }
 
     /// `value`, when given, into `slot` if it is finite and `ok`; else the error names `key`.
