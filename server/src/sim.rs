@@ -231,8 +231,6 @@ pub struct SimTool {
     pub shaft_spec: Option<crate::world::ShaftSpec>,
     /// The shaft (a capsule along the tool's z, from the origin up), which pushes tissue as the tip does.
     shaft: Option<ToolCollider>,
-    /// Half the shaft's length, mm (its centre's height above the tool origin).
-    shaft_half_mm: f32,
     /// Scissors' jaw opening at the end of the last tick, rad (None while inactive or not yet joined).
     blade_angle_rad: Option<f32>,
     /// The drag of the tissue this tool's edge cut last, N (its material's `cut_resistance_n`).
@@ -254,7 +252,8 @@ pub struct SimTool {
 impl SimTool {
     /// The shaft's centre in the world, mm (the tool origin when it has none).
     fn shaft_centre_mm(&self) -> Vec3 {
-        self.position_mm + self.rotation * Vec3::new(0.0, 0.0, self.shaft_half_mm)
+        let half_mm = self.shaft_spec.map_or(0.0, |s| 0.5 * s.length_mm);
+        self.position_mm + self.rotation * Vec3::new(0.0, 0.0, half_mm)
     }
 
     /// The latest finished contact-stiffness solve of this tool on object `object`.
@@ -535,7 +534,6 @@ impl Sim {
                         s.radius_mm,
                     ))
                 }),
-                shaft_half_mm: spec.shaft.map_or(0.0, |s| 0.5 * s.length_mm),
                 shaft_spec: spec.shaft,
                 blade_angle_rad: None,
                 cut_resistance_n: 0.0,

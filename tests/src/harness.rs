@@ -258,12 +258,6 @@ pub fn surgeon_scripts() -> (HandScript, HandScript) {
 /// device origin (hinge 6 mm above the surface, 0.4 s a snip).
 pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, HandScript) {
     let (left, right) = surgeon_scripts();
-    let grasper = |device: &str| {
-        world
-            .tools
-            .iter()
-            .any(|t| t.device_id == device && t.instrument.grasp().is_some())
-    };
     let pull = |outward_mm: f32| HandScript::GraspPull {
         at_mm: [0.0, 0.0, 0.0],
         depth_mm: 1.5,
@@ -274,12 +268,6 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         pull_s: 1.0,
         hold_s: 2.0,
     };
-    let cautery = |device: &str| {
-        world
-            .tools
-            .iter()
-            .any(|t| t.device_id == device && t.instrument.cautery().is_some())
-    };
     let burn = HandScript::Cauterize {
         at_mm: [-6.0, 0.0, 0.0],
         depth_mm: 0.5,
@@ -288,12 +276,6 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         stroke_mm: 12.0,
         stroke_s: 2.0,
     };
-    let scalpel = |device: &str| {
-        world
-            .tools
-            .iter()
-            .any(|t| t.device_id == device && t.instrument.scalpel().is_some())
-    };
     let cut = HandScript::CutLine {
         at_mm: [0.0, -20.0, 0.0],
         height_mm: hapticserver::CUT_LINE_HEIGHT_MM,
@@ -301,12 +283,6 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         descend_s: 1.0,
         line_mm: [0.0, 40.0, 0.0],
         line_s: 2.0,
-    };
-    let scissors = |device: &str| {
-        world
-            .tools
-            .iter()
-            .any(|t| t.device_id == device && t.instrument.scissors().is_some())
     };
     // Snips 3 mm apart along y from y = -12 mm, 10 of them: a 30 mm line of bites.
     let snip = HandScript::SnipLine {
@@ -319,16 +295,18 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         snip_s: 0.4,
     };
     let pick = |device: &str, outward_mm: f32, otherwise: HandScript| {
-        if grasper(device) {
-            pull(outward_mm)
-        } else if cautery(device) {
-            burn.clone()
-        } else if scalpel(device) {
-            cut.clone()
-        } else if scissors(device) {
-            snip.clone()
-        } else {
-            otherwise
+        use sinew_server::world::InstrumentSpec;
+        let instrument = world
+            .tools
+            .iter()
+            .find(|t| t.device_id == device)
+            .map(|t| t.instrument);
+        match instrument {
+            Some(InstrumentSpec::Grasper(_)) => pull(outward_mm),
+            Some(InstrumentSpec::Cautery(_)) => burn.clone(),
+            Some(InstrumentSpec::Scalpel(_)) => cut.clone(),
+            Some(InstrumentSpec::Scissors(_)) => snip.clone(),
+            Some(InstrumentSpec::Probe) | None => otherwise,
         }
     };
     (pick("left", -6.0, left), pick("right", 6.0, right))
