@@ -11,11 +11,12 @@ mod grid_sheet;
 mod instrument;
 mod loader;
 mod mesh_file;
+mod tet_grid;
 mod tet_mesh;
 
 pub use exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
-pub use file_format::{IntegratorName, LengthUnit};
+pub use file_format::{ElasticModel, IntegratorName, LengthUnit};
 pub use grid_sheet::{grid_sheet, to_obj_text};
 pub use instrument::{
     CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
@@ -25,4 +26,5 @@ pub use loader::{
     WorldError, load_world, parse_world,
 };
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};
+pub use tet_grid::tet_grid;
 pub use tet_mesh::{TetMesh, VolumeMeshError, load_msh_mesh, parse_msh};

@@ -221,6 +221,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             cut_resistance_n: MaterialSpec::DEFAULT_CUT_RESISTANCE_N,
             burn_shrink: 0.0,
             friction_coefficient: 0.0,
+            fem: None,
         },
         fixed: [[-1.0, -half], [1.0, half]]
             .iter()

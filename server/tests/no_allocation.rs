@@ -136,6 +136,27 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     let allocations = allocations_while_stepping(&mut sim, 600, 1000);
     println!("friction: {allocations} allocations in 1000 warm ticks");
     assert_eq!(allocations, 0, "a tick with friction allocated");
+    // Finite elements (worlds/fem_block.toml: implicit Euler over corotational tetrahedra), the whole block
+    // and region-tracked.
+    let fem_path = path.with_file_name("fem_block.toml");
+    let fem_text = std::fs::read_to_string(&fem_path).unwrap();
+    for region in [false, true] {
+        let text = if region {
+            fem_text.replace(
+                "quant_margin_mm = 40.0",
+                "quant_margin_mm = 40.0\nregion = { threshold_mm = 0.001 }",
+            )
+        } else {
+            fem_text.clone()
+        };
+        let mut sim = Sim::new(&parse_world(&fem_path, &text).unwrap()).unwrap();
+        let allocations = allocations_while_stepping(&mut sim, 600, 400);
+        println!("finite elements, region {region}: {allocations} allocations in 400 warm ticks");
+        assert_eq!(
+            allocations, 0,
+            "a finite-element tick allocated (region {region})"
+        );
+    }
     // Region tracking, which rebuilds its sub-model inside ticks as the dent moves: the rebuilds reuse their
     // buffers once a full stroke cycle (1 s) has grown them.
     for method in [IntegratorName::SymplecticEuler, IntegratorName::Xpbd] {

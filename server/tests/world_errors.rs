@@ -794,3 +794,108 @@ fn a_cut_resistance_burn_shrink_or_friction_out_of_range_is_refused_by_key_and_l
         assert!(message.contains(says), "{message}");
     }
 }
+
+/// `GOOD_WORLD`'s sheet extruded into a 1 mm volume of corotational finite elements.
+fn fem_world() -> String {
+    GOOD_WORLD
+        .replace(
+            "units = \"mm\"",
+            "units = \"mm\"\nextrude = { thickness_mm = 1.0, layers = 1 }\nmodel = \"fem-corotational\"",
+        )
+        .replace("symplectic-euler", "implicit-euler")
+        .replace(
+            "stiffness_n_per_mm = 0.01",
+            "youngs_modulus_kpa = 5.0\npoisson_ratio = 0.45",
+        )
+}
+
+#[test]
+fn finite_element_keys_are_checked_by_key_and_line() {
+    let good = fem_world();
+    let world = load_world(&write_world(&good, None)).unwrap();
+    let fem = world.objects[0].material.fem.expect("finite elements");
+    assert!((fem.youngs_modulus_n_per_mm2 - 5e-3).abs() < 1e-9);
+    assert_eq!((fem.poisson_ratio, fem.corotated), (0.45, true));
+    assert_eq!(world.objects[0].material.stiffness_n_per_mm, 0.0);
+    // Each: what replaces what in the good world, the key named, and the line it names (by its text).
+    let cases: [(&str, &str, &str, &str, &str); 8] = [
+        (
+            "extrude = { thickness_mm = 1.0, layers = 1 }\n",
+            "",
+            "objects[0].model",
+            "model = ",
+            "needs tetrahedra",
+        ),
+        (
+            "youngs_modulus_kpa = 5.0",
+            "youngs_modulus_kpa = 5.0\nstiffness_n_per_mm = 0.01",
+            "objects[0].material.stiffness_n_per_mm",
+            "stiffness_n_per_mm",
+            "remove stiffness_n_per_mm",
+        ),
+        (
+            "youngs_modulus_kpa = 5.0\npoisson_ratio = 0.45",
+            "",
+            "objects[0].material.youngs_modulus_kpa",
+            "name = \"sheet\"",
+            "needs youngs_modulus_kpa and poisson_ratio",
+        ),
+        (
+            "poisson_ratio = 0.45",
+            "poisson_ratio = 0.5",
+            "objects[0].material.poisson_ratio",
+            "poisson_ratio",
+            "0 to 0.499",
+        ),
+        (
+            "youngs_modulus_kpa = 5.0",
+            "youngs_modulus_kpa = -5.0",
+            "objects[0].material.youngs_modulus_kpa",
+            "youngs_modulus_kpa",
+            "above 0",
+        ),
+        (
+            "poisson_ratio = 0.45",
+            "",
+            "objects[0].material.poisson_ratio",
+            "youngs_modulus_kpa",
+            "needs poisson_ratio",
+        ),
+        (
+            "implicit-euler",
+            "xpbd",
+            "objects[0].integrator",
+            "integrator = ",
+            "force-based integrator",
+        ),
+        (
+            "model = \"fem-corotational\"",
+            "model = \"mass-spring\"",
+            "objects[0].material.youngs_modulus_kpa",
+            "name = \"sheet\"",
+            "not built yet",
+        ),
+    ];
+    for (from, to, key, line_text, says) in cases {
+        assert!(good.contains(from), "{from}");
+        let bad = good.replacen(from, to, 1);
+        let (error, message, _) = refused(&bad, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&bad, line_text)),
+            "{message}"
+        );
+        assert!(message.contains(says), "{message}");
+    }
+    // A mass-spring object with neither a stiffness nor a modulus names the stiffness.
+    let bare = GOOD_WORLD.replace("stiffness_n_per_mm = 0.01\n", "");
+    let (error, message, _) = refused(&bare, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "objects[0].material.stiffness_n_per_mm",
+            line_of(&bare, "name = \"sheet\"")
+        )
+    );
+    assert!(message.contains("youngs_modulus_kpa"), "{message}");
+}

@@ -8,6 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use std::cell::RefCell;
 
+use super::fem::{FemElements, FemLinearization, FemMaterial, NodeTets};
 use super::springs::{KernelScratch, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
@@ -46,6 +47,8 @@ pub struct ModelParts {
     pub tet_bulk_modulus_n_per_mm2: f32,
     /// Bulk modulus of the global volume term, N/mm^2 (0 = off; needs a closed surface).
     pub global_bulk_modulus_n_per_mm2: f32,
+    /// Corotational finite elements on the tetrahedra (`None`: none; the springs carry the elasticity).
+    pub fem: Option<FemMaterial>,
 }
 
 /// Nodes are point masses; springs are spring-dampers along edges; every free node also has an anchor spring
@@ -66,6 +69,8 @@ pub struct MassSpringModel {
     gravity_mm_per_s2: Vec3,
     triangles: Vec<[u32; 3]>,
     tets: TetVolumes,
+    /// Finite elements on the tetrahedra (empty for a pure mass-spring object).
+    fem: FemElements,
     global_volume: Option<GlobalVolume>,
     /// CSR node -> incident springs.
     node_spring_start: Vec<u32>,
@@ -175,6 +180,7 @@ impl MassSpringModel {
             tets,
             tet_bulk_modulus_n_per_mm2: m.tet_bulk_modulus_n_per_mm2,
             global_bulk_modulus_n_per_mm2: m.global_bulk_modulus_n_per_mm2,
+            fem: m.fem,
         })
     }
 
@@ -200,6 +206,7 @@ impl MassSpringModel {
             gravity_mm_per_s2: Vec3::zeros(),
             triangles: Vec::new(),
             tets: TetVolumes::default(),
+            fem: FemElements::default(),
             global_volume: None,
             node_spring_start: Vec::new(),
             node_springs: Vec::new(),
@@ -284,6 +291,7 @@ impl MassSpringModel {
         );
         self.tets
             .refill(&parts.tets, positions, parts.tet_bulk_modulus_n_per_mm2);
+        self.fem.refill(parts.fem, &self.tets, positions);
         let tets = &self.tets.tets;
         incidence_into(
             n,
@@ -304,6 +312,7 @@ impl MassSpringModel {
                 .map(|&s| springs.stiffness_n_per_mm[s as usize])
                 .sum::<f32>()
                 + parts.anchor_stiffness_n_per_mm
+                + self.fem.node_diagonal_n_per_mm(i)
         }));
     }
 
@@ -349,6 +358,7 @@ impl MassSpringModel {
             .global_volume
             .as_ref()
             .map_or(0.0, |g| g.bulk_modulus_n_per_mm2);
+        parts.fem = self.fem.material();
     }
 
     /// An id no other model built in this process has (a clone keeps it: same topology). Caches keyed on a
@@ -396,6 +406,19 @@ impl MassSpringModel {
     /// Tetrahedra and their volume term.
     pub fn tets(&self) -> &TetVolumes {
         &self.tets
+    }
+
+    /// The finite elements (empty unless the object is `fem-corotational`).
+    pub fn fem(&self) -> &FemElements {
+        &self.fem
+    }
+
+    /// The tetrahedra around each node.
+    pub fn node_tets_csr(&self) -> NodeTets<'_> {
+        NodeTets {
+            start: &self.node_tet_start,
+            tets: &self.node_tets,
+        }
     }
 
     /// The global volume term, if on.
@@ -492,7 +515,13 @@ impl MassSpringModel {
         external_n: Option<&[Vec3]>,
         forces_n: &mut [Vec3],
     ) -> f32 {
-        self.forces(positions_mm, Some(velocities_mm_s), external_n, forces_n)
+        self.forces(
+            positions_mm,
+            Some(velocities_mm_s),
+            external_n,
+            forces_n,
+            None,
+        )
     }
 
     /// [`Self::compute_forces`] at zero velocity (no damper forces, and no velocity pass): for static
@@ -503,7 +532,20 @@ impl MassSpringModel {
         external_n: Option<&[Vec3]>,
         forces_n: &mut [Vec3],
     ) -> f32 {
-        self.forces(positions_mm, None, external_n, forces_n)
+        self.forces(positions_mm, None, external_n, forces_n, None)
+    }
+
+    /// [`Self::compute_static_forces`] that also freezes the finite elements' rotations and volume gradients
+    /// at these positions into `fem` (for the implicit integrator's matrix; one polar decomposition per element
+    /// serves both).
+    pub fn compute_static_forces_linearized(
+        &self,
+        positions_mm: &[Vec3],
+        external_n: Option<&[Vec3]>,
+        forces_n: &mut [Vec3],
+        fem: &mut FemLinearization,
+    ) -> f32 {
+        self.forces(positions_mm, None, external_n, forces_n, Some(fem))
     }
 
     fn forces(
@@ -512,6 +554,7 @@ impl MassSpringModel {
         velocities_mm_s: Option<&[Vec3]>,
         external_n: Option<&[Vec3]>,
         forces_n: &mut [Vec3],
+        fem: Option<&mut FemLinearization>,
     ) -> f32 {
         let k_anchor = self.anchor_stiffness_n_per_mm;
         let g = self.gravity_mm_per_s2 / MM_PER_M;
@@ -544,15 +587,19 @@ impl MassSpringModel {
             ),
         }
         self.tets.accumulate_forces(positions_mm, forces_n);
+        self.fem
+            .accumulate_forces(&self.tets, positions_mm, forces_n, fem);
         match &self.global_volume {
             Some(global) => global.accumulate_forces(positions_mm, &self.triangles, forces_n),
             None => 0.0,
         }
     }
 
-    /// Energy stored in the springs and the volume terms (not the anchors or gravity), N mm.
+    /// Energy stored in the springs, the volume terms and the finite elements (not the anchors or gravity),
+    /// N mm.
     pub fn elastic_energy_n_mm(&self, positions_mm: &[Vec3]) -> f64 {
-        let mut total = self.springs.energy_n_mm(self.law, positions_mm);
+        let mut total = self.springs.energy_n_mm(self.law, positions_mm)
+            + self.fem.energy_n_mm(&self.tets, positions_mm);
         let tets = &self.tets;
         if tets.bulk_modulus_n_per_mm2 > 0.0 {
             for (t, &v0) in tets.rest_volume_mm3.iter().enumerate() {
@@ -577,7 +624,8 @@ impl MassSpringModel {
     }
 
     /// Internal force on node `i` alone (its incident springs, anchor, gravity, volume terms given the global
-    /// pressure from [`Self::pressure_n_per_mm2`]), N. No allocation.
+    /// pressure from [`Self::pressure_n_per_mm2`], finite elements), N. No allocation; a finite-element node
+    /// costs two rings of tetrahedra (its elements' nodal pressures).
     pub fn node_force(
         &self,
         i: usize,
@@ -607,6 +655,9 @@ impl MassSpringModel {
                 }
             }
         }
+        f += self
+            .fem
+            .node_force(i, &self.tets, self.node_tets_csr(), positions_mm);
         if self.global_volume.is_some() {
             f += GlobalVolume::vertex_force(
                 pressure_n_per_mm2,
@@ -621,7 +672,7 @@ impl MassSpringModel {
 
     /// Per free node, Gershgorin bounds on the stiffness and edge-damping rates `(w^2, g_edge)`, with
     /// `w^2 = 1000 K / m` and `g_edge = 1000 C / m` (drag is separate: [`Self::drag_per_s`]). `K` sums
-    /// `2 k_edge stiffening` over incident springs, the anchor, and the volume terms' Hessian rows at rest
+    /// `2 k_edge stiffening` over incident springs, the anchor, the finite elements' rows at rest, and the volume terms' Hessian rows at rest
     /// (`K_bulk / V0 |g_i| sum_j |g_j|` per tetrahedron, and the same over the surface for the global term);
     /// `C = 2 sum(c_edge)`. `stiffening` is the law's largest tangent over the strains assumed.
     pub fn node_rates(&self, stiffening: f32) -> impl Iterator<Item = (f32, f32)> + '_ {
@@ -663,6 +714,7 @@ impl MassSpringModel {
                         * row;
                 }
             }
+            k += self.fem.node_row_bound_n_per_mm(i);
             if let Some(global) = &self.global_volume {
                 k += global.bulk_modulus_n_per_mm2 / global.rest_volume_mm3
                     * global_gradient_norm(i)

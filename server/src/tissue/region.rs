@@ -486,6 +486,7 @@ impl RegionTracker {
         parts.drag_per_s = model.drag_per_s();
         parts.gravity_mm_per_s2 = model.gravity_mm_per_s2();
         parts.tet_bulk_modulus_n_per_mm2 = model.tets().bulk_modulus_n_per_mm2;
+        parts.fem = model.fem().material();
         parts.edges.clear();
         parts.edge_stiffness_n_per_mm.clear();
         parts.edge_damping_n_s_per_mm.clear();

@@ -27,6 +27,27 @@ impl LengthUnit {
     }
 }
 
+/// How an object's elasticity is modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ElasticModel {
+    /// Springs along the mesh edges (per-edge N/mm, or calibrated from Young's modulus). The default.
+    #[default]
+    MassSpring,
+    /// Corotational linear finite elements on the tetrahedra, from Young's modulus and Poisson's ratio.
+    FemCorotational,
+}
+
+impl ElasticModel {
+    /// The name the world file uses.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ElasticModel::MassSpring => "mass-spring",
+            ElasticModel::FemCorotational => "fem-corotational",
+        }
+    }
+}
+
 /// Time integrator of a deformable object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -194,6 +215,9 @@ pub(crate) struct ObjectSection {
     /// Turn an OBJ surface into a volume: `{ thickness_mm, layers }`.
     #[serde(default)]
     pub extrude: Option<Spanned<ExtrudeSection>>,
+    /// `mass-spring` (default) or `fem-corotational`.
+    #[serde(default)]
+    pub model: Option<Spanned<ElasticModel>>,
     pub integrator: Spanned<IntegratorName>,
     pub dt_s: Spanned<f32>,
     #[serde(default)]
@@ -232,8 +256,16 @@ pub(crate) struct MaterialSection {
     pub mass_kg: Option<Spanned<f32>>,
     pub density_kg_per_m3: Option<Spanned<f32>>,
     pub thickness_mm: Option<Spanned<f32>>,
-    pub stiffness_n_per_mm: Spanned<f32>,
-    pub damping_n_s_per_mm: Spanned<f32>,
+    #[serde(default)]
+    pub stiffness_n_per_mm: Option<Spanned<f32>>,
+    #[serde(default)]
+    pub damping_n_s_per_mm: Option<Spanned<f32>>,
+    /// Young's modulus, kPa (with `poisson_ratio`).
+    #[serde(default)]
+    pub youngs_modulus_kpa: Option<Spanned<f32>>,
+    /// Poisson's ratio, 0 to 0.499 (with `youngs_modulus_kpa`).
+    #[serde(default)]
+    pub poisson_ratio: Option<Spanned<f32>>,
     #[serde(default)]
     pub anchor_stiffness_n_per_mm: Option<Spanned<f32>>,
     #[serde(default)]

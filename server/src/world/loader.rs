@@ -9,9 +9,9 @@ use toml::Spanned;
 use super::exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 use super::extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 use super::file_format::{
-    ActivationName, ExerciseSection, FixedSection, InstrumentKindName, InstrumentSection,
-    IntegratorName, LawSection, MaterialSection, ObjectSection, ShapeSection, TargetSection,
-    TieSection, ToolSection, WorldFile,
+    ActivationName, ElasticModel, ExerciseSection, FixedSection, InstrumentKindName,
+    InstrumentSection, IntegratorName, LawSection, MaterialSection, ObjectSection, ShapeSection,
+    TargetSection, TieSection, ToolSection, WorldFile,
 };
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
 use super::tet_mesh::load_msh_mesh;
@@ -161,6 +161,8 @@ pub struct MaterialSpec {
     pub burn_shrink: f32,
     /// Coulomb friction coefficient between a tool and this tissue (0: frictionless).
     pub friction_coefficient: f32,
+    /// Corotational finite elements (`model = "fem-corotational"`); the springs then carry no stiffness.
+    pub fem: Option<crate::tissue::fem::FemMaterial>,
 }
 
 impl MaterialSpec {
@@ -271,6 +273,15 @@ pub fn load_world(path: &Path) -> Result<World, WorldError> {
 
 /// The most substeps an object may take in one tick: a smaller `dt_s` would only hang the tick.
 const MAX_SUBSTEPS: f32 = 1000.0;
+
+/// N/mm^2 per kPa.
+const N_PER_MM2_PER_KPA: f32 = 1e-3;
+
+/// Largest Young's modulus a world may give, kPa (1 GPa: bone is 10-20 GPa, but no tissue here is).
+const MAX_YOUNGS_MODULUS_KPA: f32 = 1e6;
+
+/// Largest Poisson's ratio a world may give (0.5 is incompressible: an infinite bulk modulus).
+const MAX_POISSON_RATIO: f32 = 0.499;
 
 /// Parse and validate world text; `path` names it in errors and anchors relative mesh paths.
 pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
@@ -486,7 +497,29 @@ impl Context<'_> {
         )?;
         let quant_margin_mm = self.positive(&object.quant_margin_mm, &key("quant_margin_mm"))?;
         let is_volume = object.extrude.is_some() || is_msh_path(object.mesh.get_ref());
-        let material = self.material(i, &object.material, is_volume)?;
+        let model = object
+            .model
+            .as_ref()
+            .map_or(ElasticModel::MassSpring, |m| *m.get_ref());
+        if let Some(at) = &object.model
+            && model == ElasticModel::FemCorotational
+        {
+            if !is_volume {
+                return Err(self.invalid(
+                    at,
+                    &key("model"),
+                    "fem-corotational needs tetrahedra: load a .msh mesh or add `extrude` to this OBJ",
+                ));
+            }
+            if *object.integrator.get_ref() == IntegratorName::Xpbd {
+                return Err(self.invalid(
+                    &object.integrator,
+                    &key("integrator"),
+                    "xpbd constrains springs and volumes; fem-corotational needs a force-based integrator (implicit-euler is the one for tissue stiffness)",
+                ));
+            }
+        }
+        let material = self.material(i, &object.material, is_volume, model, &object.name)?;
         let mut fixed = Vec::with_capacity(object.fixed.len());
         for (f, selection) in object.fixed.iter().enumerate() {
             fixed.push(self.fixed(&key(&format!("fixed[{f}]")), selection)?);
@@ -657,11 +690,14 @@ impl Context<'_> {
     }
 
     /// `is_volume`: the object has tetrahedra (a `.msh` mesh or `extrude`), so density needs no thickness.
+    /// `model` says what carries the elasticity; `object` is blamed for a key that is missing.
     fn material(
         &self,
         i: usize,
         m: &MaterialSection,
         is_volume: bool,
+        model: ElasticModel,
+        object: &Spanned<String>,
     ) -> Result<MaterialSpec, WorldError> {
         let key = |k: &str| format!("objects[{i}].material.{k}");
         let mass = match (&m.mass_kg, &m.density_kg_per_m3, &m.thickness_mm) {
@@ -683,7 +719,7 @@ impl Context<'_> {
             },
             _ => {
                 return Err(self.invalid(
-                    &m.stiffness_n_per_mm,
+                    object,
                     &key("mass_kg"),
                     if is_volume {
                         "give either mass_kg or density_kg_per_m3"
@@ -693,14 +729,68 @@ impl Context<'_> {
                 ));
             }
         };
-        let stiffness = self.positive(&m.stiffness_n_per_mm, &key("stiffness_n_per_mm"))?;
-        let damping = *m.damping_n_s_per_mm.get_ref();
-        self.check(
-            &m.damping_n_s_per_mm,
-            &key("damping_n_s_per_mm"),
-            damping.is_finite() && damping >= 0.0,
-            &format!("must be >= 0 (got {damping})"),
-        )?;
+        let elastic = self.elastic(i, m)?;
+        let (stiffness, fem) = match (model, &m.stiffness_n_per_mm, elastic) {
+            (ElasticModel::FemCorotational, Some(at), _) => {
+                return Err(self.invalid(
+                    at,
+                    &key("stiffness_n_per_mm"),
+                    "fem-corotational takes its stiffness from youngs_modulus_kpa and poisson_ratio: remove stiffness_n_per_mm",
+                ));
+            }
+            (ElasticModel::FemCorotational, None, Some((youngs, poisson))) => (
+                0.0,
+                Some(crate::tissue::fem::FemMaterial {
+                    youngs_modulus_n_per_mm2: youngs * N_PER_MM2_PER_KPA,
+                    poisson_ratio: poisson,
+                    corotated: true,
+                }),
+            ),
+            (ElasticModel::FemCorotational, None, None) => {
+                return Err(self.invalid(
+                    object,
+                    &key("youngs_modulus_kpa"),
+                    "fem-corotational needs youngs_modulus_kpa and poisson_ratio in [objects.material]",
+                ));
+            }
+            (ElasticModel::MassSpring, Some(at), None) => {
+                (self.positive(at, &key("stiffness_n_per_mm"))?, None)
+            }
+            (ElasticModel::MassSpring, Some(at), Some(_)) => {
+                return Err(self.invalid(
+                    at,
+                    &key("stiffness_n_per_mm"),
+                    "give stiffness_n_per_mm, or youngs_modulus_kpa with poisson_ratio, not both",
+                ));
+            }
+            (ElasticModel::MassSpring, None, Some(_)) => {
+                return Err(self.invalid(
+                    object,
+                    &key("youngs_modulus_kpa"),
+                    "springs calibrated from youngs_modulus_kpa are not built yet: give stiffness_n_per_mm, or set model = \"fem-corotational\" on a volume",
+                ));
+            }
+            (ElasticModel::MassSpring, None, None) => {
+                return Err(self.invalid(
+                    object,
+                    &key("stiffness_n_per_mm"),
+                    "give stiffness_n_per_mm (N/mm per edge), or youngs_modulus_kpa with poisson_ratio",
+                ));
+            }
+        };
+        let damping = match &m.damping_n_s_per_mm {
+            None => 0.0,
+            Some(at) => {
+                let damping = *at.get_ref();
+                self.check(
+                    at,
+                    &key("damping_n_s_per_mm"),
+                    damping.is_finite() && damping >= 0.0,
+                    &format!("must be >= 0 (got {damping})"),
+                )?;
+                damping
+            }
+        };
         let law = match &m.law {
             None => SpringLaw::Linear,
             Some(at) => match at.get_ref() {
@@ -737,8 +827,8 @@ impl Context<'_> {
                 }
             },
         };
-        const N_PER_MM2_PER_KPA: f32 = 1e-3;
         Ok(MaterialSpec {
+            fem,
             law,
             global_bulk_modulus_n_per_mm2: self
                 .non_negative(&m.bulk_modulus_kpa, &key("bulk_modulus_kpa"))?
@@ -789,6 +879,41 @@ impl Context<'_> {
                 "must be 0 to 2 (Coulomb's coefficient; 0 is frictionless)",
             )?,
         })
+    }
+
+    /// Young's modulus (kPa) and Poisson's ratio, if given: both or neither, each in range.
+    fn elastic(&self, i: usize, m: &MaterialSection) -> Result<Option<(f32, f32)>, WorldError> {
+        let key = |k: &str| format!("objects[{i}].material.{k}");
+        match (&m.youngs_modulus_kpa, &m.poisson_ratio) {
+            (None, None) => Ok(None),
+            (Some(at), None) => Err(self.invalid(
+                at,
+                &key("poisson_ratio"),
+                "youngs_modulus_kpa needs poisson_ratio beside it",
+            )),
+            (None, Some(at)) => Err(self.invalid(
+                at,
+                &key("youngs_modulus_kpa"),
+                "poisson_ratio needs youngs_modulus_kpa beside it",
+            )),
+            (Some(e), Some(nu)) => {
+                let youngs = *e.get_ref();
+                self.check(
+                    e,
+                    &key("youngs_modulus_kpa"),
+                    youngs.is_finite() && youngs > 0.0 && youngs <= MAX_YOUNGS_MODULUS_KPA,
+                    &format!("must be above 0 and at most {MAX_YOUNGS_MODULUS_KPA} kPa (got {youngs}); soft tissue is 0.1 to 1000 kPa"),
+                )?;
+                let poisson = *nu.get_ref();
+                self.check(
+                    nu,
+                    &key("poisson_ratio"),
+                    poisson.is_finite() && (0.0..=MAX_POISSON_RATIO).contains(&poisson),
+                    &format!("must be 0 to {MAX_POISSON_RATIO} (got {poisson}); 0.5 is incompressible, which no finite stiffness holds"),
+                )?;
+                Ok(Some((youngs, poisson)))
+            }
+        }
     }
 
     fn fixed(

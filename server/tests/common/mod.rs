@@ -111,3 +111,45 @@ pub fn pose_at(
         usable: true,
     })
 }
+
+/// A finite-element model of `mesh`: lumped masses from `density_kg_per_m3` by tetrahedron volume share, springs
+/// along the tetrahedra's edges with no stiffness (the elements carry it), `fixed` nodes by rest position.
+pub fn fem_model(
+    mesh: &sinew_server::world::TetMesh,
+    material: sinew_server::tissue::fem::FemMaterial,
+    density_kg_per_m3: f32,
+    fixed: impl Fn(sinew_server::tissue::Vec3) -> bool,
+) -> sinew_server::tissue::MassSpringModel {
+    use sinew_server::tissue::{MassSpringModel, ModelParts, Vec3};
+    let x: Vec<Vec3> = mesh
+        .surface
+        .positions_mm
+        .iter()
+        .map(|p| Vec3::from(*p))
+        .collect();
+    let mut mass_kg = vec![0.0f32; x.len()];
+    let mut edges = Vec::new();
+    for tet in &mesh.tets {
+        let volume_mm3 = sinew_server::tissue::volume::tet_volume_mm3(&x, *tet).abs();
+        for &i in tet {
+            mass_kg[i as usize] += volume_mm3 / 4.0 * density_kg_per_m3 * 1e-9;
+        }
+        for (p, q) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+            edges.push([tet[p].min(tet[q]), tet[p].max(tet[q])]);
+        }
+    }
+    edges.sort_unstable();
+    edges.dedup();
+    MassSpringModel::from_parts(ModelParts {
+        fixed: x.iter().map(|p| fixed(*p)).collect(),
+        rest_positions_mm: x,
+        mass_kg,
+        edge_stiffness_n_per_mm: vec![0.0; edges.len()],
+        edge_damping_n_s_per_mm: vec![0.0; edges.len()],
+        edges,
+        triangles: mesh.surface.triangles.clone(),
+        tets: mesh.tets.clone(),
+        fem: Some(material),
+        ..ModelParts::default()
+    })
+}

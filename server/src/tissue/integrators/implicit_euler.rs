@@ -3,6 +3,7 @@
 #![allow(clippy::needless_range_loop)] // loops walk several parallel per-node arrays by index
 
 use super::{Integrator, fit, flush_subnormal};
+use crate::tissue::fem::FemLinearization;
 use crate::tissue::springs::SpringJacobian;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -12,12 +13,15 @@ const TOLERANCE: f32 = 1e-6;
 /// Solves `(M - h C - h^2 K) v1 = M v0 + h f(x0, 0)` for the new velocity (Baraff-Witkin), then
 /// `x1 = x0 + h v1`. `M` is the lumped mass (kg / 1000 in these units), `K` and `C` the spring Jacobians at
 /// `x0` plus the anchor and drag, `f(x0, 0)` every force except the dampers. Stable at any step for the
-/// linearised system, at the price of numerical damping that grows with `h`. The volume terms enter through
-/// `f(x0)` only (not the matrix), so a very stiff volume term still limits the step.
+/// linearised system, at the price of numerical damping that grows with `h`. Finite elements enter `K` with
+/// their rotations frozen at `x0` (`R K0 R^T`, the corotational stiffness) and their nodal-volume term as
+/// `kappa / V0 g g^T` (Gauss-Newton). The spring volume terms enter through `f(x0)` only (not the matrix), so
+/// a very stiff spring volume term still limits the step.
 #[derive(Debug, Clone)]
 pub struct ImplicitEuler {
     max_iterations: u32,
     blocks: Vec<SpringJacobian>,
+    fem: FemLinearization,
     diagonal_mass: Vec<f32>,
     rhs: Vec<Vec3>,
     residual: Vec<Vec3>,
@@ -33,6 +37,7 @@ impl ImplicitEuler {
         Self {
             max_iterations: max_iterations.max(1),
             blocks: Vec::new(),
+            fem: FemLinearization::default(),
             diagonal_mass: Vec::new(),
             rhs: Vec::new(),
             residual: Vec::new(),
@@ -48,10 +53,13 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> f32 {
     a.iter().zip(b).map(|(x, y)| x.dot(y)).sum()
 }
 
-/// `out = A p`: the diagonal mass term plus the spring blocks, with fixed rows zeroed.
+/// `out = A p`: the diagonal mass term plus the spring blocks and `h^2` times the finite elements'
+/// stiffness, with fixed rows zeroed.
 fn apply(
     model: &MassSpringModel,
     blocks: &[SpringJacobian],
+    fem: &mut FemLinearization,
+    h: f32,
     diagonal_mass: &[f32],
     p: &[Vec3],
     out: &mut [Vec3],
@@ -60,6 +68,9 @@ fn apply(
         *o = q * *m;
     }
     model.springs().add_block_products(blocks, p, out);
+    model
+        .fem()
+        .add_stiffness_product(model.tets(), fem, p, h * h, out);
     for (o, &w) in out.iter_mut().zip(model.accel_per_force()) {
         if w == 0.0 {
             *o = Vec3::zeros();
@@ -92,10 +103,11 @@ impl Integrator for ImplicitEuler {
             self.blocks
                 .resize(model.edge_count(), SpringJacobian::default());
         }
-        model.compute_static_forces(
+        model.compute_static_forces_linearized(
             &state.positions_mm,
             Some(&state.external_forces_n),
             &mut state.forces_n,
+            &mut self.fem,
         );
         model
             .springs()
@@ -117,6 +129,12 @@ impl Integrator for ImplicitEuler {
         model
             .springs()
             .add_block_diagonals(&self.blocks, &mut self.inverse_diagonal);
+        model.fem().add_stiffness_diagonal(
+            model.tets(),
+            &self.fem,
+            h * h,
+            &mut self.inverse_diagonal,
+        );
         for (d, &wi) in self.inverse_diagonal.iter_mut().zip(w) {
             *d = if wi == 0.0 {
                 Vec3::zeros()
@@ -138,6 +156,8 @@ impl Integrator for ImplicitEuler {
         apply(
             model,
             &self.blocks,
+            &mut self.fem,
+            h,
             &self.diagonal_mass,
             v,
             &mut self.product,
@@ -155,6 +175,8 @@ impl Integrator for ImplicitEuler {
             apply(
                 model,
                 &self.blocks,
+                &mut self.fem,
+                h,
                 &self.diagonal_mass,
                 &self.direction,
                 &mut self.product,

@@ -1,0 +1,129 @@
+//! Finite-element tissue in the simulation (issue 13): the shipped `fem_block` world loads from material data,
+//! pushes back on a probe with a force that grows with depth, relaxes when the probe leaves, and agrees with
+//! the same world's elements solved without corotation at small depth.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use std::path::{Path, PathBuf};
+
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::world::{World, load_world};
+
+fn worlds() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds")
+}
+
+fn fem_block_world() -> World {
+    load_world(&worlds().join("fem_block.toml")).expect("fem_block world loads")
+}
+
+/// The left probe (sphere radius 4, device origin at world x = -10) with its bottom `depth_mm` below the
+/// block's top face.
+fn press(depth_mm: f32) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        position_device_mm: [0.0, 0.0, 4.0 - depth_mm],
+        velocity_device_mm_s: [0.0; 3],
+        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..ToolCommand::default()
+    }
+}
+
+/// Move the left probe to `depth_mm` over `ticks` and hold it `hold` more; returns the last output. Every tick
+/// stays finite, within the tool's limit, with neither a step halving nor a reset.
+fn move_to(sim: &mut Sim, from_mm: f32, depth_mm: f32, ticks: usize, hold: usize) -> ToolOutput {
+    let mut out = [ToolOutput::default(); 2];
+    for k in 0..ticks + hold {
+        let s = ((k + 1) as f32 / ticks as f32).min(1.0);
+        let d = from_mm + (depth_mm - from_mm) * s;
+        let report = sim.step(0.001, &[press(d), ToolCommand::default()], &mut out);
+        assert_eq!((report.faults, report.retries), (0, 0), "tick {k}");
+        let f = out[0].force_world_n;
+        assert!(f.iter().all(|c| c.is_finite()) && f.norm() <= 3.3 + 1e-4);
+    }
+    out[0]
+}
+
+#[test]
+fn the_fem_block_presses_back_harder_the_deeper_it_goes_and_relaxes_after() {
+    let world = fem_block_world();
+    let material = world.objects[0].material.fem.expect("finite elements");
+    assert!((material.youngs_modulus_n_per_mm2 - 5e-3).abs() < 1e-9);
+    assert!(material.corotated);
+    let mut sim = Sim::new(&world).unwrap();
+    assert_eq!(sim.objects[0].model.fem().material(), Some(material));
+    // The springs carry no stiffness: every bit of the push comes from the elements.
+    assert!(
+        sim.objects[0]
+            .model
+            .springs()
+            .stiffness_n_per_mm
+            .iter()
+            .all(|&k| k == 0.0)
+    );
+
+    let mut forces = Vec::new();
+    let mut from = 0.0;
+    for depth in [1.0f32, 2.0, 3.0] {
+        let out = move_to(&mut sim, from, depth, 200, 200);
+        let f = out.force_world_n;
+        println!(
+            "{depth} mm deep: force {f:?} N, {} held nodes",
+            out.held_nodes
+        );
+        assert!(out.in_contact && out.held_nodes > 0);
+        assert!(
+            f.z > 0.0 && f.z > 0.95 * f.norm(),
+            "force {f:?} not along +z"
+        );
+        forces.push(f.z);
+        from = depth;
+    }
+    assert!(forces.windows(2).all(|w| w[1] > 1.5 * w[0]), "{forces:?}");
+    // Hertz for a 4 mm sphere on a half-space of E = 5 kPa, nu = 0.45 at 3 mm is 0.087 N; this block is only
+    // 10 mm thick on a fixed floor, so it must be stiffer than that, and not wildly so.
+    assert!(forces[2] > 0.087 && forces[2] < 0.5, "{forces:?}");
+
+    // Lift off: the surface comes back to rest.
+    let out = move_to(&mut sim, 3.0, -5.0, 200, 800);
+    assert!(!out.in_contact);
+    let object = &sim.objects[0];
+    let furthest = object
+        .state
+        .positions_mm
+        .iter()
+        .zip(object.model.rest_positions_mm())
+        .map(|(x, r)| (x - r).norm())
+        .fold(0.0f32, f32::max);
+    assert!(furthest < 0.05, "{furthest} mm from rest after release");
+}
+
+#[test]
+fn a_region_tracked_fem_block_feels_like_the_whole_one() {
+    // The region of deformation keeps the finite elements in its sub-model, and the force at the hand agrees
+    // with the whole block's. (On this block it saves nothing: with no anchors to the tissue beneath, an
+    // elastic dent's displacement decays like 1 / distance, so a 3 mm dent moves every node of a 40 mm block
+    // by more than the 1 um threshold and the region grows to the whole block.)
+    let whole_world = fem_block_world();
+    let path = worlds().join("fem_block.toml");
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        "quant_margin_mm = 40.0",
+        "quant_margin_mm = 40.0\nregion = { threshold_mm = 0.001 }",
+    );
+    let region_world = sinew_server::world::parse_world(&path, &text).unwrap();
+    let mut whole = Sim::new(&whole_world).unwrap();
+    let mut region = Sim::new(&region_world).unwrap();
+    let (a, b) = (
+        move_to(&mut whole, 0.0, 3.0, 300, 300).force_world_n,
+        move_to(&mut region, 0.0, 3.0, 300, 300).force_world_n,
+    );
+    let active = region.objects[0].region().unwrap().active_nodes().len();
+    println!(
+        "3 mm: whole {a:?} N, region {b:?} N ({active} of {} nodes active)",
+        region.objects[0].model.node_count()
+    );
+    assert!(active > 0);
+    assert!(
+        (a - b).norm() < 0.03 * a.norm(),
+        "whole {a:?}, region {b:?}"
+    );
+}

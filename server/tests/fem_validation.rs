@@ -1,0 +1,237 @@
+//! Corotational FEM against analytic answers (issue 13): a uniaxial test recovers Young's modulus and
+//! Poisson's ratio, a rigidly rotated bar feels no force (and a plain linear one does), and a nearly
+//! incompressible block keeps its volume under a 20% compression.
+//!
+//! Every block here is a structured grid of cubes, each split into six tetrahedra around its main diagonal
+//! (a conforming mesh), solved to rest by implicit Euler with a long step (a Newton step on the statics).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+mod common;
+
+use std::f32::consts::FRAC_PI_2;
+
+use nalgebra::UnitQuaternion;
+use sinew_server::tissue::fem::FemMaterial;
+use sinew_server::tissue::{ImplicitEuler, Integrator, MassSpringModel, TissueState, Vec3};
+use sinew_server::world::{TetMesh, tet_grid};
+
+/// Liver-like density, kg/m^3.
+const DENSITY_KG_PER_M3: f32 = 1060.0;
+
+fn block(cells: [usize; 3], spacing_mm: f32) -> TetMesh {
+    tet_grid(cells, spacing_mm).unwrap()
+}
+
+fn fem_model(
+    mesh: &TetMesh,
+    material: FemMaterial,
+    fixed: impl Fn(Vec3) -> bool,
+) -> MassSpringModel {
+    common::fem_model(mesh, material, DENSITY_KG_PER_M3, fixed)
+}
+
+fn material(youngs_kpa: f32, poisson: f32, corotated: bool) -> FemMaterial {
+    FemMaterial {
+        youngs_modulus_n_per_mm2: youngs_kpa * 1e-3,
+        poisson_ratio: poisson,
+        corotated,
+    }
+}
+
+/// Implicit Euler steps of 1 s with the velocity cleared after each: Newton steps on the statics (the
+/// rotations are refrozen each step).
+fn relax(model: &MassSpringModel, state: &mut TissueState, steps: usize) {
+    let mut solver = ImplicitEuler::new(4000);
+    for _ in 0..steps {
+        solver.step(model, state, 1.0);
+        state.velocities_mm_s.fill(Vec3::zeros());
+        assert!(state.is_finite());
+    }
+}
+
+/// Mean of `value` over the rest positions `select` picks.
+fn mean_over(
+    model: &MassSpringModel,
+    select: impl Fn(Vec3) -> bool,
+    value: impl Fn(usize) -> f32,
+) -> f32 {
+    let picked: Vec<usize> = (0..model.node_count())
+        .filter(|&i| select(model.rest_positions_mm()[i]))
+        .collect();
+    assert!(!picked.is_empty());
+    picked.iter().map(|&i| value(i)).sum::<f32>() / picked.len() as f32
+}
+
+/// Nodal forces of a uniform traction `traction_n_per_mm2` (a vector) on the boundary triangles whose rest
+/// vertices all satisfy `on_face`: a third of each triangle's area to each vertex.
+fn traction(
+    model: &MassSpringModel,
+    on_face: impl Fn(Vec3) -> bool,
+    traction_n_per_mm2: Vec3,
+    out: &mut [Vec3],
+) {
+    let x = model.rest_positions_mm();
+    for tri in model.triangles() {
+        let [a, b, c] = tri.map(|i| x[i as usize]);
+        if [a, b, c].iter().all(|p| on_face(*p)) {
+            let area = 0.5 * (b - a).cross(&(c - a)).norm();
+            for &i in tri {
+                out[i as usize] += traction_n_per_mm2 * (area / 3.0);
+            }
+        }
+    }
+}
+
+fn total_volume_mm3(model: &MassSpringModel, x: &[Vec3]) -> f32 {
+    model
+        .tets()
+        .tets
+        .iter()
+        .map(|t| sinew_server::tissue::volume::tet_volume_mm3(x, *t))
+        .sum()
+}
+
+#[test]
+fn uniaxial_compression_recovers_youngs_modulus_and_poisson_ratio() {
+    // A 8 x 8 x 24 mm column clamped at its foot, pressed on its head at 1% of E. Strain and lateral
+    // expansion are read in the middle, between 9 and 18 mm up, where the clamp's restraint has decayed
+    // (Saint-Venant).
+    let (youngs_kpa, poisson) = (10.0, 0.3);
+    let mesh = block([4, 4, 12], 2.0);
+    let model = fem_model(&mesh, material(youngs_kpa, poisson, true), |p| p.z < 1e-3);
+    let mut state = TissueState::at_rest(&model);
+    let stress_n_per_mm2 = 0.01 * youngs_kpa * 1e-3;
+    traction(
+        &model,
+        |p| (p.z - 24.0).abs() < 1e-3,
+        Vec3::new(0.0, 0.0, -stress_n_per_mm2),
+        &mut state.external_forces_n,
+    );
+    relax(&model, &mut state, 4);
+
+    let x = &state.positions_mm;
+    let dz = |i: usize| x[i].z - model.rest_positions_mm()[i].z;
+    let (low, high) = (10.0f32, 18.0f32);
+    let at = |z: f32| move |p: Vec3| (p.z - z).abs() < 1e-3;
+    let strain_z =
+        (mean_over(&model, at(high), dz) - mean_over(&model, at(low), dz)) / (high - low);
+    let measured_e_kpa = -stress_n_per_mm2 / strain_z * 1e3;
+    // Lateral: the width at mid-height, x = 0 face against x = 8 face.
+    let mid = |p: Vec3| (p.z - 14.0).abs() < 1e-3;
+    let dx = |i: usize| x[i].x - model.rest_positions_mm()[i].x;
+    let strain_x = (mean_over(&model, move |p| mid(p) && (p.x - 8.0).abs() < 1e-3, dx)
+        - mean_over(&model, move |p| mid(p) && p.x.abs() < 1e-3, dx))
+        / 8.0;
+    let measured_poisson = -strain_x / strain_z;
+    println!(
+        "E {measured_e_kpa:.4} kPa (given {youngs_kpa}), nu {measured_poisson:.4} (given {poisson}), strain {strain_z:.5}"
+    );
+    assert!(
+        (measured_e_kpa - youngs_kpa).abs() <= 0.02 * youngs_kpa,
+        "E {measured_e_kpa} kPa"
+    );
+    assert!(
+        (measured_poisson - poisson).abs() <= 0.05 * poisson,
+        "nu {measured_poisson}"
+    );
+}
+
+#[test]
+fn a_rigidly_rotated_bar_feels_no_force_unless_the_elements_are_linear() {
+    // A 20 x 4 x 4 mm bar turned 90 degrees about z as a rigid body. Scale: the force a 1% stretch along the
+    // bar puts on its end nodes.
+    let mesh = block([10, 2, 2], 2.0);
+    let turn = UnitQuaternion::from_euler_angles(0.0, 0.0, FRAC_PI_2);
+    let largest = |model: &MassSpringModel, x: &[Vec3]| {
+        let mut f = vec![Vec3::zeros(); x.len()];
+        model.compute_static_forces(x, None, &mut f);
+        f.iter().map(|v| v.norm()).fold(0.0f32, f32::max)
+    };
+    let corotated = fem_model(&mesh, material(10.0, 0.45, true), |_| false);
+    let linear = fem_model(&mesh, material(10.0, 0.45, false), |_| false);
+    let stretched: Vec<Vec3> = corotated
+        .rest_positions_mm()
+        .iter()
+        .map(|p| Vec3::new(p.x * 1.01, p.y, p.z))
+        .collect();
+    let scale = largest(&corotated, &stretched);
+    let turned: Vec<Vec3> = corotated
+        .rest_positions_mm()
+        .iter()
+        .map(|p| turn * p)
+        .collect();
+    let (corotated_n, linear_n) = (largest(&corotated, &turned), largest(&linear, &turned));
+    println!(
+        "1% stretch {scale:.3e} N; turned 90 degrees: corotated {corotated_n:.3e} N, linear {linear_n:.3e} N"
+    );
+    assert!(
+        corotated_n < 1e-3 * scale,
+        "corotated {corotated_n} N against {scale} N"
+    );
+    assert!(
+        linear_n > 10.0 * scale,
+        "linear {linear_n} N against {scale} N"
+    );
+
+    // Let it go: the corotated bar stays a bar; the linear one deforms on its own.
+    let spread = |model: &MassSpringModel| {
+        let mut state = TissueState::at_rest(model);
+        state.positions_mm.clone_from(&turned);
+        let mut solver = ImplicitEuler::new(200);
+        for _ in 0..50 {
+            solver.step(model, &mut state, 1e-3);
+        }
+        state
+            .positions_mm
+            .iter()
+            .zip(&turned)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0f32, f32::max)
+    };
+    let (corotated_mm, linear_mm) = (spread(&corotated), spread(&linear));
+    println!("after 50 ms: corotated moved {corotated_mm:.2e} mm, linear {linear_mm:.2e} mm");
+    assert!(corotated_mm < 1e-3, "{corotated_mm} mm");
+    assert!(linear_mm > 0.1, "{linear_mm} mm");
+}
+
+#[test]
+fn a_nearly_incompressible_block_keeps_its_volume_under_a_20_percent_compression() {
+    // A 12 x 12 x 12 mm cube on a bonded foot, pressed on its head by a uniform traction raised in ten steps
+    // to 28% of E. At Poisson 0.49 it keeps its volume; at 0.3 it does not, so the measure can tell.
+    let mesh = block([6, 6, 6], 2.0);
+    let change = |poisson: f32| {
+        let model = fem_model(&mesh, material(10.0, poisson, true), |p| p.z < 1e-3);
+        let mut state = TissueState::at_rest(&model);
+        let rest_mm3 = total_volume_mm3(&model, &state.positions_mm);
+        let top = |p: Vec3| p.z > 12.0 - 1e-3;
+        let full_n_per_mm2 = 0.28 * 10.0 * 1e-3;
+        for step in 1..=10 {
+            state.external_forces_n.fill(Vec3::zeros());
+            let stress = full_n_per_mm2 * step as f32 / 10.0;
+            traction(
+                &model,
+                top,
+                Vec3::new(0.0, 0.0, -stress),
+                &mut state.external_forces_n,
+            );
+            relax(&model, &mut state, 3);
+        }
+        let x = &state.positions_mm;
+        let compression = 1.0 - mean_over(&model, top, |i| x[i].z) / 12.0;
+        let change = total_volume_mm3(&model, x) / rest_mm3 - 1.0;
+        println!(
+            "nu {poisson}: compression {:.1}%, volume change {:.3}%",
+            compression * 100.0,
+            change * 100.0
+        );
+        (compression, change)
+    };
+    let (compression, nearly_incompressible) = change(0.49);
+    assert!(compression >= 0.20, "compressed {compression}");
+    assert!(
+        nearly_incompressible.abs() < 0.01,
+        "{nearly_incompressible}"
+    );
+    let (_, compressible) = change(0.3);
+    assert!(compressible < -0.05, "{compressible}");
+}
