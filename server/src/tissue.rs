@@ -9,6 +9,7 @@
 //! Units: positions mm, velocities mm/s, forces N, masses kg, stiffness N/mm, damping N s/mm. Newton's law in
 //! these units is `a_mm_per_s2 = 1000 * f_n / m_kg` ([`MM_PER_M`]).
 
+pub mod calibration;
 pub mod fem;
 pub mod guard;
 pub mod integrators;

@@ -22,8 +22,8 @@ pub use instrument::{
     CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
 };
 pub use loader::{
-    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec, ToolShapeSpec, ToolSpec, World,
-    WorldError, load_world, parse_world,
+    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec, SpringCalibration,
+    ToolShapeSpec, ToolSpec, World, WorldError, load_world, parse_world,
 };
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};
 pub use tet_grid::tet_grid;

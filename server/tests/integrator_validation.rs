@@ -222,6 +222,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             burn_shrink: 0.0,
             friction_coefficient: 0.0,
             fem: None,
+            calibrated: None,
         },
         fixed: [[-1.0, -half], [1.0, half]]
             .iter()

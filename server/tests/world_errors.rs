@@ -818,7 +818,7 @@ fn finite_element_keys_are_checked_by_key_and_line() {
     assert_eq!((fem.poisson_ratio, fem.corotated), (0.45, true));
     assert_eq!(world.objects[0].material.stiffness_n_per_mm, 0.0);
     // Each: what replaces what in the good world, the key named, and the line it names (by its text).
-    let cases: [(&str, &str, &str, &str, &str); 8] = [
+    let cases: [(&str, &str, &str, &str, &str); 7] = [
         (
             "extrude = { thickness_mm = 1.0, layers = 1 }\n",
             "",
@@ -868,13 +868,6 @@ fn finite_element_keys_are_checked_by_key_and_line() {
             "integrator = ",
             "force-based integrator",
         ),
-        (
-            "model = \"fem-corotational\"",
-            "model = \"mass-spring\"",
-            "objects[0].material.youngs_modulus_kpa",
-            "name = \"sheet\"",
-            "not built yet",
-        ),
     ];
     for (from, to, key, line_text, says) in cases {
         assert!(good.contains(from), "{from}");
@@ -898,4 +891,78 @@ fn finite_element_keys_are_checked_by_key_and_line() {
         )
     );
     assert!(message.contains("youngs_modulus_kpa"), "{message}");
+}
+
+#[test]
+fn calibrated_springs_take_youngs_modulus_and_check_what_a_network_can_be() {
+    // A volume: springs from Lloyd et al.'s fit, the per-tetrahedron volume term for the rest of nu.
+    let volume = fem_world().replace("model = \"fem-corotational\"", "model = \"mass-spring\"");
+    let world = load_world(&write_world(&volume, None)).unwrap();
+    let calibration = world.objects[0].material.calibrated.expect("calibrated");
+    assert_eq!(
+        (calibration.poisson_ratio, calibration.thickness_mm),
+        (0.45, 0.0)
+    );
+    assert!(world.objects[0].material.fem.is_none());
+    let model = sinew_server::tissue::MassSpringModel::build(&world.objects[0], Default::default());
+    let mu = 5e-3 / 2.9;
+    assert!((model.tets().bulk_modulus_n_per_mm2 - 8.0 * mu).abs() < 1e-6);
+    assert!(model.springs().stiffness_n_per_mm.iter().all(|&k| k >= 0.0));
+    assert!(model.springs().stiffness_n_per_mm.iter().any(|&k| k > 0.0));
+    // Below a network's own 1/4, a volume is refused.
+    let soft = volume.replace("poisson_ratio = 0.45", "poisson_ratio = 0.2");
+    let (error, message, _) = refused(&soft, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "objects[0].material.poisson_ratio",
+            line_of(&soft, "poisson_ratio")
+        )
+    );
+    assert!(message.contains("fem-corotational"), "{message}");
+
+    // A sheet: its thickness sets the stiffness, and its ratio can only be 1/3.
+    let sheet = GOOD_WORLD.replace(
+        "stiffness_n_per_mm = 0.01",
+        "youngs_modulus_kpa = 20.0\npoisson_ratio = 0.333\nthickness_mm = 2.0",
+    );
+    let world = load_world(&write_world(&sheet, None)).unwrap();
+    let calibration = world.objects[0].material.calibrated.expect("calibrated");
+    assert_eq!(calibration.thickness_mm, 2.0);
+    let model = sinew_server::tissue::MassSpringModel::build(&world.objects[0], Default::default());
+    // The 2 mm grid's right triangles: every edge gets some stiffness, of the order of E t from each triangle.
+    let k = &model.springs().stiffness_n_per_mm;
+    assert!(k.iter().all(|&k| k > 0.0 && k < 2.0 * 20e-3 * 2.0), "{k:?}");
+    for (from, to, key, line_text, says) in [
+        (
+            "poisson_ratio = 0.333",
+            "poisson_ratio = 0.45",
+            "objects[0].material.poisson_ratio",
+            "poisson_ratio",
+            "1/3",
+        ),
+        (
+            "thickness_mm = 2.0",
+            "",
+            "objects[0].material.thickness_mm",
+            "youngs_modulus_kpa",
+            "need thickness_mm",
+        ),
+        (
+            "youngs_modulus_kpa = 20.0",
+            "youngs_modulus_kpa = 20.0\nstiffness_n_per_mm = 0.01",
+            "objects[0].material.stiffness_n_per_mm",
+            "stiffness_n_per_mm",
+            "not both",
+        ),
+    ] {
+        let bad = sheet.replacen(from, to, 1);
+        let (error, message, _) = refused(&bad, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&bad, line_text)),
+            "{message}"
+        );
+        assert!(message.contains(says), "{message}");
+    }
 }

@@ -165,11 +165,34 @@ impl MassSpringModel {
             .map(|p| spec.fixed.iter().any(|s| s.contains(*p)))
             .collect();
         let m = &spec.material;
+        let (edge_stiffness_n_per_mm, volume_supplement_n_per_mm2) = match m.calibrated {
+            Some(c) => (
+                super::calibration::calibrated_edge_stiffness(
+                    &positions,
+                    &edges,
+                    &tets,
+                    &triangles,
+                    c.youngs_modulus_n_per_mm2,
+                    c.poisson_ratio,
+                    c.thickness_mm,
+                ),
+                if tets.is_empty() {
+                    0.0
+                } else {
+                    super::calibration::volume_supplement_n_per_mm2(
+                        c.youngs_modulus_n_per_mm2,
+                        c.poisson_ratio,
+                    )
+                    .max(0.0)
+                },
+            ),
+            None => (vec![m.stiffness_n_per_mm; edges.len()], 0.0),
+        };
         Self::from_parts(ModelParts {
             rest_positions_mm: positions,
             mass_kg,
             fixed,
-            edge_stiffness_n_per_mm: vec![m.stiffness_n_per_mm; edges.len()],
+            edge_stiffness_n_per_mm,
             edge_damping_n_s_per_mm: vec![m.damping_n_s_per_mm; edges.len()],
             edges,
             law: Some(m.law),
@@ -178,7 +201,7 @@ impl MassSpringModel {
             gravity_mm_per_s2,
             triangles,
             tets,
-            tet_bulk_modulus_n_per_mm2: m.tet_bulk_modulus_n_per_mm2,
+            tet_bulk_modulus_n_per_mm2: m.tet_bulk_modulus_n_per_mm2 + volume_supplement_n_per_mm2,
             global_bulk_modulus_n_per_mm2: m.global_bulk_modulus_n_per_mm2,
             fem: m.fem,
         })

@@ -172,6 +172,57 @@ impl TetVolumes {
     }
 }
 
+impl TetVolumes {
+    /// Each tetrahedron's volume gradients at `x` into `out` (empty when the term is off): the frozen
+    /// linearisation [`Self::add_stiffness_product`] uses.
+    pub fn gradients_into(&self, x: &[Vec3], out: &mut Vec<[Vec3; 4]>) {
+        out.clear();
+        if self.bulk_modulus_n_per_mm2 == 0.0 {
+            return;
+        }
+        out.extend(self.tets.iter().map(|&tet| tet_volume_gradients(x, tet)));
+    }
+
+    /// `out += scale K p` with `K = sum_t K_bulk / V0 g_t g_t^T` (the term's Gauss-Newton stiffness, gradients
+    /// from [`Self::gradients_into`]).
+    pub fn add_stiffness_product(
+        &self,
+        gradients: &[[Vec3; 4]],
+        p: &[Vec3],
+        scale: f32,
+        out: &mut [Vec3],
+    ) {
+        if gradients.len() != self.tets.len() {
+            return;
+        }
+        for ((tet, g), &v0) in self.tets.iter().zip(gradients).zip(&self.rest_volume_mm3) {
+            let along: f32 = (0..4).map(|k| g[k].dot(&p[tet[k] as usize])).sum();
+            let w = along * self.bulk_modulus_n_per_mm2 / v0 * scale;
+            for k in 0..4 {
+                out[tet[k] as usize] += g[k] * w;
+            }
+        }
+    }
+
+    /// `diagonal += scale diag(K)` per axis for the same `K`.
+    pub fn add_stiffness_diagonal(
+        &self,
+        gradients: &[[Vec3; 4]],
+        scale: f32,
+        diagonal: &mut [Vec3],
+    ) {
+        if gradients.len() != self.tets.len() {
+            return;
+        }
+        for ((tet, g), &v0) in self.tets.iter().zip(gradients).zip(&self.rest_volume_mm3) {
+            let w = self.bulk_modulus_n_per_mm2 / v0 * scale;
+            for k in 0..4 {
+                diagonal[tet[k] as usize] += g[k].component_mul(&g[k]) * w;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

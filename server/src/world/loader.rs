@@ -163,6 +163,20 @@ pub struct MaterialSpec {
     pub friction_coefficient: f32,
     /// Corotational finite elements (`model = "fem-corotational"`); the springs then carry no stiffness.
     pub fem: Option<crate::tissue::fem::FemMaterial>,
+    /// Springs calibrated from Young's modulus and Poisson's ratio (a mass-spring object given
+    /// `youngs_modulus_kpa`); `stiffness_n_per_mm` is then unused.
+    pub calibrated: Option<SpringCalibration>,
+}
+
+/// What calibrated springs are fitted to ([`crate::tissue::calibration`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpringCalibration {
+    /// Young's modulus, N/mm^2.
+    pub youngs_modulus_n_per_mm2: f32,
+    /// Poisson's ratio (a volume: at least 1/4; a sheet: 1/3).
+    pub poisson_ratio: f32,
+    /// A sheet's thickness, mm (0 for a volume).
+    pub thickness_mm: f32,
 }
 
 impl MaterialSpec {
@@ -713,6 +727,12 @@ impl Context<'_> {
                 thickness_mm: 0.0,
             },
             (Some(total), None, None) => MassSpec::TotalKg(self.positive(total, &key("mass_kg"))?),
+            // A calibrated sheet's thickness sets its stiffness, not its mass.
+            (Some(total), None, Some(_))
+                if model == ElasticModel::MassSpring && m.youngs_modulus_kpa.is_some() =>
+            {
+                MassSpec::TotalKg(self.positive(total, &key("mass_kg"))?)
+            }
             (None, Some(density), Some(thickness)) => MassSpec::Density {
                 kg_per_m3: self.positive(density, &key("density_kg_per_m3"))?,
                 thickness_mm: self.positive(thickness, &key("thickness_mm"))?,
@@ -730,6 +750,7 @@ impl Context<'_> {
             }
         };
         let elastic = self.elastic(i, m)?;
+        let mut calibrated = None;
         let (stiffness, fem) = match (model, &m.stiffness_n_per_mm, elastic) {
             (ElasticModel::FemCorotational, Some(at), _) => {
                 return Err(self.invalid(
@@ -763,12 +784,9 @@ impl Context<'_> {
                     "give stiffness_n_per_mm, or youngs_modulus_kpa with poisson_ratio, not both",
                 ));
             }
-            (ElasticModel::MassSpring, None, Some(_)) => {
-                return Err(self.invalid(
-                    object,
-                    &key("youngs_modulus_kpa"),
-                    "springs calibrated from youngs_modulus_kpa are not built yet: give stiffness_n_per_mm, or set model = \"fem-corotational\" on a volume",
-                ));
+            (ElasticModel::MassSpring, None, Some((youngs, poisson))) => {
+                calibrated = Some(self.spring_calibration(i, m, is_volume, youngs, poisson)?);
+                (0.0, None)
             }
             (ElasticModel::MassSpring, None, None) => {
                 return Err(self.invalid(
@@ -829,6 +847,7 @@ impl Context<'_> {
         };
         Ok(MaterialSpec {
             fem,
+            calibrated,
             law,
             global_bulk_modulus_n_per_mm2: self
                 .non_negative(&m.bulk_modulus_kpa, &key("bulk_modulus_kpa"))?
@@ -878,6 +897,61 @@ impl Context<'_> {
                 0.0,
                 "must be 0 to 2 (Coulomb's coefficient; 0 is frictionless)",
             )?,
+        })
+    }
+
+    /// What a mass-spring object's springs are calibrated to: a volume's Poisson's ratio must be at least the
+    /// network's 1/4 (a volume term adds the rest), a sheet's must be its network's 1/3 and it needs a thickness.
+    fn spring_calibration(
+        &self,
+        i: usize,
+        m: &MaterialSection,
+        is_volume: bool,
+        youngs_kpa: f32,
+        poisson: f32,
+    ) -> Result<SpringCalibration, WorldError> {
+        use crate::tissue::calibration::{SHEET_NETWORK_POISSON, TET_NETWORK_POISSON};
+        let key = |k: &str| format!("objects[{i}].material.{k}");
+        // Both are given (the caller has checked them in pairs).
+        let (Some(at_youngs), Some(at_poisson)) = (&m.youngs_modulus_kpa, &m.poisson_ratio) else {
+            return Ok(SpringCalibration {
+                youngs_modulus_n_per_mm2: youngs_kpa * N_PER_MM2_PER_KPA,
+                poisson_ratio: poisson,
+                thickness_mm: 0.0,
+            });
+        };
+        let thickness_mm = if is_volume {
+            if poisson < TET_NETWORK_POISSON {
+                return Err(self.invalid(
+                    at_poisson,
+                    &key("poisson_ratio"),
+                    format!("calibrated springs on a volume need poisson_ratio >= {TET_NETWORK_POISSON} (a spring network's own ratio; a volume term adds the rest): use model = \"fem-corotational\" for {poisson}"),
+                ));
+            }
+            0.0
+        } else {
+            if (poisson - SHEET_NETWORK_POISSON).abs() > 0.005 {
+                return Err(self.invalid(
+                    at_poisson,
+                    &key("poisson_ratio"),
+                    format!("a sheet of springs has Poisson's ratio 1/3 whatever its constants (got {poisson}): give poisson_ratio = 0.333, or make the tissue a volume (extrude or .msh)"),
+                ));
+            }
+            match &m.thickness_mm {
+                Some(at) => self.positive(at, &key("thickness_mm"))?,
+                None => {
+                    return Err(self.invalid(
+                        at_youngs,
+                        &key("thickness_mm"),
+                        "calibrated springs on a sheet need thickness_mm, the sheet's thickness (its stiffness is E times thickness)",
+                    ));
+                }
+            }
+        };
+        Ok(SpringCalibration {
+            youngs_modulus_n_per_mm2: youngs_kpa * N_PER_MM2_PER_KPA,
+            poisson_ratio: poisson,
+            thickness_mm,
         })
     }
 

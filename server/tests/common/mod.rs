@@ -153,3 +153,38 @@ pub fn fem_model(
         ..ModelParts::default()
     })
 }
+
+/// The same mesh as [`fem_model`], as springs calibrated from `youngs_n_per_mm2` and `poisson` (Lloyd et al.'s
+/// fit plus the per-tetrahedron volume term for the rest of Poisson's ratio), as a world with
+/// `youngs_modulus_kpa` builds it.
+pub fn calibrated_spring_model(
+    mesh: &sinew_server::world::TetMesh,
+    youngs_n_per_mm2: f32,
+    poisson: f32,
+    density_kg_per_m3: f32,
+    fixed: impl Fn(sinew_server::tissue::Vec3) -> bool,
+) -> sinew_server::tissue::MassSpringModel {
+    use sinew_server::tissue::calibration::{
+        calibrated_edge_stiffness, volume_supplement_n_per_mm2,
+    };
+    use sinew_server::tissue::{MassSpringModel, Vec3};
+    let material = sinew_server::tissue::fem::FemMaterial {
+        youngs_modulus_n_per_mm2: youngs_n_per_mm2,
+        poisson_ratio: poisson,
+        corotated: true,
+    };
+    let mut parts = fem_model(mesh, material, density_kg_per_m3, fixed).to_parts();
+    parts.fem = None;
+    let x: Vec<Vec3> = parts.rest_positions_mm.clone();
+    parts.edge_stiffness_n_per_mm = calibrated_edge_stiffness(
+        &x,
+        &parts.edges,
+        &parts.tets,
+        &parts.triangles,
+        youngs_n_per_mm2,
+        poisson,
+        0.0,
+    );
+    parts.tet_bulk_modulus_n_per_mm2 = volume_supplement_n_per_mm2(youngs_n_per_mm2, poisson);
+    MassSpringModel::from_parts(parts)
+}

@@ -15,13 +15,15 @@ const TOLERANCE: f32 = 1e-6;
 /// `x0` plus the anchor and drag, `f(x0, 0)` every force except the dampers. Stable at any step for the
 /// linearised system, at the price of numerical damping that grows with `h`. Finite elements enter `K` with
 /// their rotations frozen at `x0` (`R K0 R^T`, the corotational stiffness) and their nodal-volume term as
-/// `kappa / V0 g g^T` (Gauss-Newton). The spring volume terms enter through `f(x0)` only (not the matrix), so
-/// a very stiff spring volume term still limits the step.
+/// `kappa / V0 g g^T` (Gauss-Newton), and so does the per-tetrahedron volume term. The global volume term
+/// enters through `f(x0)` only (not the matrix: it couples every surface node), so a very stiff global term
+/// still limits the step.
 #[derive(Debug, Clone)]
 pub struct ImplicitEuler {
     max_iterations: u32,
     blocks: Vec<SpringJacobian>,
     fem: FemLinearization,
+    tet_gradients: Vec<[Vec3; 4]>,
     diagonal_mass: Vec<f32>,
     rhs: Vec<Vec3>,
     residual: Vec<Vec3>,
@@ -38,6 +40,7 @@ impl ImplicitEuler {
             max_iterations: max_iterations.max(1),
             blocks: Vec::new(),
             fem: FemLinearization::default(),
+            tet_gradients: Vec::new(),
             diagonal_mass: Vec::new(),
             rhs: Vec::new(),
             residual: Vec::new(),
@@ -55,10 +58,12 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> f32 {
 
 /// `out = A p`: the diagonal mass term plus the spring blocks and `h^2` times the finite elements'
 /// stiffness, with fixed rows zeroed.
+#[allow(clippy::too_many_arguments)] // the parts of one matrix, kept apart so each is built once per step
 fn apply(
     model: &MassSpringModel,
     blocks: &[SpringJacobian],
     fem: &mut FemLinearization,
+    tet_gradients: &[[Vec3; 4]],
     h: f32,
     diagonal_mass: &[f32],
     p: &[Vec3],
@@ -71,6 +76,9 @@ fn apply(
     model
         .fem()
         .add_stiffness_product(model.tets(), fem, p, h * h, out);
+    model
+        .tets()
+        .add_stiffness_product(tet_gradients, p, h * h, out);
     for (o, &w) in out.iter_mut().zip(model.accel_per_force()) {
         if w == 0.0 {
             *o = Vec3::zeros();
@@ -110,6 +118,9 @@ impl Integrator for ImplicitEuler {
             &mut self.fem,
         );
         model
+            .tets()
+            .gradients_into(&state.positions_mm, &mut self.tet_gradients);
+        model
             .springs()
             .implicit_blocks(model.law(), &state.positions_mm, h, &mut self.blocks);
 
@@ -129,6 +140,9 @@ impl Integrator for ImplicitEuler {
         model
             .springs()
             .add_block_diagonals(&self.blocks, &mut self.inverse_diagonal);
+        model
+            .tets()
+            .add_stiffness_diagonal(&self.tet_gradients, h * h, &mut self.inverse_diagonal);
         model.fem().add_stiffness_diagonal(
             model.tets(),
             &self.fem,
@@ -157,6 +171,7 @@ impl Integrator for ImplicitEuler {
             model,
             &self.blocks,
             &mut self.fem,
+            &self.tet_gradients,
             h,
             &self.diagonal_mass,
             v,
@@ -176,6 +191,7 @@ impl Integrator for ImplicitEuler {
                 model,
                 &self.blocks,
                 &mut self.fem,
+                &self.tet_gradients,
                 h,
                 &self.diagonal_mass,
                 &self.direction,
