@@ -10,6 +10,7 @@ mod file_format;
 mod grid_sheet;
 mod instrument;
 mod loader;
+mod material_presets;
 mod mesh_file;
 mod tet_grid;
 mod tet_mesh;
@@ -25,6 +26,7 @@ pub use loader::{
     FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec, SpringCalibration,
     ToolShapeSpec, ToolSpec, World, WorldError, load_world, parse_world,
 };
+pub use material_presets::{MaterialPreset, PRESETS_TOML, material_presets};
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};
 pub use tet_grid::tet_grid;
 pub use tet_mesh::{TetMesh, VolumeMeshError, load_msh_mesh, parse_msh};

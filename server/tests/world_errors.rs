@@ -966,3 +966,56 @@ fn calibrated_springs_take_youngs_modulus_and_check_what_a_network_can_be() {
         assert!(message.contains(says), "{message}");
     }
 }
+
+#[test]
+fn a_material_preset_fills_modulus_ratio_and_density_and_keys_beside_it_win() {
+    let presets = sinew_server::world::material_presets().unwrap();
+    let liver = &presets["liver"];
+    // `fem_world()`'s [objects.material] table replaced by a preset name.
+    let table_start = fem_world().find("[objects.material]").unwrap();
+    let table_end = fem_world().find("[[objects.fixed]]").unwrap();
+    let named = format!(
+        "{}{}",
+        &fem_world()[..table_start],
+        &fem_world()[table_end..]
+    )
+    .replace(
+        "model = \"fem-corotational\"",
+        "model = \"fem-corotational\"\nmaterial = \"liver\"",
+    );
+    let world = load_world(&write_world(&named, None)).unwrap();
+    let material = &world.objects[0].material;
+    let fem = material.fem.expect("finite elements");
+    assert!((fem.youngs_modulus_n_per_mm2 - liver.youngs_modulus_kpa * 1e-3).abs() < 1e-9);
+    assert_eq!(fem.poisson_ratio, liver.poisson_ratio);
+    assert!(matches!(
+        material.mass,
+        sinew_server::world::MassSpec::Density { kg_per_m3, .. } if kg_per_m3 == liver.density_kg_per_m3
+    ));
+    // A table with a preset: the keys given replace the preset's.
+    let tuned = named.replace(
+        "material = \"liver\"",
+        "material = { preset = \"liver\", youngs_modulus_kpa = 4.0, drag_per_s = 20.0 }",
+    );
+    let world = load_world(&write_world(&tuned, None)).unwrap();
+    let material = &world.objects[0].material;
+    assert!((material.fem.unwrap().youngs_modulus_n_per_mm2 - 4e-3).abs() < 1e-9);
+    assert_eq!(material.drag_per_s, 20.0);
+    // An unknown preset names the line and lists the presets; a sheet cannot take one.
+    let unknown = named.replace("\"liver\"", "\"spleen\"");
+    let (error, message, _) = refused(&unknown, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        ("objects[0].material.preset", line_of(&unknown, "spleen"))
+    );
+    assert!(message.contains("fat, liver, muscle, skin"), "{message}");
+    let sheet = named
+        .replace("extrude = { thickness_mm = 1.0, layers = 1 }\n", "")
+        .replace("model = \"fem-corotational\"\n", "");
+    let (error, message, _) = refused(&sheet, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        ("objects[0].material.preset", line_of(&sheet, "liver"))
+    );
+    assert!(message.contains("volume"), "{message}");
+}

@@ -224,7 +224,8 @@ pub(crate) struct ObjectSection {
     pub solver_iterations: Option<Spanned<u32>>,
     #[serde(default = "default_quant_margin_mm")]
     pub quant_margin_mm: Spanned<f32>,
-    pub material: MaterialSection,
+    /// A table of material keys, or a preset's name (`material = "liver"`).
+    pub material: Spanned<MaterialValue>,
     #[serde(default)]
     pub fixed: Vec<Spanned<FixedSection>>,
     /// Region of deformation: integrate only the part that moves, `{ threshold_mm }` (default: off).
@@ -250,9 +251,42 @@ fn default_extrude_layers() -> Spanned<i64> {
     Spanned::new(0..0, 1)
 }
 
-#[derive(Debug, Deserialize)]
+/// `material = "liver"` (a preset) or `material = { ... }` / `[objects.material]` (a table).
+#[derive(Debug)]
+pub(crate) enum MaterialValue {
+    Preset(String),
+    Table(Box<MaterialSection>),
+}
+
+impl<'de> Deserialize<'de> for MaterialValue {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Either;
+        impl<'de> serde::de::Visitor<'de> for Either {
+            type Value = MaterialValue;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a material preset's name (liver, skin, fat, muscle) or a table of material keys")
+            }
+            fn visit_str<E: serde::de::Error>(self, name: &str) -> Result<MaterialValue, E> {
+                Ok(MaterialValue::Preset(name.to_owned()))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<MaterialValue, A::Error> {
+                MaterialSection::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(|m| MaterialValue::Table(Box::new(m)))
+            }
+        }
+        deserializer.deserialize_any(Either)
+    }
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct MaterialSection {
+    /// A preset from worlds/material_presets.toml whose modulus, ratio and density fill the keys not given.
+    #[serde(default)]
+    pub preset: Option<Spanned<String>>,
     pub mass_kg: Option<Spanned<f32>>,
     pub density_kg_per_m3: Option<Spanned<f32>>,
     pub thickness_mm: Option<Spanned<f32>>,
@@ -292,7 +326,7 @@ pub(crate) struct MaterialSection {
     pub friction_coefficient: Option<Spanned<f32>>,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, tag = "kind", rename_all = "kebab-case")]
 pub(crate) enum LawSection {
     Linear,

@@ -10,9 +10,10 @@ use super::exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 use super::extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
 use super::file_format::{
     ActivationName, ElasticModel, ExerciseSection, FixedSection, InstrumentKindName,
-    InstrumentSection, IntegratorName, LawSection, MaterialSection, ObjectSection, ShapeSection,
-    TargetSection, TieSection, ToolSection, WorldFile,
+    InstrumentSection, IntegratorName, LawSection, MaterialSection, MaterialValue, ObjectSection,
+    ShapeSection, TargetSection, TieSection, ToolSection, WorldFile,
 };
+use super::material_presets::material_presets;
 use super::mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed};
 use super::tet_mesh::load_msh_mesh;
 use crate::tissue::{RegionParams, SpringLaw, TieSet, Vec3};
@@ -533,7 +534,8 @@ impl Context<'_> {
                 ));
             }
         }
-        let material = self.material(i, &object.material, is_volume, model, &object.name)?;
+        let material_keys = self.resolved_material(i, &object.material, is_volume)?;
+        let material = self.material(i, &material_keys, is_volume, model, &object.name)?;
         let mut fixed = Vec::with_capacity(object.fixed.len());
         for (f, selection) in object.fixed.iter().enumerate() {
             fixed.push(self.fixed(&key(&format!("fixed[{f}]")), selection)?);
@@ -553,7 +555,7 @@ impl Context<'_> {
                 }
             }
         }
-        if let Some(at) = &object.material.tet_bulk_modulus_kpa
+        if let Some(at) = &material_keys.tet_bulk_modulus_kpa
             && material.tet_bulk_modulus_n_per_mm2 > 0.0
             && tets.is_empty()
         {
@@ -704,6 +706,57 @@ impl Context<'_> {
     }
 
     /// `is_volume`: the object has tetrahedra (a `.msh` mesh or `extrude`), so density needs no thickness.
+    /// The object's material keys, with a preset's modulus, ratio and density filled in where they are not given
+    /// (errors in those then name the preset's line).
+    fn resolved_material(
+        &self,
+        i: usize,
+        at: &Spanned<MaterialValue>,
+        is_volume: bool,
+    ) -> Result<MaterialSection, WorldError> {
+        let (mut keys, preset) = match at.get_ref() {
+            MaterialValue::Table(m) => ((**m).clone(), m.preset.clone()),
+            MaterialValue::Preset(name) => (
+                MaterialSection::default(),
+                Some(Spanned::new(at.span(), name.clone())),
+            ),
+        };
+        let Some(preset) = preset else {
+            return Ok(keys);
+        };
+        let key = format!("objects[{i}].material.preset");
+        let presets = material_presets().map_err(|e| self.invalid(&preset, &key, e))?;
+        let Some(values) = presets.get(preset.get_ref()) else {
+            let known: Vec<&str> = presets.keys().map(String::as_str).collect();
+            return Err(self.invalid(
+                &preset,
+                &key,
+                format!(
+                    "unknown material preset `{}`: the presets are {}",
+                    preset.get_ref(),
+                    known.join(", ")
+                ),
+            ));
+        };
+        if !is_volume {
+            return Err(self.invalid(
+                &preset,
+                &key,
+                "material presets describe bulk tissue: use them on a volume (a .msh mesh, or `extrude`), or give a sheet's stiffness_n_per_mm",
+            ));
+        }
+        let here = |v: f32| Spanned::new(preset.span(), v);
+        keys.youngs_modulus_kpa
+            .get_or_insert_with(|| here(values.youngs_modulus_kpa));
+        keys.poisson_ratio
+            .get_or_insert_with(|| here(values.poisson_ratio));
+        if keys.mass_kg.is_none() {
+            keys.density_kg_per_m3
+                .get_or_insert_with(|| here(values.density_kg_per_m3));
+        }
+        Ok(keys)
+    }
+
     /// `model` says what carries the elasticity; `object` is blamed for a key that is missing.
     fn material(
         &self,
