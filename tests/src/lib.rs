@@ -11,7 +11,8 @@
 //! [`report`] (`sinew report`: a recording's training report), [`play_device`] (`sinew play-device`: a
 //! recorded hand played into a live scene), [`debrief`] (`sinew replay --publish` and
 //! `--png-every`: the instructor's debrief of a recording), [`fuzz`] (generated bad input for the decoders, the
-//! world loader and the recording reader) and [`figure_font`] (the font figures use).
+//! world loader and the recording reader), [`hertz`] (a sphere pressed into a block, against Hertz's answer) and
+//! [`figure_font`] (the font figures use).
 //! Must not: contain role logic; everything here calls the role crates' public APIs.
 #![warn(missing_docs)]
 
@@ -22,6 +23,7 @@ pub mod drill;
 pub mod figure_font;
 pub mod fuzz;
 pub mod harness;
+pub mod hertz;
 pub mod netem;
 pub mod netns;
 pub mod play_device;
