@@ -2,7 +2,9 @@
 //! p50/p99/max of the whole `Sim::step`, plus a breakdown of its stages (integration substeps, collider
 //! refit) measured separately on the same state.
 //!
-//! Run: `cargo bench -p sinew-server --bench tick` (add `-- --ticks N` to change the count).
+//! Run: `cargo bench -p sinew-server --bench tick` (add `-- --ticks N` to change the count). With
+//! `-- --world worlds/liver.toml` (relative to the repository) the same two presses and strokes run on that
+//! world's first two tools, and only the full tick is reported (the stage breakdown is the pad's).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::time::Instant;
@@ -18,16 +20,21 @@ mod bench_args;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ticks = bench_args::count_arg("ticks", 20_000)?;
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let other_world = bench_args::text_arg("world");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(other_world.as_deref().unwrap_or("worlds/pad.toml"));
     let world = load_world(&path)?;
     let mut sim = Sim::new(&world)?;
     let dt_s = (1.0 / world.tick_hz) as f32;
     let model = &sim.objects[0].model;
     println!(
-        "pad: {} nodes, {} edges, {} triangles, integrator {}, dt {} s, tick {} s",
+        "{}: {} nodes, {} edges, {} triangles, {} tetrahedra, integrator {}, dt {} s, tick {} s",
+        world.scene,
         model.node_count(),
         model.edge_count(),
         model.triangles().len(),
+        model.tets().len(),
         sim.objects[0].integrator_name(),
         world.objects[0].dt_s,
         dt_s
@@ -76,6 +83,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tick.max_ns() as f64 / 1000.0,
         held as f64 / ticks as f64
     );
+    if other_world.is_some() {
+        return Ok(());
+    }
 
     // Stage breakdown on the deformed state.
     let object = &mut sim.objects[0];

@@ -13,7 +13,7 @@
 //! an artefact of freezing which nodes are held, that made a stroke feel sticky at a distance.) The rest of
 //! the tissue then relaxes: the free nodes' displacement solves `A_FF u_F = -A_FH u_H`, where `A` is the tangent stiffness of the tissue at its current state (each
 //! spring's `k_t u u^T + (T / L)(I - u u^T)`, the geometric part clamped at zero for compressed springs, plus
-//! every free node's anchor). The solve covers the nodes within `rings` graph steps of the held ones; nodes
+//! every free node's anchor, and the volume terms below). The solve covers the nodes within `rings` graph steps of the held ones; nodes
 //! beyond, and fixed nodes, are held still. The normal stiffness is the energy of the relaxed mode,
 //! `k_n = u^T A u` (the Schur complement of `A` on the tool's motion), non-negative by construction, so `K` is
 //! symmetric positive semi-definite. `d_n = u^T C u` is the damping of the same mode moving at unit speed
@@ -21,10 +21,18 @@
 //! stiffness at the instant; as the tool goes deeper more nodes are caught, which a quasi-static press feels
 //! as a softer slope (the pad: `k_n` 0.7 N/mm against a 0.2 N/mm slope at 5 mm). Overestimating `K` errs on
 //! the stable side: the part of the force the model does not predict arrives late, and a late negative
-//! stiffness acts as damping, where a late positive one would pump energy in. Volume terms (per tetrahedron, global) are left
-//! out of `A` (the shipped pads have none; a tet object's `K` is therefore a little soft); how the held set
-//! changes as the tool moves, and how the tool normals turn, are left out too (second order at the forces a
-//! hand applies).
+//! stiffness acts as damping, where a late positive one would pump energy in.
+//!
+//! Volume terms. Every tetrahedron touching the local set enters `A` with its current volume gradients `g`:
+//! a mass-spring object's per-tetrahedron term as `kappa / V0 g g^T` (Gauss-Newton, as implicit Euler
+//! solves it); a finite-element object's elements as their corotational deviatoric stiffness `R K0 R^T`
+//! (rotation frozen at the solve's state) and its nodal volume term as `kappa / V_a0 g_a g_a^T` per node `a`
+//! of those tetrahedra (`g_a` the sum of its tetrahedra's gradients over four, summed only over the local
+//! ones, so the nodes at the edge of the set see part of their volume: a slightly soft edge). Finite
+//! elements' springs carry no stiffness, so without this an FEM object's `K` would be zero. The global
+//! (closed-surface) volume term is left out (the shipped objects that use it are far from incompressible).
+//! How the held set changes as the tool moves, and how the tool normals turn, are left out too (second order
+//! at the forces a hand applies).
 //!
 //! The solve is a Jacobi-preconditioned conjugate gradient, run
 //! [`ContactStiffness::ITERATIONS_PER_TICK`] iterations a tick; a finished solve publishes `K` and `D` and the
@@ -32,9 +40,13 @@
 //!
 //! Must not: move the tissue (it reads the state only) or allocate once its buffers have grown.
 
+use std::cell::RefCell;
+
 use nalgebra::Matrix3;
 
+use crate::tissue::fem::element_deviatoric_product;
 use crate::tissue::springs::{spring_tangent, sym_block, sym_block_mul};
+use crate::tissue::volume::tet_volume_gradients;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 const NONE: u32 = u32::MAX;
@@ -53,6 +65,34 @@ struct LocalSpring {
     /// Damping along the spring, N s/mm, and its unit direction.
     c: f32,
     dir: Vec3,
+}
+
+/// A tetrahedron touching the local set.
+#[derive(Debug, Clone, Copy)]
+struct LocalTet {
+    /// Local indices of its vertices (`NONE`: outside the set, still).
+    local: [u32; 4],
+    /// Slots of its vertices in the nodal-volume list (finite elements; `NONE` when the list was full).
+    pressure: [u32; 4],
+    /// Volume gradients at the solve's state, mm^2.
+    gradients: [Vec3; 4],
+    /// Finite elements: `Dm^-1` (1/mm) and the rotation frozen at the solve's state.
+    rest_inverse: Matrix3<f32>,
+    rotation: Matrix3<f32>,
+    /// Finite elements: 2 mu V0, N mm. Springs' per-tetrahedron term: kappa / V0, N/mm^4.
+    modulus: f32,
+}
+
+/// Which volume terms the local problem carries.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+enum VolumeTerms {
+    /// None (a surface, or tetrahedra without a volume term).
+    #[default]
+    Off,
+    /// The mass-spring model's per-tetrahedron term.
+    PerTet,
+    /// Finite elements: deviatoric elements and the nodal volume term.
+    Fem,
 }
 
 /// What a finished solve found.
@@ -88,6 +128,15 @@ pub struct ContactStiffness {
     anchor_n_per_mm: Vec<f32>,
     drag_n_s_per_mm: Vec<f32>,
     springs: Vec<LocalSpring>,
+    volume_terms: VolumeTerms,
+    tets: Vec<LocalTet>,
+    /// Slot of each global node in the nodal-volume list (`NONE`: not in it).
+    pressure_of: Vec<u32>,
+    pressure_nodes: Vec<u32>,
+    /// `kappa / V_a0` of each slot, N/mm^5.
+    pressure_modulus: Vec<f32>,
+    /// Per-slot scratch of a product: `g_a . v`.
+    pressure_sum: RefCell<Vec<f32>>,
     diag: Vec<Vec3>,
     u: [Vec<Vec3>; 3],
     r: [Vec<Vec3>; 3],
@@ -117,6 +166,10 @@ impl ContactStiffness {
     pub const MAX_NODES: usize = 4096;
     /// Largest number of springs in the local problem.
     pub const MAX_SPRINGS: usize = Self::MAX_NODES * 8;
+    /// Largest number of tetrahedra in the local problem (a node is on about 20, each on 4 nodes).
+    pub const MAX_TETS: usize = Self::MAX_NODES * 6;
+    /// Largest number of nodes in the nodal-volume list (the local set and the ring beyond it).
+    pub const MAX_PRESSURE_NODES: usize = Self::MAX_NODES * 2;
 
     /// A solver for an object of `node_count` nodes, with every buffer allocated now at its largest size, so
     /// no tick ever grows one.
@@ -130,6 +183,13 @@ impl ContactStiffness {
             anchor_n_per_mm: Vec::with_capacity(m),
             drag_n_s_per_mm: Vec::with_capacity(m),
             springs: Vec::with_capacity(Self::MAX_SPRINGS),
+            tets: Vec::with_capacity(Self::MAX_TETS.min(node_count * 6)),
+            pressure_of: vec![NONE; node_count],
+            pressure_nodes: Vec::with_capacity(Self::MAX_PRESSURE_NODES.min(node_count)),
+            pressure_modulus: Vec::with_capacity(Self::MAX_PRESSURE_NODES.min(node_count)),
+            pressure_sum: RefCell::new(Vec::with_capacity(
+                Self::MAX_PRESSURE_NODES.min(node_count),
+            )),
             diag: vectors(),
             u: [vectors(), vectors(), vectors()],
             r: [vectors(), vectors(), vectors()],
@@ -189,6 +249,35 @@ impl ContactStiffness {
             }
         }
         self.nodes.clear();
+        for &g in &self.pressure_nodes {
+            if let Some(slot) = self.pressure_of.get_mut(g as usize) {
+                *slot = NONE;
+            }
+        }
+        self.pressure_nodes.clear();
+        self.pressure_modulus.clear();
+    }
+
+    /// The nodal-volume slot of global node `g` (a new one when it has none; `NONE` when the list is full).
+    fn pressure_slot(&mut self, g: usize, model: &MassSpringModel) -> u32 {
+        let fem = model.fem();
+        match self.pressure_of.get(g) {
+            Some(&slot) if slot != NONE => slot,
+            Some(_) if self.pressure_nodes.len() < Self::MAX_PRESSURE_NODES => {
+                let slot = self.pressure_nodes.len() as u32;
+                self.pressure_of[g] = slot;
+                self.pressure_nodes.push(g as u32);
+                // A fixed node's volume counts too: it changes as the free nodes around it move.
+                let v0 = fem.node_rest_volume_mm3(g);
+                self.pressure_modulus.push(if v0 > 0.0 {
+                    fem.bulk_modulus_n_per_mm2() / v0
+                } else {
+                    0.0
+                });
+                slot
+            }
+            _ => NONE,
+        }
     }
 
     /// Add global node `g` to the local problem (false when it is full).
@@ -228,11 +317,16 @@ impl ContactStiffness {
             self.local_of.clear();
             self.local_of.resize(n, NONE);
         }
+        if self.pressure_of.len() != n {
+            self.pressure_of.clear();
+            self.pressure_of.resize(n, NONE);
+        }
         self.release_marks();
         self.role.clear();
         self.anchor_n_per_mm.clear();
         self.drag_n_s_per_mm.clear();
         self.springs.clear();
+        self.tets.clear();
         for dir in 0..3 {
             self.u[dir].clear();
         }
@@ -317,12 +411,27 @@ impl ContactStiffness {
             }
         }
 
+        self.gather_tets(model, x);
+
         // Jacobi preconditioner over the free nodes.
         let m = self.nodes.len();
         self.diag.clear();
         self.diag.resize(m, Vec3::zeros());
         for l in 0..m {
             self.diag[l] = Vec3::repeat(self.anchor_n_per_mm[l]);
+            if self.volume_terms == VolumeTerms::Fem {
+                self.diag[l] +=
+                    Vec3::repeat(model.fem().node_diagonal_n_per_mm(self.nodes[l] as usize));
+            }
+        }
+        if self.volume_terms == VolumeTerms::PerTet {
+            for lt in &self.tets {
+                for (k, &l) in lt.local.iter().enumerate() {
+                    if l != NONE {
+                        self.diag[l as usize] += lt.gradients[k].map(|c| c * c) * lt.modulus;
+                    }
+                }
+            }
         }
         for s in &self.springs {
             let d = Vec3::new(s.k[0], s.k[1], s.k[2]);
@@ -368,6 +477,126 @@ impl ContactStiffness {
         self.solving = true;
     }
 
+    /// Every tetrahedron touching the local set, with what its volume terms need at `x`.
+    fn gather_tets(&mut self, model: &MassSpringModel, x: &[Vec3]) {
+        let fem = model.fem();
+        let volumes = model.tets();
+        self.volume_terms = if fem.is_on() {
+            VolumeTerms::Fem
+        } else if volumes.bulk_modulus_n_per_mm2 > 0.0 {
+            VolumeTerms::PerTet
+        } else {
+            VolumeTerms::Off
+        };
+        if self.volume_terms == VolumeTerms::Off {
+            return;
+        }
+        let two_mu = 2.0 * fem.shear_modulus_n_per_mm2();
+        for l in 0..self.nodes.len() {
+            let g = self.nodes[l] as usize;
+            for &t in model.node_tets(g) {
+                let t = t as usize;
+                let Some(&tet) = volumes.tets.get(t) else {
+                    continue;
+                };
+                let local = tet.map(|i| self.local_of[i as usize]);
+                // Each tetrahedron once: from its lowest local vertex.
+                if local.iter().any(|&m| m != NONE && (m as usize) < l) {
+                    continue;
+                }
+                // The bound `new` allocated for (a mesh has about 5 tetrahedra per node).
+                if self.tets.len() >= Self::MAX_TETS.min(self.local_of.len() * 6) {
+                    continue;
+                }
+                let v0 = volumes.rest_volume_mm3[t];
+                let lt = if self.volume_terms == VolumeTerms::Fem {
+                    LocalTet {
+                        local,
+                        pressure: tet.map(|i| self.pressure_slot(i as usize, model)),
+                        gradients: tet_volume_gradients(x, tet),
+                        rest_inverse: fem.rest_inverse(t),
+                        rotation: fem.rotation(t, tet, x),
+                        modulus: two_mu * v0,
+                    }
+                } else {
+                    LocalTet {
+                        local,
+                        pressure: [NONE; 4],
+                        gradients: tet_volume_gradients(x, tet),
+                        rest_inverse: Matrix3::zeros(),
+                        rotation: Matrix3::identity(),
+                        modulus: volumes.bulk_modulus_n_per_mm2 / v0.max(1e-12),
+                    }
+                };
+                self.tets.push(lt);
+            }
+        }
+        let mut sums = self.pressure_sum.borrow_mut();
+        sums.clear();
+        sums.resize(self.pressure_nodes.len(), 0.0);
+    }
+
+    /// `out += A_vol v`: the volume terms' part of the product.
+    fn apply_volume(&self, v: &[Vec3], out: &mut [Vec3]) {
+        let at = |l: u32| {
+            if l == NONE {
+                Vec3::zeros()
+            } else {
+                v[l as usize]
+            }
+        };
+        match self.volume_terms {
+            VolumeTerms::Off => {}
+            VolumeTerms::PerTet => {
+                for lt in &self.tets {
+                    let q: f32 = (0..4).map(|k| lt.gradients[k].dot(&at(lt.local[k]))).sum();
+                    for (k, &l) in lt.local.iter().enumerate() {
+                        if l != NONE {
+                            out[l as usize] += lt.gradients[k] * (q * lt.modulus);
+                        }
+                    }
+                }
+            }
+            VolumeTerms::Fem => {
+                let mut sums = self.pressure_sum.borrow_mut();
+                sums.iter_mut().for_each(|s| *s = 0.0);
+                for lt in &self.tets {
+                    let p = lt.local.map(at);
+                    let y =
+                        element_deviatoric_product(&lt.rest_inverse, &lt.rotation, &p, lt.modulus);
+                    let mut q = 0.0;
+                    for (k, &l) in lt.local.iter().enumerate() {
+                        if l != NONE {
+                            out[l as usize] += y[k];
+                        }
+                        q += lt.gradients[k].dot(&p[k]);
+                    }
+                    for &slot in &lt.pressure {
+                        if let Some(s) = sums.get_mut(slot as usize) {
+                            *s += q / 4.0;
+                        }
+                    }
+                }
+                for (s, &k) in sums.iter_mut().zip(&self.pressure_modulus) {
+                    *s *= k;
+                }
+                for lt in &self.tets {
+                    let w: f32 = lt
+                        .pressure
+                        .iter()
+                        .filter_map(|&slot| sums.get(slot as usize))
+                        .sum::<f32>()
+                        / 4.0;
+                    for (k, &l) in lt.local.iter().enumerate() {
+                        if l != NONE {
+                            out[l as usize] += lt.gradients[k] * w;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     fn precondition(&self, l: usize, r: &Vec3) -> Vec3 {
         if self.role[l] != FREE {
             return Vec3::zeros();
@@ -398,6 +627,7 @@ impl ContactStiffness {
                 out[s.b as usize] -= y;
             }
         }
+        self.apply_volume(v, out);
     }
 
     #[allow(clippy::needless_range_loop)] // several buffers indexed in step

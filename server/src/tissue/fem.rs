@@ -264,9 +264,19 @@ impl FemElements {
         self.node_diagonal_n_per_mm.get(i).copied().unwrap_or(0.0)
     }
 
-    /// Rotation of element `t` at `x` (identity when not corotated).
+    /// Bulk modulus of the nodal volume term, N/mm^2 (0 when off).
+    pub fn bulk_modulus_n_per_mm2(&self) -> f32 {
+        self.bulk_n_per_mm2
+    }
+
+    /// Node `i`'s share of the rest volume, mm^3 (0 for a node on no tetrahedron, or when off).
+    pub fn node_rest_volume_mm3(&self, i: usize) -> f32 {
+        self.node_rest_volume_mm3.get(i).copied().unwrap_or(0.0)
+    }
+
+    /// Rotation of element `t` (vertices `tet`) at `x` (identity when not corotated).
     #[inline(always)]
-    fn rotation(&self, t: usize, tet: [u32; 4], x: &[Vec3]) -> Matrix3<f32> {
+    pub fn rotation(&self, t: usize, tet: [u32; 4], x: &[Vec3]) -> Matrix3<f32> {
         let corotated = self.material.is_some_and(|m| m.corotated);
         if corotated {
             rotation_of(&(edge_matrix(tet, x) * self.rest_inverse[t]))
@@ -463,23 +473,12 @@ impl FemElements {
         if !self.is_on() || lin.rotations.len() != tets.len() {
             return;
         }
-        let two_mu = 2.0 * self.shear_n_per_mm2;
         for (t, &tet) in tets.tets.iter().enumerate() {
-            let inverse = &self.rest_inverse[t];
-            let r = &lin.rotations[t];
-            let dp = edge_matrix(tet, p) * inverse;
-            let stress = deviatoric_strain_increment(&(r.transpose() * dp)) * two_mu;
-            // K p = -df: the element's force change, negated.
-            let h = (r * stress * inverse.transpose()) * (tets.rest_volume_mm3[t] * scale);
-            let (f1, f2, f3) = (
-                h.column(0).into_owned(),
-                h.column(1).into_owned(),
-                h.column(2).into_owned(),
-            );
-            out[tet[0] as usize] -= f1 + f2 + f3;
-            out[tet[1] as usize] += f1;
-            out[tet[2] as usize] += f2;
-            out[tet[3] as usize] += f3;
+            let v0 = tets.rest_volume_mm3[t] * scale;
+            let y = self.deviatoric_product(t, &lin.rotations[t], &tet.map(|i| p[i as usize]), v0);
+            for (k, &i) in tet.iter().enumerate() {
+                out[i as usize] += y[k];
+            }
         }
         // Nodal volumes: K_vol p = sum_a kappa / V_a0 g_a (g_a . p), g_a = sum_{t around a} dV_t/dx / 4.
         lin.node_sum.iter_mut().for_each(|s| *s = 0.0);
@@ -504,6 +503,37 @@ impl FemElements {
                 out[tet[k] as usize] += g[k] * w;
             }
         }
+    }
+
+    /// Element `t`'s deviatoric stiffness (its rotation `r` frozen, rest volume `v0_mm3`) times its four
+    /// nodes' displacements `p`: the element's part of `K p`, N per node.
+    #[inline(always)]
+    fn deviatoric_product(
+        &self,
+        t: usize,
+        r: &Matrix3<f32>,
+        p: &[Vec3; 4],
+        v0_mm3: f32,
+    ) -> [Vec3; 4] {
+        element_deviatoric_product(
+            &self.rest_inverse[t],
+            r,
+            p,
+            2.0 * self.shear_n_per_mm2 * v0_mm3,
+        )
+    }
+
+    /// `Dm^-1` of element `t`, 1/mm (zero when off or out of range).
+    pub fn rest_inverse(&self, t: usize) -> Matrix3<f32> {
+        self.rest_inverse
+            .get(t)
+            .copied()
+            .unwrap_or_else(Matrix3::zeros)
+    }
+
+    /// Shear modulus, N/mm^2 (0 when off).
+    pub fn shear_modulus_n_per_mm2(&self) -> f32 {
+        self.shear_n_per_mm2
     }
 
     /// `diagonal += scale diag(K)` per axis, K frozen in `lin`: each element's rotated deviatoric block
@@ -537,6 +567,28 @@ impl FemElements {
     pub fn node_row_bound_n_per_mm(&self, i: usize) -> f32 {
         self.node_row_bound_n_per_mm.get(i).copied().unwrap_or(0.0)
     }
+}
+
+/// One element's deviatoric stiffness times its four nodes' displacements `p`: the element's part of `K p`,
+/// N per node, with `inverse` its `Dm^-1`, `r` its frozen rotation and `two_mu_v0` = 2 mu V0 (N mm). The
+/// local contact model ([`crate::haptics::contact_stiffness`]) applies it element by element.
+#[inline(always)]
+pub fn element_deviatoric_product(
+    inverse: &Matrix3<f32>,
+    r: &Matrix3<f32>,
+    p: &[Vec3; 4],
+    two_mu_v0: f32,
+) -> [Vec3; 4] {
+    let dp = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * inverse;
+    let stress = deviatoric_strain_increment(&(r.transpose() * dp));
+    // K p = -df: the element's force change, negated.
+    let h = (r * stress * inverse.transpose()) * two_mu_v0;
+    let (f1, f2, f3) = (
+        h.column(0).into_owned(),
+        h.column(1).into_owned(),
+        h.column(2).into_owned(),
+    );
+    [-(f1 + f2 + f3), f1, f2, f3]
 }
 
 /// `sym(m)` with its trace removed (a strain increment: no identity to subtract).
