@@ -12,7 +12,7 @@ mod instrument;
 mod loader;
 mod material_presets;
 mod mesh_file;
-mod tet_grid;
+pub(crate) mod tet_grid;
 mod tet_mesh;
 
 pub use exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use plotters::prelude::*;
+use sinew::figure_font::plot_error;
 use sinew::hertz::{Material, block_parts, hertz_n, press};
 
 /// Depths, mm: 0.25 to 3 in quarter millimetres.
@@ -145,8 +146,4 @@ fn draw(path: &Path, depths: &[f32], curves: &[(Material, Vec<f32>)]) -> anyhow:
     root.present().map_err(plot_error)?;
     println!("figure written to {}", path.display());
     Ok(())
-}
-
-fn plot_error<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("drawing the figure: {e:?}")
 }

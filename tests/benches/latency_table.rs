@@ -25,6 +25,7 @@ use anyhow::Context as _;
 use hapticserver::{HandPreset, ModePolicy, TraceSample};
 use plotters::prelude::*;
 use sinew::drill::Link;
+use sinew::figure_font::plot_error;
 use sinew::scenarios::{felt_stiffness_n_per_mm, hold, lossy_link, stroke_error};
 
 const HANDS: [HandPreset; 3] = [HandPreset::Light, HandPreset::Nominal, HandPreset::Firm];
@@ -317,10 +318,6 @@ fn draw_figure(path: &Path) -> anyhow::Result<()> {
     root.present().map_err(plot_error)?;
     println!("figure written to {}", path.display());
     Ok(())
-}
-
-fn plot_error<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("drawing the figure: {e:?}")
 }
 
 fn main() -> anyhow::Result<()> {

@@ -17,6 +17,11 @@ pub fn register_sans_serif() -> anyhow::Result<()> {
         .map_err(anyhow::Error::msg)
 }
 
+/// A plotters drawing error as an error the figure benches report.
+pub fn plot_error<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+    anyhow::anyhow!("drawing the figure: {e:?}")
+}
+
 fn font_bytes() -> anyhow::Result<&'static [u8]> {
     let candidates: Vec<PathBuf> = std::env::var_os("SINEW_FONT")
         .map(PathBuf::from)

@@ -625,14 +625,7 @@ mod tests {
         let x: Vec<Vec3> = (0..8)
             .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * size)
             .collect();
-        let tets = [
-            [0, 1, 3, 7],
-            [0, 3, 2, 7],
-            [0, 2, 6, 7],
-            [0, 6, 4, 7],
-            [0, 4, 5, 7],
-            [0, 5, 1, 7],
-        ];
+        let tets = crate::world::tet_grid::KUHN.map(|t| t.map(|i| i as u32));
         let (volumes, dropped) = TetVolumes::new(&tets, &x, 0.0);
         assert_eq!(dropped, 0);
         (x, volumes)

@@ -7,7 +7,7 @@ use super::tet_mesh::TetMesh;
 
 /// The six tetrahedra of a cube whose corners are numbered by their bits (x = 1, y = 2, z = 4), all around
 /// the diagonal from corner 0 to corner 7.
-const KUHN: [[usize; 4]; 6] = [
+pub(crate) const KUHN: [[usize; 4]; 6] = [
     [0, 1, 3, 7],
     [0, 3, 2, 7],
     [0, 2, 6, 7],
