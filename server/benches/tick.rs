@@ -4,16 +4,23 @@
 //!
 //! Run: `cargo bench -p sinew-server --bench tick` (add `-- --ticks N` to change the count). With
 //! `-- --world worlds/liver.toml` (relative to the repository) the same two presses and strokes run on that
-//! world's first two tools, and only the full tick is reported (the stage breakdown is the pad's).
+//! world's first two tools, and only the full tick is reported (the stage breakdown is the pad's). A world with
+//! multi-rate objects (`step_hz`) runs as the server runs it: their steps on threads of their own, the ticks
+//! paced at the tick rate (a flat-out tick would hand off faster than real time); it also prints each object's
+//! step time against its period and how many hand-offs had to wait for the step. `-- --step-hz H` makes the
+//! world's first object multi-rate at `H` Hz (one step a period).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::time::Instant;
 
 use sinew_protocol::rt::LatencyHistogram;
+use sinew_protocol::rt::Pacer;
 use sinew_server::collision::SurfaceCollider;
+use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, SymplecticEuler};
 use sinew_server::world::load_world;
+use std::sync::atomic::Ordering;
 
 #[path = "support/bench_args.rs"]
 mod bench_args;
@@ -24,9 +31,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("..")
         .join(other_world.as_deref().unwrap_or("worlds/pad.toml"));
-    let world = load_world(&path)?;
+    let mut world = load_world(&path)?;
+    // `--step-hz H`: the world's first object as a multi-rate object at H Hz, one step a period.
+    if let Some(step_hz) = bench_args::text_arg("step-hz") {
+        let step_hz: f64 = step_hz.parse()?;
+        let ticks = (world.tick_hz / step_hz).round().max(1.0) as u32;
+        world.objects[0].ticks_per_step = ticks;
+        world.objects[0].dt_s = (f64::from(ticks) / world.tick_hz) as f32;
+    }
     let mut sim = Sim::new(&world)?;
     let dt_s = (1.0 / world.tick_hz) as f32;
+    let mut counters = Vec::new();
+    sim.set_step_runners(|object| {
+        let runner = ThreadRunner::spawn(object).expect("a step thread");
+        counters.push((object.to_owned(), runner.counters()));
+        Box::new(runner)
+    });
+    let mut pacer = (!counters.is_empty()).then(|| {
+        Pacer::new(
+            std::time::Duration::from_secs_f64(1.0 / world.tick_hz),
+            100_000,
+        )
+    });
     let model = &sim.objects[0].model;
     println!(
         "{}: {} nodes, {} edges, {} triangles, {} tetrahedra, integrator {}, dt {} s, tick {} s",
@@ -69,6 +95,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ..ToolCommand::default()
             },
         ];
+        if let Some(pacer) = &mut pacer {
+            pacer.wait();
+        }
         let start = Instant::now();
         let report = sim.step(dt_s, &commands, &mut outputs);
         tick.record(start.elapsed());
@@ -83,6 +112,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tick.max_ns() as f64 / 1000.0,
         held as f64 / ticks as f64
     );
+    for (object, counters) in &counters {
+        let steps = counters.steps.load(Ordering::Relaxed).max(1);
+        let ticks_per_step = world
+            .objects
+            .iter()
+            .find(|o| &o.name == object)
+            .map_or(1, |o| o.ticks_per_step);
+        let period_us = f64::from(ticks_per_step) * f64::from(dt_s) * 1e6;
+        let mean_us = counters.busy_ns.load(Ordering::Relaxed) as f64 / steps as f64 / 1000.0;
+        println!(
+            "object `{object}` at {:.0} Hz on its own thread: step mean {mean_us:.0} us, longest {:.0} us, \
+             {:.0}% of its {period_us:.0} us period; the tick waited for {} of {steps} steps; paced tick overruns {}",
+            1e6 / period_us,
+            counters.longest_ns.load(Ordering::Relaxed) as f64 / 1000.0,
+            100.0 * mean_us / period_us,
+            counters.late.load(Ordering::Relaxed),
+            pacer.as_ref().map_or(0, |p| p.overruns()),
+        );
+    }
     if other_world.is_some() {
         return Ok(());
     }

@@ -10,6 +10,7 @@ pub mod collision;
 pub mod haptics;
 mod incidence;
 pub mod interaction;
+pub mod multirate;
 pub mod node;
 pub mod recording;
 pub mod replication;

@@ -17,6 +17,7 @@ mod inbound;
 mod publish_loop;
 mod session;
 mod sim_loop;
+pub mod step_threads;
 pub mod tick_cost;
 
 use std::sync::Arc;
@@ -170,7 +171,31 @@ impl ServerNode {
                 ));
             }
         }
-        let sim = Sim::new(&world)?;
+        let mut sim = Sim::new(&world)?;
+        // Multi-rate objects step on threads of their own (a replay's too: the result is the same to the bit).
+        let mut spawn_failed = None;
+        sim.set_step_runners(|object| match step_threads::ThreadRunner::spawn(object) {
+            Ok(runner) => Box::new(runner),
+            Err(err) => {
+                spawn_failed = Some(err.to_string());
+                Box::new(crate::multirate::InlineRunner::default())
+            }
+        });
+        if let Some(err) = spawn_failed {
+            return Err(ServerError::Thread(err));
+        }
+        for object in &sim.objects {
+            if let Some(lane) = object.step_lane() {
+                tracing::info!(
+                    "object `{}` steps at {:.0} Hz (every {} ticks) on thread sinew-step-{}; the tick renders it \
+                     through its local model in between",
+                    object.name,
+                    world.tick_hz / f64::from(lane.ticks_per_step()),
+                    lane.ticks_per_step(),
+                    object.name
+                );
+            }
+        }
         // Before zenoh: an unwritable path is refused with nothing started.
         let recording = match &config.record {
             Some(path) => Some(crate::recording::Recorder::start(path, &world)?),

@@ -16,6 +16,7 @@ use crate::interaction::{
     BladeSweep, CutScratch, Grasp, GraspEvent, JawInput, Jaws, ProbeContacts, ToolBody,
     swept_seams, torn_seams,
 };
+use crate::multirate::{StepLane, StepRunner, ToolSeed};
 use crate::tissue::seams::{Facet, Opening, open_model_into, shared_by_two};
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TieSet, TissueState,
@@ -105,6 +106,9 @@ pub struct SimObject {
     parts: ModelParts,
     /// Scratch of the tear test: the facets torn this tick.
     torn: Vec<Facet>,
+    /// Some when the object steps at its own, lower rate (`step_hz`): its steps run as jobs, and `state` is
+    /// the latest finished step's (see [`crate::multirate`]).
+    lane: Option<StepLane>,
 }
 
 impl SimObject {
@@ -116,6 +120,11 @@ impl SimObject {
     /// The region of deformation, when the object is region-tracked.
     pub fn region(&self) -> Option<&RegionTracker> {
         self.region.as_ref()
+    }
+
+    /// The step lane of a multi-rate object (None: it steps every tick).
+    pub fn step_lane(&self) -> Option<&StepLane> {
+        self.lane.as_ref()
     }
 
     /// Topology changes (cuts and tears that opened something) so far; 0 for the mesh as loaded.
@@ -459,6 +468,7 @@ impl Sim {
                 burn_shrink: spec.material.burn_shrink,
                 friction: spec.material.friction_coefficient,
                 torn: Vec::new(),
+                lane: None,
                 parts: ModelParts::default(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
@@ -561,6 +571,32 @@ impl Sim {
                     .collect(),
             });
         }
+        // Multi-rate objects step as jobs that see each tool's body at its pose when the step leaves.
+        let seeds: Vec<ToolSeed> = tools
+            .iter()
+            .map(|tool| ToolSeed {
+                tip: tool.collider.clone(),
+                shaft: tool
+                    .shaft
+                    .clone()
+                    .zip(tool.shaft_spec.map(|s| 0.5 * s.length_mm)),
+                max_force_n: tool.max_force_n,
+                reach_mm: tool.reach_mm,
+            })
+            .collect();
+        for (object, spec) in objects.iter_mut().zip(&world.objects) {
+            if spec.ticks_per_step > 1 {
+                object.lane = Some(StepLane::new(
+                    &object.model,
+                    &object.state,
+                    integrator_for(spec.integrator, spec.solver_iterations),
+                    spec.dt_s,
+                    object.friction,
+                    spec.ticks_per_step,
+                    &seeds,
+                ));
+            }
+        }
         Ok(Self {
             budget: EnergyBudget::new(tools.len()),
             objects,
@@ -573,6 +609,16 @@ impl Sim {
         })
     }
 
+    /// Run every multi-rate object's steps with the runner `make` gives for it (by object name) from now on:
+    /// the server's threads. A step under way finishes on the old runner first.
+    pub fn set_step_runners(&mut self, mut make: impl FnMut(&str) -> Box<dyn StepRunner>) {
+        for object in &mut self.objects {
+            if let Some(lane) = &mut object.lane {
+                lane.set_runner(make(&object.name));
+            }
+        }
+    }
+
     /// Open `seams` in object `object` (see [`crate::tissue::seams`]): vertices whose ring the seams split are
     /// duplicated (new ids appended, each starting where its parent is, with its velocity and burn), elements
     /// keep their ids, and everything built on the object's topology is rebuilt for the new one: springs and
@@ -581,7 +627,8 @@ impl Sim {
     /// before the cut holds on after it. Allocates (a cut or tear is an event, not the steady tick). An object
     /// index out of range, or seams that open nothing, change nothing.
     pub fn open_seams(&mut self, object: usize, seams: &[Facet]) -> Opening {
-        let Some(o) = self.objects.get_mut(object) else {
+        // A multi-rate object's model is stepped on its own thread: it is never cut (see crate::multirate).
+        let Some(o) = self.objects.get_mut(object).filter(|o| o.lane.is_none()) else {
             return Opening::default();
         };
         // Nothing new: the facets cut before and still joined did not open with this model, and will not now
@@ -655,7 +702,8 @@ impl Sim {
     /// Cut object `object` where a blade swept this tick ([`crate::interaction::swept_seams`] at the current
     /// positions, then [`Self::open_seams`]).
     pub fn cut(&mut self, object: usize, sweep: &BladeSweep, scratch: &mut CutScratch) -> Opening {
-        let Some(o) = self.objects.get(object) else {
+        let Some(o) = self.objects.get(object).filter(|o| o.lane.is_none()) else {
+            scratch.seams.clear();
             return Opening::default();
         };
         let mut seams = std::mem::take(&mut scratch.seams);
@@ -708,6 +756,27 @@ impl Sim {
             self.cut_with(t, dt_s, &mut report);
         }
 
+        // Multi-rate objects due this tick take back their finished step (before the broad phase reads their
+        // surfaces).
+        let tick = self.steps;
+        for (o, object) in self.objects.iter_mut().enumerate() {
+            let Some(lane) = object.lane.as_mut().filter(|l| l.due(tick)) else {
+                continue;
+            };
+            if let Some(job) = lane.collect(&mut object.state) {
+                report.substeps += job.substeps;
+                report.retries += job.retries;
+                report.solver_iterations += job.solver_iterations;
+                report.faults += job.faults;
+                object.collider.refit(&object.state.positions_mm);
+                if job.faults > 0 {
+                    for tool in &mut self.tools {
+                        tool.contacts[o].forget();
+                    }
+                }
+            }
+        }
+
         // Broad phase once per tick, on last tick's refitted surfaces, loosened by the margin.
         let margin = self.collision_margin_mm;
         for tool in &mut self.tools {
@@ -732,6 +801,23 @@ impl Sim {
             }
         }
 
+        // ... and send the next step on its way with the tools where they are now.
+        for (o, object) in self.objects.iter_mut().enumerate() {
+            let Some(lane) = object.lane.as_mut().filter(|l| l.due(tick)) else {
+                continue;
+            };
+            for (t, tool) in self.tools.iter().enumerate() {
+                lane.set_tool(
+                    t,
+                    tool.active,
+                    &tool.position_mm,
+                    &tool.rotation,
+                    &tool.contacts[o].candidates,
+                );
+            }
+            lane.launch(dt_s * lane.ticks_per_step() as f32);
+        }
+
         // Regions of deformation follow this tick's contacts and last tick's motion.
         for (o, object) in self.objects.iter_mut().enumerate() {
             let Some(region) = &mut object.region else {
@@ -753,6 +839,7 @@ impl Sim {
         let planned = self
             .objects
             .iter()
+            .filter(|o| o.lane.is_none())
             .map(|o| (dt_s / o.max_dt_s).ceil().max(1.0) as u32)
             .max()
             .unwrap_or(1);
@@ -762,7 +849,7 @@ impl Sim {
             None => self.assess().1,
         };
         let work_allowance = self.tool_work_allowance_n_mm();
-        for object in &mut self.objects {
+        for object in self.objects.iter_mut().filter(|o| o.lane.is_none()) {
             match &object.region {
                 Some(region) => object
                     .guard
@@ -790,7 +877,7 @@ impl Sim {
                 // Still wrong at 1/16 of the step. Growing energy may be a tool's real work: keep it. A broken
                 // object (non-finite, or beyond the absolute limits) is contained: reset to rest.
                 for (o, object) in self.objects.iter_mut().enumerate() {
-                    if object.broken() {
+                    if object.lane.is_none() && object.broken() {
                         object.state.reset_to_rest(&object.model);
                         if let Some(region) = &mut object.region {
                             // Everything moved back to rest: forget the region, refit every triangle.
@@ -811,7 +898,7 @@ impl Sim {
                 }
                 break;
             }
-            for object in &mut self.objects {
+            for object in self.objects.iter_mut().filter(|o| o.lane.is_none()) {
                 match &object.region {
                     Some(region) => object
                         .guard
@@ -822,7 +909,7 @@ impl Sim {
             halvings += 1;
             report.retries += 1;
         }
-        for object in &mut self.objects {
+        for object in self.objects.iter_mut().filter(|o| o.lane.is_none()) {
             match &object.region {
                 // Only the active nodes moved this tick (nodes leaving the region kept their positions).
                 Some(region) => {
@@ -879,6 +966,16 @@ impl Sim {
         let mut force = Vec3::zeros();
         let mut held = 0;
         for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
+            if let Some(lane) = &object.lane {
+                // A multi-rate object pushes through its latest step's local model, at the tool's position now.
+                let contact = lane.contact(t);
+                let push = contact.force_at(&tool.position_mm);
+                if tool.active && push != Vec3::zeros() {
+                    force += push;
+                    held += contact.held_nodes;
+                }
+                continue;
+            }
             force += contacts.reaction_force_n(&object.model, &object.state, object.friction);
             held += contacts.held.len() as u32;
         }
@@ -1063,7 +1160,13 @@ impl Sim {
         if grasp.closing_edge(closed) {
             grasp.start_take();
             let bite_mm = grasp.spec().bite_mm;
-            for (o, object) in self.objects.iter().enumerate() {
+            // A multi-rate object is not grasped (its nodes move on its own thread).
+            for (o, object) in self
+                .objects
+                .iter()
+                .enumerate()
+                .filter(|(_, o)| o.lane.is_none())
+            {
                 // The nodes the body holds (on its surface) and free surface nodes within the bite of it:
                 // the closing jaws draw them in.
                 for &node in &tool.contacts[o].candidates {
@@ -1116,6 +1219,23 @@ impl Sim {
             let solver = &mut tool.stiffness[o];
             if !tool.active {
                 solver.forget();
+                continue;
+            }
+            let lane_contact = object
+                .lane
+                .as_ref()
+                .map(|lane| lane.contact(t))
+                .filter(|c| c.force_at(&tool.position_mm) != Vec3::zeros());
+            if let Some(contact) = lane_contact {
+                // A multi-rate object's contact stiffness was solved on its own thread, with its step.
+                if contact.solved {
+                    k += contact.stiffness_matrix();
+                    d += contact.damping_matrix();
+                } else {
+                    let n = contact.normal;
+                    k += n * n.transpose() * tool.plane_stiffness_n_per_mm;
+                    d += n * n.transpose() * tool.plane_damping_n_s_per_mm;
+                }
                 continue;
             }
             if contacts.held.is_empty() && grasped.is_empty() {
@@ -1227,7 +1347,8 @@ impl Sim {
     fn assess(&self) -> (bool, f64) {
         let mut broken = false;
         let mut energy = 0.0;
-        for object in &self.objects {
+        // A multi-rate object's step is judged on its own thread.
+        for object in self.objects.iter().filter(|o| o.lane.is_none()) {
             match &object.region {
                 Some(region) => {
                     broken |= object.guard.broken_nodes(
@@ -1292,6 +1413,9 @@ impl Sim {
                 }
             }
             for (o, object) in self.objects.iter_mut().enumerate() {
+                if object.lane.is_some() {
+                    continue;
+                }
                 report.solver_iterations += match &mut object.region {
                     Some(region) => region.step(object.integrator.as_mut(), &mut object.state, h),
                     None => object.integrator.step(&object.model, &mut object.state, h),
@@ -1322,7 +1446,7 @@ impl Sim {
                     }
                 }
             }
-            report.substeps += self.objects.len() as u32;
+            report.substeps += self.objects.iter().filter(|o| o.lane.is_none()).count() as u32;
         }
     }
 

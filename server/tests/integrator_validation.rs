@@ -241,6 +241,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             })
             .collect(),
         region: None,
+        ticks_per_step: 1,
     }
 }
 

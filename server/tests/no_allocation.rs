@@ -157,6 +157,25 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
             "a finite-element tick allocated (region {region})"
         );
     }
+    // The same block as a multi-rate object (200 Hz, every fifth tick hands off), its steps inline and on
+    // their own thread (the hand-off's channels allocate nothing once warm).
+    for threaded in [false, true] {
+        let text = fem_text.replace("dt_s = 0.001\n", "dt_s = 0.005\nstep_hz = 200\n");
+        let mut sim = Sim::new(&parse_world(&fem_path, &text).unwrap()).unwrap();
+        if threaded {
+            sim.set_step_runners(|object| {
+                Box::new(sinew_server::node::step_threads::ThreadRunner::spawn(object).unwrap())
+            });
+        }
+        let allocations = allocations_while_stepping(&mut sim, 600, 400);
+        println!(
+            "multi-rate finite elements, threaded {threaded}: {allocations} allocations in 400 warm ticks"
+        );
+        assert_eq!(
+            allocations, 0,
+            "a multi-rate tick allocated (threaded {threaded})"
+        );
+    }
     // Region tracking, which rebuilds its sub-model inside ticks as the dent moves: the rebuilds reuse their
     // buffers once a full stroke cycle (1 s) has grown them.
     for method in [IntegratorName::SymplecticEuler, IntegratorName::Xpbd] {

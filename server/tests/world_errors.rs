@@ -1019,3 +1019,74 @@ fn a_material_preset_fills_modulus_ratio_and_density_and_keys_beside_it_win() {
     );
     assert!(message.contains("volume"), "{message}");
 }
+
+#[test]
+fn a_multi_rate_object_is_checked_by_key_and_line() {
+    let good = fem_world().replace("dt_s = 0.001", "dt_s = 0.005\nstep_hz = 200");
+    let world = load_world(&write_world(&good, None)).unwrap();
+    assert_eq!(world.objects[0].ticks_per_step, 5);
+    assert_eq!(
+        load_world(&write_world(&fem_world(), None))
+            .unwrap()
+            .objects[0]
+            .ticks_per_step,
+        1
+    );
+    // Each: what replaces what in the good world, the key named, the line it names (by its text), and what
+    // the message says.
+    let cases: [(&str, &str, &str, &str, &str); 6] = [
+        (
+            "step_hz = 200",
+            "step_hz = 300",
+            "objects[0].step_hz",
+            "step_hz",
+            "whole number",
+        ),
+        (
+            "step_hz = 200",
+            "step_hz = 2000",
+            "objects[0].step_hz",
+            "step_hz",
+            "no higher than",
+        ),
+        (
+            "step_hz = 200",
+            "step_hz = 5",
+            "objects[0].step_hz",
+            "step_hz",
+            "at most 100",
+        ),
+        (
+            "dt_s = 0.005",
+            "dt_s = 0.006",
+            "objects[0].dt_s",
+            "dt_s",
+            "step period",
+        ),
+        (
+            "step_hz = 200",
+            "step_hz = 200\nregion = { threshold_mm = 0.01 }",
+            "objects[0].step_hz",
+            "step_hz",
+            "region",
+        ),
+        (
+            "poisson_ratio = 0.45",
+            "poisson_ratio = 0.45\ntear_strain = 0.5",
+            "objects[0].step_hz",
+            "step_hz",
+            "tear_strain",
+        ),
+    ];
+    for (from, to, key, line_text, says) in cases {
+        assert!(good.contains(from), "{from}");
+        let bad = good.replacen(from, to, 1);
+        let (error, message, _) = refused(&bad, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&bad, line_text)),
+            "{message}"
+        );
+        assert!(message.contains(says), "{message}");
+    }
+}

@@ -37,7 +37,21 @@ pub struct ToolBody<'a> {
     pub rotation: UnitQuaternion<f32>,
 }
 
+/// A node held last time stays held (sticky contacts) while it is this close to the tool, mm.
+pub const STICK_TOLERANCE_MM: f32 = 1e-3;
+
 impl ToolBody<'_> {
+    /// Distance from `point_mm` to the body (tip or shaft, whichever is nearer), mm; 0 inside.
+    pub fn distance_mm(&self, point_mm: &Vec3) -> f32 {
+        let tip = self
+            .tip
+            .distance_mm(&self.position_mm, &self.rotation, point_mm);
+        match self.shaft {
+            Some((shaft, centre)) => tip.min(shaft.distance_mm(&centre, &self.rotation, point_mm)),
+            None => tip,
+        }
+    }
+
     /// Push `point_mm` out of the tip, or else out of the shaft, along `push_dir` ([`ToolCollider::push_out_along`]).
     fn push_out_along(
         &self,
@@ -77,6 +91,10 @@ pub struct ProbeContacts {
     anchors: Vec<(u32, Vec3)>,
     /// The same for this substep, being built.
     anchors_now: Vec<(u32, Vec3)>,
+    /// Keep a node held while it stays on the tool and presses on it (see [`Self::sticky`]).
+    sticky: bool,
+    /// Last projection's held nodes with their normals, sorted by node (sticky contacts only).
+    held_before: Vec<(u32, Vec3)>,
 }
 
 impl ProbeContacts {
@@ -90,7 +108,20 @@ impl ProbeContacts {
             in_front_now: Vec::with_capacity(capacity),
             anchors: Vec::with_capacity(capacity),
             anchors_now: Vec::with_capacity(capacity),
+            sticky: false,
+            held_before: Vec::new(),
         }
+    }
+
+    /// Contacts for a solver that holds the held nodes still through its step (`TissueState::pinned`): a
+    /// node held last time that is still on the tool's surface (within [`STICK_TOLERANCE_MM`]) stays held
+    /// while the tissue presses it on the tool, and lets go once it pulls away (Signorini's conditions). A
+    /// pinned node does not move into the tool during the solve, so without this it would drop out of the
+    /// contact every other step.
+    pub fn sticky(mut self) -> Self {
+        self.sticky = true;
+        self.held_before = Vec::with_capacity(self.held.capacity());
+        self
     }
 
     /// Forget last tick's contacts before a new broad phase (keeps capacity). The side each node was held
@@ -122,6 +153,12 @@ impl ProbeContacts {
         grasped: &[u32],
         friction: f32,
     ) {
+        if self.sticky {
+            self.held_before.clear();
+            self.held_before
+                .extend(self.held.iter().copied().zip(self.normals.iter().copied()));
+            self.held_before.sort_unstable_by_key(|h| h.0);
+        }
         self.held.clear();
         self.normals.clear();
         self.in_front_now.clear();
@@ -131,7 +168,7 @@ impl ProbeContacts {
         } else {
             0.0
         };
-        let pressure = if friction > 0.0 && !self.anchors.is_empty() {
+        let pressure = if (friction > 0.0 && !self.anchors.is_empty()) || self.sticky {
             model.pressure_n_per_mm2(&state.positions_mm)
         } else {
             0.0
@@ -192,6 +229,23 @@ impl ProbeContacts {
                 state.velocities_mm_s[i] = Vec3::zeros();
                 self.held.push(node);
                 self.normals.push(normal);
+            } else if let Ok(k) = self.held_before.binary_search_by_key(&node, |h| h.0) {
+                // On the surface, not in the tool: still held while it presses on it.
+                let normal = self.held_before[k].1;
+                let x = &state.positions_mm[i];
+                let on_surface = body.distance_mm(x) <= STICK_TOLERANCE_MM;
+                let pressing = model
+                    .node_force(i, &state.positions_mm, &state.velocities_mm_s, pressure)
+                    .dot(&normal)
+                    < 0.0;
+                if on_surface && pressing {
+                    if held_in_front {
+                        self.in_front_now.push(node);
+                    }
+                    state.velocities_mm_s[i] = Vec3::zeros();
+                    self.held.push(node);
+                    self.normals.push(normal);
+                }
             }
         }
         self.in_front_now.sort_unstable();

@@ -21,8 +21,26 @@ pub const MIN_STEPS: usize = 3;
 /// Most steps timed.
 pub const MAX_STEPS: usize = 50;
 
+/// What a multi-rate object's own step costs, against its period.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaneCost {
+    /// The object's name.
+    pub object: String,
+    /// One step (timed inline: the hand-off ticks' median less the other ticks'), s.
+    pub step_s: f64,
+    /// Its step period, s.
+    pub period_s: f64,
+}
+
+impl LaneCost {
+    /// The share of its own thread's time the object takes.
+    pub fn load(&self) -> f64 {
+        self.step_s / self.period_s
+    }
+}
+
 /// What the estimate found.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct TickCost {
     /// Median whole-scene step, s.
     pub step_s: f64,
@@ -32,6 +50,8 @@ pub struct TickCost {
     pub steps: usize,
     /// Tissue nodes in the scene.
     pub nodes: usize,
+    /// The multi-rate objects (they step on threads of their own: not in `step_s`).
+    pub lanes: Vec<LaneCost>,
 }
 
 impl TickCost {
@@ -57,21 +77,64 @@ pub fn estimate(world: &World) -> Result<TickCost, SimBuildError> {
     let dt_s = (1.0 / world.tick_hz) as f32;
     let commands = vec![ToolCommand::default(); sim.tools.len()];
     let mut outputs = vec![ToolOutput::default(); sim.tools.len()];
-    let mut times = Vec::with_capacity(MAX_STEPS);
+    // Multi-rate objects step inline here: a hand-off tick (every `N`th) carries one whole step of the object.
+    let longest_step = world
+        .objects
+        .iter()
+        .map(|o| o.ticks_per_step)
+        .max()
+        .unwrap_or(1) as usize;
+    let min_steps = if longest_step > 1 {
+        2 * longest_step + 2
+    } else {
+        MIN_STEPS
+    };
+    let mut times = Vec::with_capacity(MAX_STEPS.max(min_steps));
     let started = Instant::now();
-    while times.len() < MIN_STEPS
-        || (times.len() < MAX_STEPS && started.elapsed() < ESTIMATE_BUDGET)
+    while times.len() < min_steps
+        || (times.len() < MAX_STEPS.max(min_steps) && started.elapsed() < ESTIMATE_BUDGET)
     {
         let t0 = Instant::now();
         sim.step(dt_s, &commands, &mut outputs);
         times.push(t0.elapsed().as_secs_f64());
     }
-    times.sort_by(f64::total_cmp);
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    // Ticks on which no multi-rate object handed off: the tick's own cost.
+    let plain = |k: usize| {
+        world
+            .objects
+            .iter()
+            .all(|o| o.ticks_per_step == 1 || !k.is_multiple_of(o.ticks_per_step as usize))
+    };
+    let tick_s = median(
+        (0..times.len())
+            .filter(|&k| plain(k))
+            .map(|k| times[k])
+            .collect(),
+    );
+    let lanes = world
+        .objects
+        .iter()
+        .filter(|o| o.ticks_per_step > 1)
+        .map(|o| {
+            let n = o.ticks_per_step as usize;
+            let hand_offs = (0..times.len()).step_by(n).map(|k| times[k]).collect();
+            LaneCost {
+                object: o.name.clone(),
+                step_s: (median(hand_offs) - tick_s).max(0.0),
+                period_s: n as f64 / world.tick_hz,
+            }
+        })
+        .collect();
     Ok(TickCost {
-        step_s: times[times.len() / 2],
+        step_s: tick_s,
         period_s: 1.0 / world.tick_hz,
         steps: times.len(),
         nodes,
+        lanes,
     })
 }
 
@@ -97,6 +160,30 @@ pub fn verdict(scene: &str, cost: &TickCost) -> Verdict {
         cost.load() * 100.0,
         cost.period_s * 1e6
     );
+    let lanes: String = cost
+        .lanes
+        .iter()
+        .map(|lane| {
+            format!(
+                "; object `{}` steps at {:.0} Hz on its own thread, a step costing about {:.1} ms, {:.0}% of its \
+                 {:.0} ms period",
+                lane.object,
+                1.0 / lane.period_s,
+                lane.step_s * 1e3,
+                lane.load() * 100.0,
+                lane.period_s * 1e3
+            )
+        })
+        .collect();
+    let figures = format!("{figures}{lanes}");
+    if let Some(lane) = cost.lanes.iter().find(|lane| lane.load() > 0.9) {
+        return Verdict::TooBig(format!(
+            "{figures}. Object `{}` cannot keep {:.0} Hz on its own thread: every hand-off will wait for its step \
+             and the tick will run late. Lower its step_hz or use a coarser mesh",
+            lane.object,
+            1.0 / lane.period_s
+        ));
+    }
     if cost.load() > 0.9 {
         Verdict::TooBig(format!(
             "{figures}. The server cannot keep {:.0} Hz: forces will reach the devices at about {:.0} Hz and \
@@ -183,6 +270,7 @@ mod tests {
             period_s: 1e-3,
             steps: 10,
             nodes: 1000,
+            lanes: Vec::new(),
         };
         assert!(matches!(verdict("pad", &cost(100.0)), Verdict::Fits(_)));
         assert!(matches!(verdict("pad", &cost(700.0)), Verdict::Tight(_)));
@@ -190,6 +278,34 @@ mod tests {
             Verdict::TooBig(line) => {
                 assert!(line.contains("13000 us"), "{line}");
                 assert!(line.contains("about 77 Hz"), "{line}");
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_multi_rate_object_is_judged_against_its_own_period() {
+        let cost = |lane_step_ms: f64| TickCost {
+            step_s: 100e-6,
+            period_s: 1e-3,
+            steps: 50,
+            nodes: 3100,
+            lanes: vec![LaneCost {
+                object: "liver".into(),
+                step_s: lane_step_ms * 1e-3,
+                period_s: 20e-3,
+            }],
+        };
+        match verdict("liver", &cost(13.0)) {
+            Verdict::Fits(line) => assert!(
+                line.contains("object `liver` steps at 50 Hz on its own thread, a step costing about 13.0 ms, 65%"),
+                "{line}"
+            ),
+            other => panic!("{other:?}"),
+        }
+        match verdict("liver", &cost(25.0)) {
+            Verdict::TooBig(line) => {
+                assert!(line.contains("Object `liver` cannot keep 50 Hz"), "{line}")
             }
             other => panic!("{other:?}"),
         }

@@ -137,6 +137,7 @@ impl RegionTracker {
                 velocities_mm_s: Vec::new(),
                 forces_n: Vec::new(),
                 external_forces_n: Vec::new(),
+                pinned: Vec::new(),
             },
             sub_nodes: Vec::with_capacity(n),
             sub_active: Vec::with_capacity(n),

@@ -14,6 +14,13 @@ pub struct TissueState {
     pub forces_n: Vec<Vec3>,
     /// Forces from outside the object (ties to other objects), N; held constant over a step.
     pub external_forces_n: Vec<Vec3>,
+    /// Nodes a tool holds still through the next step, sorted (empty: none). Implicit Euler solves them as
+    /// fixed rows, so the rest of the tissue answers a held node where the tool holds it: with the hold applied
+    /// only after the solve, the tissue around a dent relaxes toward where the held nodes would have gone, and
+    /// a long step's equilibrium is off by an amount that grows with the step (a multi-rate object's 5 ms
+    /// step pressed 29% harder than 1 ms steps). Explicit methods ignore it: they move a held node by
+    /// `h^2 F / m`, which the tool's projection undoes.
+    pub pinned: Vec<u32>,
 }
 
 impl TissueState {
@@ -25,6 +32,7 @@ impl TissueState {
             velocities_mm_s: vec![Vec3::zeros(); n],
             forces_n: vec![Vec3::zeros(); n],
             external_forces_n: vec![Vec3::zeros(); n],
+            pinned: Vec::new(),
         }
     }
 

@@ -220,6 +220,10 @@ pub(crate) struct ObjectSection {
     pub model: Option<Spanned<ElasticModel>>,
     pub integrator: Spanned<IntegratorName>,
     pub dt_s: Spanned<f32>,
+    /// The object's own step rate, Hz, when lower than the tick's: it steps every `tick_hz / step_hz` ticks
+    /// on its own thread, and the tick renders it through its local model in between (default: every tick).
+    #[serde(default)]
+    pub step_hz: Option<Spanned<f64>>,
     #[serde(default)]
     pub solver_iterations: Option<Spanned<u32>>,
     #[serde(default = "default_quant_margin_mm")]

@@ -118,6 +118,9 @@ pub struct ObjectSpec {
     pub fixed: Vec<FixedSelection>,
     /// Region of deformation (`None`: the whole object is integrated every tick).
     pub region: Option<RegionParams>,
+    /// Ticks per step of the object (1: it steps every tick; `N > 1`: a multi-rate object, stepped every `N`
+    /// ticks with `N` ticks' time, on its own thread: see [`crate::multirate`]).
+    pub ticks_per_step: u32,
 }
 
 /// How node masses are given.
@@ -285,6 +288,9 @@ pub fn load_world(path: &Path) -> Result<World, WorldError> {
     })?;
     parse_world(path, &text)
 }
+
+/// The most ticks one step of a multi-rate object may span (`sim.tick_hz / step_hz`): 10 Hz at a 1 kHz tick.
+pub const MAX_TICKS_PER_STEP: u32 = 100;
 
 /// The most substeps an object may take in one tick: a smaller `dt_s` would only hang the tick.
 const MAX_SUBSTEPS: f32 = 1000.0;
@@ -500,14 +506,21 @@ impl Context<'_> {
         if let Err(e) = sinew_protocol::keys::validate_segment("object", &name) {
             return Err(self.invalid(&object.name, &key("name"), e.to_string()));
         }
+        let ticks_per_step = self.ticks_per_step(i, object, tick_dt_s)?;
+        let step_dt_s = tick_dt_s * ticks_per_step as f32;
         let dt_s = self.positive(&object.dt_s, &key("dt_s"))?;
+        let period = if ticks_per_step > 1 {
+            "the object's step period (1 / step_hz)"
+        } else {
+            "the tick period"
+        };
         self.check(
             &object.dt_s,
             &key("dt_s"),
-            dt_s <= tick_dt_s && dt_s >= tick_dt_s / MAX_SUBSTEPS,
+            dt_s <= step_dt_s * (1.0 + 1e-6) && dt_s >= step_dt_s / MAX_SUBSTEPS,
             &format!(
-                "must be within the tick period {tick_dt_s} s and at least 1/{MAX_SUBSTEPS} of it \
-                 (at most {MAX_SUBSTEPS} substeps a tick)"
+                "must be within {period} {step_dt_s} s and at least 1/{MAX_SUBSTEPS} of it \
+                 (at most {MAX_SUBSTEPS} substeps a step)"
             ),
         )?;
         let quant_margin_mm = self.positive(&object.quant_margin_mm, &key("quant_margin_mm"))?;
@@ -604,6 +617,7 @@ impl Context<'_> {
             });
         }
         let region = self.region(i, object, &material, gravity_mm_per_s2)?;
+        self.multirate_combinations(i, object, &material, ticks_per_step)?;
         let spec = ObjectSpec {
             name,
             mesh,
@@ -615,6 +629,7 @@ impl Context<'_> {
             material,
             fixed,
             region,
+            ticks_per_step,
         };
         // An explicit integrator must be stable at this dt for this stiffness, damping and mass.
         let model = crate::tissue::MassSpringModel::build(&spec, Vec3::from(gravity_mm_per_s2));
@@ -1118,6 +1133,16 @@ impl Context<'_> {
             a != b,
             "ties link two different objects",
         )?;
+        if let Some(o) = [a, b].into_iter().find(|&o| objects[o].ticks_per_step > 1) {
+            return Err(self.invalid(
+                tie,
+                &format!("{key}.objects"),
+                format!(
+                    "`{}` steps at its own rate (`step_hz`): ties couple two objects every substep; drop one of them",
+                    objects[o].name
+                ),
+            ));
+        }
         if let Some(o) = [a, b].into_iter().find(|&o| objects[o].region.is_some()) {
             return Err(self.invalid(
                 tie,
@@ -1836,6 +1861,70 @@ impl Context<'_> {
 }
 
 impl Context<'_> {
+    /// Object `i`'s ticks per step from its optional `step_hz`: the tick rate must be a whole multiple of it,
+    /// at most [`MAX_TICKS_PER_STEP`] times it.
+    fn ticks_per_step(
+        &self,
+        i: usize,
+        object: &ObjectSection,
+        tick_dt_s: f32,
+    ) -> Result<u32, WorldError> {
+        let Some(at) = &object.step_hz else {
+            return Ok(1);
+        };
+        let key = format!("objects[{i}].step_hz");
+        let step_hz = *at.get_ref();
+        let tick_hz = 1.0 / f64::from(tick_dt_s);
+        self.check(
+            at,
+            &key,
+            step_hz.is_finite() && step_hz > 0.0 && step_hz <= tick_hz * (1.0 + 1e-9),
+            &format!("must be a positive rate no higher than sim.tick_hz = {tick_hz:.0} Hz (got {step_hz})"),
+        )?;
+        let ratio = tick_hz / step_hz;
+        let ticks = ratio.round();
+        self.check(
+            at,
+            &key,
+            (ratio - ticks).abs() <= 1e-6 * ratio && ticks <= f64::from(MAX_TICKS_PER_STEP),
+            &format!(
+                "must divide sim.tick_hz = {tick_hz:.0} Hz a whole number of times, at most {MAX_TICKS_PER_STEP} \
+                 (got {step_hz} Hz: {ratio:.3} ticks a step)"
+            ),
+        )?;
+        Ok(ticks as u32)
+    }
+
+    /// What a multi-rate object (`step_hz` below the tick rate) cannot do yet: a region of deformation (it
+    /// follows the tools tick by tick), tearing and burn shrink (they change the model the object's own thread
+    /// steps).
+    fn multirate_combinations(
+        &self,
+        i: usize,
+        object: &ObjectSection,
+        material: &MaterialSpec,
+        ticks_per_step: u32,
+    ) -> Result<(), WorldError> {
+        let Some(at) = object.step_hz.as_ref().filter(|_| ticks_per_step > 1) else {
+            return Ok(());
+        };
+        let key = format!("objects[{i}].step_hz");
+        self.check(
+            at,
+            &key,
+            object.region.is_none(),
+            "cannot be combined with `region`: a region follows the tools every tick; drop one of them",
+        )?;
+        self.check(
+            at,
+            &key,
+            material.tear_strain.is_none() && material.burn_shrink == 0.0,
+            "cannot be combined with material.tear_strain or material.burn_shrink: a multi-rate object's model \
+             is stepped on its own thread and cannot change under it",
+        )?;
+        Ok(())
+    }
+
     /// The optional `region` table of object `i`, and the combinations region tracking cannot simulate.
     fn region(
         &self,

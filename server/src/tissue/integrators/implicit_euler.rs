@@ -31,6 +31,8 @@ pub struct ImplicitEuler {
     product: Vec<Vec3>,
     preconditioned: Vec<Vec3>,
     inverse_diagonal: Vec<Vec3>,
+    /// Acceleration per force of each node this step: the model's, zero on fixed and pinned rows.
+    weights: Vec<f32>,
 }
 
 impl ImplicitEuler {
@@ -48,6 +50,7 @@ impl ImplicitEuler {
             product: Vec::new(),
             preconditioned: Vec::new(),
             inverse_diagonal: Vec::new(),
+            weights: Vec::new(),
         }
     }
 }
@@ -57,10 +60,11 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> f32 {
 }
 
 /// `out = A p`: the diagonal mass term plus the spring blocks and `h^2` times the finite elements'
-/// stiffness, with fixed rows zeroed.
+/// stiffness, with fixed rows (zero `weights`) zeroed.
 #[allow(clippy::too_many_arguments)] // the parts of one matrix, kept apart so each is built once per step
 fn apply(
     model: &MassSpringModel,
+    weights: &[f32],
     blocks: &[SpringJacobian],
     fem: &mut FemLinearization,
     tet_gradients: &[[Vec3; 4]],
@@ -79,7 +83,7 @@ fn apply(
     model
         .tets()
         .add_stiffness_product(tet_gradients, p, h * h, out);
-    for (o, &w) in out.iter_mut().zip(model.accel_per_force()) {
+    for (o, &w) in out.iter_mut().zip(weights) {
         if w == 0.0 {
             *o = Vec3::zeros();
         }
@@ -124,8 +128,16 @@ impl Integrator for ImplicitEuler {
             .springs()
             .implicit_blocks(model.law(), &state.positions_mm, h, &mut self.blocks);
 
+        // Fixed rows: the model's fixed nodes and the nodes a tool holds still this step.
+        self.weights.clear();
+        self.weights.extend_from_slice(model.accel_per_force());
+        for &i in &state.pinned {
+            if let Some(w) = self.weights.get_mut(i as usize) {
+                *w = 0.0;
+            }
+        }
+        let w = &self.weights[..];
         // Diagonal of A: M (1 + h drag) + h^2 k_anchor (0 on fixed rows), plus the spring blocks' diagonals.
-        let w = model.accel_per_force();
         let (drag, k_anchor) = (model.drag_per_s(), model.anchor_stiffness_n_per_mm());
         for (m, &wi) in self.diagonal_mass.iter_mut().zip(w) {
             *m = if wi == 0.0 {
@@ -169,6 +181,7 @@ impl Integrator for ImplicitEuler {
         let v = &mut state.velocities_mm_s;
         apply(
             model,
+            w,
             &self.blocks,
             &mut self.fem,
             &self.tet_gradients,
@@ -189,6 +202,7 @@ impl Integrator for ImplicitEuler {
             iterations += 1;
             apply(
                 model,
+                w,
                 &self.blocks,
                 &mut self.fem,
                 &self.tet_gradients,

@@ -1,0 +1,508 @@
+//! Multi-rate objects: an object too costly for the tick (a large organ) steps every `N` ticks, `N` ticks'
+//! time at once, on a thread of its own, while every tick renders it to the tools through the local model of
+//! its latest step.
+//!
+//! Owns: the step job ([`StepJob`]: a copy of the object's model, the state it integrates, its integrator and
+//! divergence guard, and per tool the contact it probes and that contact's force, stiffness and damping at the
+//! end of the step), the trait that carries a job to wherever it runs ([`StepRunner`]: [`InlineRunner`] here,
+//! a thread in `node/step_threads.rs`), the lane that hands jobs out and takes them back at fixed ticks
+//! ([`StepLane`]), and the tick-side view of a finished step's contact ([`LaneContact`]).
+//!
+//! The hand-off, and why it is deterministic. At tick `kN` the sim takes back the job launched at tick
+//! `(k-1)N` (waiting for it if its thread is late), copies its state into the object (what the collider, the
+//! viewers and a recording see) and its contacts into the lane, then launches the next job with the tools'
+//! poses and broad-phase candidates of tick `kN`. A job's result depends on its inputs alone and is taken at a
+//! fixed tick, so a run on a thread and a run inline (a replay, a test) agree to the bit, whatever the
+//! threads' timing. Between hand-offs a tool in contact feels `f = f0 - K (x - x0)`, one-sided along `f0`: the
+//! force `f0` the step found at the tool's launch position `x0` and the contact's stiffness `K` (the condensed
+//! solve of `haptics/contact_stiffness.rs`, run on the job's thread): the local model a latency-moderated device
+//! renders, evaluated on the server every tick. The object's deformation lags its tools by one step period.
+//!
+//! Must not: touch threads or clocks (the node's runner does), or change the model: a multi-rate object is
+//! never cut, torn or shrunk by burns (the loader and the sim refuse them), so the job's copy stays the
+//! object's model.
+
+use nalgebra::{Matrix3, UnitQuaternion};
+
+use crate::collision::ToolCollider;
+use crate::haptics::ContactStiffness;
+use crate::interaction::{ProbeContacts, ToolBody};
+use crate::sim::MAX_HALVINGS;
+use crate::tissue::{DivergenceGuard, Integrator, MassSpringModel, TissueState, Vec3, guard};
+
+/// What one finished step of a multi-rate object did (summed into the tick's `StepReport` at its hand-off).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct JobReport {
+    /// Integrator substeps run, retries included.
+    pub substeps: u32,
+    /// Times the step was rerun with its substep halved.
+    pub retries: u32,
+    /// Solver iterations.
+    pub solver_iterations: u32,
+    /// 1 when the object was still broken at the smallest substep and was reset to rest.
+    pub faults: u32,
+}
+
+/// A tool's contact with a multi-rate object as its latest finished step left it: the local model the tick
+/// renders until the next hand-off.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LaneContact {
+    /// The tissue's force on the tool at the end of the step, N (world).
+    pub force_n: Vec3,
+    /// Where the tool was held during the step (its position at launch), mm (world): the model's `x0`.
+    pub position_mm: Vec3,
+    /// Unit contact normal (along `force_n`; zero out of contact).
+    pub normal: Vec3,
+    /// Normal contact stiffness, N/mm (0 until a solve has finished).
+    pub stiffness_n_per_mm: f32,
+    /// Normal contact damping, N s/mm.
+    pub damping_n_s_per_mm: f32,
+    /// The stiffness comes from a finished solve (false on the first steps of a contact).
+    pub solved: bool,
+    /// Nodes the tool held at the end of the step.
+    pub held_nodes: u32,
+}
+
+impl LaneContact {
+    /// The force on a tool at `position_mm`: `f0 - K (x - x0)` with `K = k n n^T`, and zero once the normal part
+    /// would pull (the tool has left the dent). Zero out of contact. Pure, finite for finite inputs.
+    pub fn force_at(&self, position_mm: &Vec3) -> Vec3 {
+        if self.held_nodes == 0 {
+            return Vec3::zeros();
+        }
+        let push_n = self.force_n.dot(&self.normal)
+            - self.stiffness_n_per_mm * self.normal.dot(&(position_mm - self.position_mm));
+        if push_n <= 0.0 {
+            return Vec3::zeros();
+        }
+        // The step's tangential part (friction) rides along unchanged; the normal part follows the model.
+        self.force_n + self.normal * (push_n - self.force_n.dot(&self.normal))
+    }
+
+    /// `K = k n n^T`, N/mm.
+    pub fn stiffness_matrix(&self) -> Matrix3<f32> {
+        self.normal * self.normal.transpose() * self.stiffness_n_per_mm
+    }
+
+    /// `D = d n n^T`, N s/mm.
+    pub fn damping_matrix(&self) -> Matrix3<f32> {
+        self.normal * self.normal.transpose() * self.damping_n_s_per_mm
+    }
+}
+
+/// A tool as a multi-rate object's step sees it: its body, held still at its launch pose for the step.
+#[derive(Debug, Clone)]
+pub struct ToolSeed {
+    /// The tip's shape.
+    pub tip: ToolCollider,
+    /// The shaft (a capsule along the tool's z from its origin), and its half length, mm.
+    pub shaft: Option<(ToolCollider, f32)>,
+    /// Server-side force limit, N (the guard's allowance for the tool's work).
+    pub max_force_n: f32,
+    /// Largest distance from the tool origin to its surface, mm.
+    pub reach_mm: f32,
+}
+
+#[derive(Debug, Clone)]
+struct JobTool {
+    seed: ToolSeed,
+    active: bool,
+    was_active: bool,
+    position_mm: Vec3,
+    last_position_mm: Vec3,
+    rotation: UnitQuaternion<f32>,
+    contacts: ProbeContacts,
+    stiffness: ContactStiffness,
+    contact: LaneContact,
+}
+
+/// One step of a multi-rate object, with everything it needs: it runs wherever its runner sends it.
+#[derive(Debug)]
+pub struct StepJob {
+    model: MassSpringModel,
+    state: TissueState,
+    integrator: Box<dyn Integrator>,
+    guard: DivergenceGuard,
+    /// Largest substep, s (the object's `dt_s`).
+    max_dt_s: f32,
+    /// The step, s (`N` ticks).
+    step_dt_s: f32,
+    /// Ticks per step: the contact solve's budget is that many ticks' worth.
+    ticks: u32,
+    friction: f32,
+    /// Mechanical energy at the end of the last step, N mm (None at first and after a reset).
+    energy_n_mm: Option<f64>,
+    tools: Vec<JobTool>,
+    report: JobReport,
+}
+
+impl StepJob {
+    /// Run the step: integrate `step_dt_s` in substeps of at most `max_dt_s`, pushing the tissue out of each
+    /// active tool after every substep; rerun with halved substeps while the guard finds it broken or gaining
+    /// energy the tools cannot have put in (as `Sim::step` does), reset it to rest if still broken at the
+    /// smallest; then measure each tool's contact. No allocation once warm, never panics.
+    pub fn run(&mut self) {
+        self.report = JobReport::default();
+        let planned = (self.step_dt_s / self.max_dt_s).ceil().max(1.0) as u32;
+        let energy_before = match self.energy_n_mm.take() {
+            Some(e) => e,
+            None => self.guard.assess(&self.model, &self.state).energy_n_mm,
+        };
+        let allowance_n_mm: f64 = self
+            .tools
+            .iter()
+            .filter(|t| t.active)
+            .map(|t| {
+                let travel_mm = if t.was_active {
+                    (t.position_mm - t.last_position_mm).norm()
+                } else {
+                    t.seed.reach_mm
+                };
+                4.0 * f64::from(t.seed.max_force_n) * f64::from(travel_mm)
+            })
+            .sum();
+        self.guard.save(&self.state);
+        let mut halvings = 0;
+        loop {
+            let substeps = planned << halvings;
+            let h = self.step_dt_s / substeps as f32;
+            for _ in 0..substeps {
+                // Push the tissue out of each tool, then solve with the nodes it holds pinned where it holds
+                // them: the rest of the tissue answers the tool's new place within this substep.
+                self.state.pinned.clear();
+                for tool in self.tools.iter_mut().filter(|t| t.active) {
+                    let body = ToolBody {
+                        tip: &tool.seed.tip,
+                        shaft: tool.seed.shaft.as_ref().map(|(shaft, half_mm)| {
+                            (
+                                shaft,
+                                tool.position_mm + tool.rotation * Vec3::new(0.0, 0.0, *half_mm),
+                            )
+                        }),
+                        position_mm: tool.position_mm,
+                        rotation: tool.rotation,
+                    };
+                    tool.contacts
+                        .project(&body, &self.model, &mut self.state, &[], self.friction);
+                    self.state.pinned.extend_from_slice(&tool.contacts.held);
+                }
+                self.state.pinned.sort_unstable();
+                self.state.pinned.dedup();
+                self.report.solver_iterations +=
+                    self.integrator.step(&self.model, &mut self.state, h);
+            }
+            self.report.substeps += substeps;
+            let assessment = self.guard.assess(&self.model, &self.state);
+            self.energy_n_mm = Some(assessment.energy_n_mm);
+            let fine = !assessment.broken
+                && !guard::energy_grew(energy_before, assessment.energy_n_mm, allowance_n_mm);
+            if fine {
+                break;
+            }
+            if halvings == MAX_HALVINGS {
+                if assessment.broken {
+                    self.state.reset_to_rest(&self.model);
+                    self.energy_n_mm = None;
+                    self.report.faults += 1;
+                    for tool in &mut self.tools {
+                        tool.contacts.forget();
+                        tool.stiffness.forget();
+                    }
+                }
+                break;
+            }
+            self.guard.restore(&mut self.state);
+            halvings += 1;
+            self.report.retries += 1;
+        }
+        for tool in &mut self.tools {
+            tool.contact = if tool.active {
+                Self::measure(tool, &self.model, &self.state, self.friction, self.ticks)
+            } else {
+                tool.contacts.forget();
+                tool.stiffness.forget();
+                LaneContact::default()
+            };
+        }
+    }
+
+    /// The tool's contact at the end of the step: the held nodes' push, and the contact stiffness solve
+    /// advanced by `ticks` ticks' budget (a solve longer than that goes on in the next step, as on the tick).
+    fn measure(
+        tool: &mut JobTool,
+        model: &MassSpringModel,
+        state: &TissueState,
+        friction: f32,
+        ticks: u32,
+    ) -> LaneContact {
+        let held = &tool.contacts.held;
+        if held.is_empty() {
+            tool.stiffness.forget();
+            return LaneContact {
+                position_mm: tool.position_mm,
+                ..LaneContact::default()
+            };
+        }
+        let force_n = tool.contacts.reaction_force_n(model, state, friction);
+        let normal = force_n.try_normalize(1e-9).unwrap_or_else(|| {
+            model
+                .rest_normals()
+                .get(held[0] as usize)
+                .copied()
+                .unwrap_or_else(Vec3::z)
+        });
+        for _ in 0..ticks {
+            if tool
+                .stiffness
+                .advance(model, state, held, &tool.contacts.normals, &[], &normal)
+            {
+                break;
+            }
+        }
+        let (stiffness_n_per_mm, damping_n_s_per_mm, solved) = match tool.stiffness.response() {
+            Some(r) => (
+                (normal.transpose() * r.stiffness_n_per_mm * normal)[(0, 0)].max(0.0),
+                (normal.transpose() * r.damping_n_s_per_mm * normal)[(0, 0)].max(0.0),
+                true,
+            ),
+            None => (0.0, 0.0, false),
+        };
+        let finite = force_n.iter().all(|c| c.is_finite())
+            && stiffness_n_per_mm.is_finite()
+            && damping_n_s_per_mm.is_finite();
+        if !finite {
+            return LaneContact {
+                position_mm: tool.position_mm,
+                ..LaneContact::default()
+            };
+        }
+        LaneContact {
+            force_n,
+            position_mm: tool.position_mm,
+            normal,
+            stiffness_n_per_mm,
+            damping_n_s_per_mm,
+            solved,
+            held_nodes: held.len() as u32,
+        }
+    }
+}
+
+/// Carries a job to where it runs and back. `launch` is called with an empty runner; `collect` returns the
+/// job launched last, finished, waiting for it if need be (None if it was lost: its thread died).
+pub trait StepRunner: Send + std::fmt::Debug {
+    /// Start `job`.
+    fn launch(&mut self, job: Box<StepJob>);
+    /// The launched job, finished.
+    fn collect(&mut self) -> Option<Box<StepJob>>;
+}
+
+/// Runs a job at launch, on the caller's thread (tests, replays, the tick-cost estimate).
+#[derive(Debug, Default)]
+pub struct InlineRunner {
+    done: Option<Box<StepJob>>,
+}
+
+impl StepRunner for InlineRunner {
+    fn launch(&mut self, mut job: Box<StepJob>) {
+        job.run();
+        self.done = Some(job);
+    }
+
+    fn collect(&mut self) -> Option<Box<StepJob>> {
+        self.done.take()
+    }
+}
+
+/// A multi-rate object's side of the tick: the job when it is home, the runner when it is away, and the
+/// contacts of its latest finished step.
+#[derive(Debug)]
+pub struct StepLane {
+    ticks_per_step: u32,
+    runner: Box<dyn StepRunner>,
+    home: Option<Box<StepJob>>,
+    in_flight: bool,
+    /// The runner lost a job (its thread died): the object stays where it was, and pushes on nothing.
+    lost: bool,
+    contacts: Vec<LaneContact>,
+}
+
+impl StepLane {
+    /// A lane for an object with `model` at `state`, stepping every `ticks_per_step` ticks with `integrator`
+    /// in substeps of at most `max_dt_s`, touched by `tools` (in the sim's order). Runs inline until
+    /// [`Self::set_runner`].
+    pub fn new(
+        model: &MassSpringModel,
+        state: &TissueState,
+        integrator: Box<dyn Integrator>,
+        max_dt_s: f32,
+        friction: f32,
+        ticks_per_step: u32,
+        tools: &[ToolSeed],
+    ) -> Self {
+        let mut state = state.clone();
+        state.pinned = Vec::with_capacity(4096 * tools.len());
+        let job = StepJob {
+            model: model.clone(),
+            state,
+            integrator,
+            guard: DivergenceGuard::new(model),
+            max_dt_s,
+            step_dt_s: 0.0,
+            ticks: ticks_per_step,
+            friction,
+            energy_n_mm: None,
+            tools: tools
+                .iter()
+                .map(|seed| JobTool {
+                    seed: seed.clone(),
+                    active: false,
+                    was_active: false,
+                    position_mm: Vec3::zeros(),
+                    last_position_mm: Vec3::zeros(),
+                    rotation: UnitQuaternion::identity(),
+                    contacts: ProbeContacts::with_capacity(4096).sticky(),
+                    stiffness: ContactStiffness::new(model.node_count()),
+                    contact: LaneContact::default(),
+                })
+                .collect(),
+            report: JobReport::default(),
+        };
+        Self {
+            ticks_per_step,
+            runner: Box::new(InlineRunner::default()),
+            home: Some(Box::new(job)),
+            in_flight: false,
+            lost: false,
+            contacts: vec![LaneContact::default(); tools.len()],
+        }
+    }
+
+    /// Ticks per step.
+    pub fn ticks_per_step(&self) -> u32 {
+        self.ticks_per_step
+    }
+
+    /// Whether tick number `tick` (0 first) hands off: the last step comes back, the next one leaves.
+    pub fn due(&self, tick: u64) -> bool {
+        tick.is_multiple_of(u64::from(self.ticks_per_step))
+    }
+
+    /// Run the steps with `runner` from now on (a job under way finishes with the old one first).
+    pub fn set_runner(&mut self, runner: Box<dyn StepRunner>) {
+        if self.in_flight {
+            self.in_flight = false;
+            self.home = self.runner.collect();
+            self.lost |= self.home.is_none();
+        }
+        self.runner = runner;
+    }
+
+    /// Take the step under way back: copy its positions and velocities into `mirror` and its contacts into the
+    /// lane. Returns its report (None when nothing was under way). A lost job counts as a fault: `mirror` stays
+    /// where it was and every contact pushes on nothing. No allocation.
+    pub fn collect(&mut self, mirror: &mut TissueState) -> Option<JobReport> {
+        if !self.in_flight {
+            return None;
+        }
+        self.in_flight = false;
+        let Some(job) = self.runner.collect() else {
+            self.lost = true;
+            self.contacts.fill(LaneContact::default());
+            return Some(JobReport {
+                faults: 1,
+                ..JobReport::default()
+            });
+        };
+        mirror.positions_mm.copy_from_slice(&job.state.positions_mm);
+        mirror
+            .velocities_mm_s
+            .copy_from_slice(&job.state.velocities_mm_s);
+        for (slot, tool) in self.contacts.iter_mut().zip(&job.tools) {
+            *slot = tool.contact;
+        }
+        let report = job.report;
+        self.home = Some(job);
+        Some(report)
+    }
+
+    /// Set tool `t`'s pose and broad-phase candidates for the next step (ignored while a step is under way or
+    /// the lane is lost). No allocation beyond the contacts' capacity.
+    pub fn set_tool(
+        &mut self,
+        t: usize,
+        active: bool,
+        position_mm: &Vec3,
+        rotation: &UnitQuaternion<f32>,
+        candidates: &[u32],
+    ) {
+        let Some(tool) = self.home.as_mut().and_then(|job| job.tools.get_mut(t)) else {
+            return;
+        };
+        tool.was_active = tool.active;
+        tool.last_position_mm = tool.position_mm;
+        tool.active = active;
+        tool.position_mm = *position_mm;
+        tool.rotation = *rotation;
+        // The candidates are this tick's; last step's held nodes stay for the sticky test.
+        tool.contacts.candidates.clear();
+        if active {
+            tool.contacts.candidates.extend_from_slice(candidates);
+        } else {
+            tool.contacts.forget();
+        }
+    }
+
+    /// Send the next step, `step_dt_s` long, on its way.
+    pub fn launch(&mut self, step_dt_s: f32) {
+        if let Some(mut job) = self.home.take() {
+            job.step_dt_s = step_dt_s;
+            self.runner.launch(job);
+            self.in_flight = true;
+        }
+    }
+
+    /// Tool `t`'s contact as the latest finished step left it.
+    pub fn contact(&self, t: usize) -> LaneContact {
+        self.contacts.get(t).copied().unwrap_or_default()
+    }
+
+    /// The runner lost a job: the object no longer steps.
+    pub fn lost(&self) -> bool {
+        self.lost
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pressed() -> LaneContact {
+        LaneContact {
+            force_n: Vec3::new(0.0, 0.0, 1.0),
+            position_mm: Vec3::new(0.0, 0.0, -2.0),
+            normal: Vec3::z(),
+            stiffness_n_per_mm: 0.5,
+            damping_n_s_per_mm: 0.0,
+            solved: true,
+            held_nodes: 10,
+        }
+    }
+
+    #[test]
+    fn the_local_model_is_linear_in_the_tools_motion_and_never_pulls() {
+        let c = pressed();
+        // Deeper by 1 mm: 0.5 N more; 1 mm back: 0.5 N less; 3 mm back: out of the dent.
+        assert!((c.force_at(&Vec3::new(0.0, 0.0, -3.0)).z - 1.5).abs() < 1e-6);
+        assert!((c.force_at(&Vec3::new(0.0, 0.0, -1.0)).z - 0.5).abs() < 1e-6);
+        assert_eq!(c.force_at(&Vec3::new(0.0, 0.0, 1.0)), Vec3::zeros());
+        // Sliding along the surface changes nothing (K is normal only).
+        assert_eq!(c.force_at(&Vec3::new(5.0, 0.0, -2.0)), c.force_n);
+        assert_eq!(
+            LaneContact::default().force_at(&Vec3::zeros()),
+            Vec3::zeros()
+        );
+        let k = c.stiffness_matrix();
+        assert!((k[(2, 2)] - 0.5).abs() < 1e-6 && k[(0, 0)] == 0.0);
+    }
+}
