@@ -8,7 +8,8 @@
 //! p99 per size, ns per tetrahedron, the ratio to mass-spring, and the largest size whose step p99 fits 1 ms
 //! (a 1 kHz object) and 5 ms (a 200 Hz object).
 //!
-//! Run: `cargo bench -p sinew-server --bench fem` (options: `--steps N`, default 400; `--cells 8,10,...`).
+//! Run: `cargo bench -p sinew-server --bench fem` (options: `--steps N`, default 400; `--cells 8,10,...`;
+//! `--dt-ms 5` steps at 5 ms, a 200 Hz multi-rate object's step).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
 
 #[path = "support/bench_args.rs"]
@@ -26,7 +27,6 @@ use sinew_server::tissue::{
 use sinew_server::world::{TetMesh, tet_grid};
 
 const ITERATIONS: u32 = 20;
-const DT_S: f32 = 0.001;
 
 fn material() -> FemMaterial {
     FemMaterial {
@@ -50,7 +50,7 @@ struct Timing {
     iterations: u64,
 }
 
-fn time(model: &MassSpringModel, top: &[usize], steps: usize) -> Timing {
+fn time(model: &MassSpringModel, top: &[usize], steps: usize, dt_s: f32) -> Timing {
     let mut state = TissueState::at_rest(model);
     let mut solver = ImplicitEuler::new(ITERATIONS);
     let mut forces = vec![Vec3::zeros(); model.node_count()];
@@ -60,7 +60,7 @@ fn time(model: &MassSpringModel, top: &[usize], steps: usize) -> Timing {
         iterations: 0,
     };
     for k in 0..steps + 50 {
-        let load = -2e-3 * (1.0 + (k as f32 * DT_S * 3.0 * std::f32::consts::TAU).sin());
+        let load = -2e-3 * (1.0 + (k as f32 * dt_s * 3.0 * std::f32::consts::TAU).sin());
         for &i in top {
             state.external_forces_n[i] = Vec3::new(0.0, 0.0, load);
         }
@@ -72,7 +72,7 @@ fn time(model: &MassSpringModel, top: &[usize], steps: usize) -> Timing {
         );
         let forces_ns = start.elapsed();
         let start = Instant::now();
-        let iterations = solver.step(model, &mut state, DT_S);
+        let iterations = solver.step(model, &mut state, dt_s);
         let step_ns = start.elapsed();
         assert!(state.is_finite());
         if k >= 50 {
@@ -86,13 +86,15 @@ fn time(model: &MassSpringModel, top: &[usize], steps: usize) -> Timing {
 
 fn main() {
     let steps = bench_args::count_arg("steps", 400).unwrap();
+    // `--dt-ms 5`: the step of a 200 Hz multi-rate object (one step a period).
+    let dt_s = bench_args::text_arg("dt-ms").map_or(1e-3, |ms| ms.parse::<f32>().unwrap() * 1e-3);
     let cells: Vec<usize> = std::env::args()
         .skip_while(|a| a != "--cells")
         .nth(1)
         .map(|s| s.split(',').map(|c| c.parse().unwrap()).collect())
         .unwrap_or_else(|| vec![6, 8, 10, 12, 14, 18]);
     println!(
-        "FEM step against tetrahedron count (implicit Euler, {ITERATIONS} CG iterations, dt {DT_S} s, one core)"
+        "FEM step against tetrahedron count (implicit Euler, {ITERATIONS} CG iterations, dt {dt_s} s, one core)"
     );
     println!(
         "{:>7} {:>6} | {:>9} {:>9} | {:>9} {:>9} {:>7} | {:>9} {:>7} | {:>5}",
@@ -120,8 +122,8 @@ fn main() {
             })
             .collect();
         let springs = spring_model(&fem);
-        let f = time(&fem, &top, steps);
-        let s = time(&springs, &top, steps);
+        let f = time(&fem, &top, steps, dt_s);
+        let s = time(&springs, &top, steps, dt_s);
         let tets = fem.tets().len();
         let (step_p50, step_p99) = (f.step.percentile_us(50.0), f.step.percentile_us(99.0));
         let spring_p50 = s.step.percentile_us(50.0);

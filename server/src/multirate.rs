@@ -30,6 +30,12 @@ use crate::interaction::{ProbeContacts, ToolBody};
 use crate::sim::MAX_HALVINGS;
 use crate::tissue::{DivergenceGuard, Integrator, MassSpringModel, TissueState, Vec3, guard};
 
+/// Most ticks' worth of the contact-stiffness solve (`ContactStiffness::ITERATIONS_PER_TICK` CG iterations each)
+/// one step advances it by. With one tick's budget per tick of the step, the solve cost as much as the step's
+/// elements (30% of a 200 Hz fem_block step with two tools: `cargo bench -p sinew-server --bench tick -- --world
+/// worlds/fem_block.toml --step-hz 200`); `K` changes slowly, so a solve may span a few steps instead.
+pub const MAX_SOLVE_TICKS_PER_STEP: u32 = 1;
+
 /// What one finished step of a multi-rate object did (summed into the tick's `StepReport` at its hand-off).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct JobReport {
@@ -227,7 +233,8 @@ impl StepJob {
     }
 
     /// The tool's contact at the end of the step: the held nodes' push, and the contact stiffness solve
-    /// advanced by `ticks` ticks' budget (a solve longer than that goes on in the next step, as on the tick).
+    /// advanced by `ticks` ticks' budget, at most [`MAX_SOLVE_TICKS_PER_STEP`] (a solve longer than that goes on
+    /// in the next step, as on the tick).
     fn measure(
         tool: &mut JobTool,
         model: &MassSpringModel,
@@ -251,7 +258,7 @@ impl StepJob {
                 .copied()
                 .unwrap_or_else(Vec3::z)
         });
-        for _ in 0..ticks {
+        for _ in 0..ticks.min(MAX_SOLVE_TICKS_PER_STEP) {
             if tool
                 .stiffness
                 .advance(model, state, held, &tool.contacts.normals, &[], &normal)

@@ -11,6 +11,7 @@
 
 pub mod calibration;
 pub mod fem;
+pub mod fem_assembly;
 pub mod guard;
 pub mod integrators;
 mod mass_spring;

@@ -181,14 +181,15 @@ fn the_shipped_liver_is_a_gmsh_organ_of_finite_elements_with_the_liver_preset() 
         .map(|t| t.instrument.kind_name())
         .collect();
     assert_eq!(kinds, ["probe", "grasper"]);
-    // A multi-rate object: 50 Hz, one step every 20 ticks.
-    assert_eq!(object.ticks_per_step, 20);
+    // A multi-rate object: 25 Hz, one step every 40 ticks.
+    assert_eq!(object.ticks_per_step, 40);
     // A few ticks of a probe pressing the right lobe: it pushes back, up.
     let mut sim = Sim::new(&world).unwrap();
-    assert_eq!(sim.objects[0].step_lane().unwrap().ticks_per_step(), 20);
+    assert_eq!(sim.objects[0].step_lane().unwrap().ticks_per_step(), 40);
     let mut out = [ToolOutput::default(); 2];
-    for k in 0..100 {
-        let z = 4.0 - 0.06 * k as f32;
+    // Down 6 mm in 100 ticks, then held: the organ answers the pose of each hand-off 40 ticks later.
+    for k in 0..200 {
+        let z = (4.0 - 0.06 * k as f32).max(-2.0);
         let command = ToolCommand {
             position_device_mm: [0.0, 0.0, z],
             ..press(0.0)

@@ -160,6 +160,11 @@ pub struct FemLinearization {
 }
 
 impl FemLinearization {
+    /// Each element's rotation frozen at the step's start (empty when the model has no elements).
+    pub fn rotations(&self) -> &[Matrix3<f32>] {
+        &self.rotations
+    }
+
     /// Empty, with the per-node scratch sized for `nodes`.
     fn clear(&mut self, nodes: usize) {
         self.rotations.clear();
@@ -480,6 +485,22 @@ impl FemElements {
                 out[i as usize] += y[k];
             }
         }
+        self.add_volume_product(tets, lin, p, scale, out);
+    }
+
+    /// `out += scale K_vol p`: the nodal volume term's part of [`Self::add_stiffness_product`] alone (the
+    /// deviatoric part may come assembled instead: [`super::fem_assembly`]).
+    pub fn add_volume_product(
+        &self,
+        tets: &TetVolumes,
+        lin: &mut FemLinearization,
+        p: &[Vec3],
+        scale: f32,
+        out: &mut [Vec3],
+    ) {
+        if !self.is_on() || lin.rotations.len() != tets.len() {
+            return;
+        }
         // Nodal volumes: K_vol p = sum_a kappa / V_a0 g_a (g_a . p), g_a = sum_{t around a} dV_t/dx / 4.
         lin.node_sum.iter_mut().for_each(|s| *s = 0.0);
         for (t, &tet) in tets.tets.iter().enumerate() {
@@ -608,7 +629,7 @@ fn edge_matrix(tet: [u32; 4], x: &[Vec3]) -> Matrix3<f32> {
 
 /// Gradient of node `k`'s linear shape function: row `k - 1` of `Dm^-1`, and minus their sum for node 0.
 #[inline(always)]
-fn shape_gradient(inverse: &Matrix3<f32>, k: usize) -> Vec3 {
+pub(crate) fn shape_gradient(inverse: &Matrix3<f32>, k: usize) -> Vec3 {
     if k == 0 {
         -(inverse.row(0) + inverse.row(1) + inverse.row(2)).transpose()
     } else {

@@ -4,6 +4,7 @@
 
 use super::{Integrator, fit, flush_subnormal};
 use crate::tissue::fem::FemLinearization;
+use crate::tissue::fem_assembly::AssembledStiffness;
 use crate::tissue::springs::SpringJacobian;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -23,6 +24,8 @@ pub struct ImplicitEuler {
     max_iterations: u32,
     blocks: Vec<SpringJacobian>,
     fem: FemLinearization,
+    /// The elements' deviatoric stiffness assembled on the edges for this step's products.
+    assembled: AssembledStiffness,
     tet_gradients: Vec<[Vec3; 4]>,
     diagonal_mass: Vec<f32>,
     rhs: Vec<Vec3>,
@@ -42,6 +45,7 @@ impl ImplicitEuler {
             max_iterations: max_iterations.max(1),
             blocks: Vec::new(),
             fem: FemLinearization::default(),
+            assembled: AssembledStiffness::default(),
             tet_gradients: Vec::new(),
             diagonal_mass: Vec::new(),
             rhs: Vec::new(),
@@ -67,6 +71,7 @@ fn apply(
     weights: &[f32],
     blocks: &[SpringJacobian],
     fem: &mut FemLinearization,
+    assembled: &AssembledStiffness,
     tet_gradients: &[[Vec3; 4]],
     h: f32,
     diagonal_mass: &[f32],
@@ -77,9 +82,17 @@ fn apply(
         *o = q * *m;
     }
     model.springs().add_block_products(blocks, p, out);
-    model
-        .fem()
-        .add_stiffness_product(model.tets(), fem, p, h * h, out);
+    let springs = model.springs();
+    if assembled.is_ready() {
+        assembled.add_product(&springs.a, &springs.b, p, h * h, out);
+        model
+            .fem()
+            .add_volume_product(model.tets(), fem, p, h * h, out);
+    } else {
+        model
+            .fem()
+            .add_stiffness_product(model.tets(), fem, p, h * h, out);
+    }
     model
         .tets()
         .add_stiffness_product(tet_gradients, p, h * h, out);
@@ -120,6 +133,14 @@ impl Integrator for ImplicitEuler {
             Some(&state.external_forces_n),
             &mut state.forces_n,
             &mut self.fem,
+        );
+        self.assembled.assemble(
+            model.fem(),
+            model.tets(),
+            &self.fem,
+            &model.springs().a,
+            &model.springs().b,
+            n,
         );
         model
             .tets()
@@ -184,6 +205,7 @@ impl Integrator for ImplicitEuler {
             w,
             &self.blocks,
             &mut self.fem,
+            &self.assembled,
             &self.tet_gradients,
             h,
             &self.diagonal_mass,
@@ -205,6 +227,7 @@ impl Integrator for ImplicitEuler {
                 w,
                 &self.blocks,
                 &mut self.fem,
+                &self.assembled,
                 &self.tet_gradients,
                 h,
                 &self.diagonal_mass,
