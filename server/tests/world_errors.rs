@@ -1032,6 +1032,10 @@ fn a_multi_rate_object_is_checked_by_key_and_line() {
             .ticks_per_step,
         1
     );
+    // At the tick rate itself: an ordinary object.
+    let every_tick = fem_world().replace("dt_s = 0.001", "dt_s = 0.001\nstep_hz = 1000");
+    let world = load_world(&write_world(&every_tick, None)).unwrap();
+    assert_eq!(world.objects[0].ticks_per_step, 1);
     // Each: what replaces what in the good world, the key named, the line it names (by its text), and what
     // the message says.
     let cases: [(&str, &str, &str, &str, &str); 6] = [

@@ -14,10 +14,11 @@
 use std::path::Path;
 
 use anyhow::Context as _;
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{
     ImplicitEuler, Integrator, MassSpringModel, ModelParts, TissueState, Vec3,
 };
-use sinew_server::world::parse_world;
+use sinew_server::world::{World, parse_world};
 
 /// Young's modulus of the block, kPa.
 pub const YOUNGS_KPA: f32 = 10.0;
@@ -74,10 +75,21 @@ impl Material {
 
 /// The block with `material`, loaded from a world text through the world loader (mesh, fixed walls, keys).
 pub fn block_parts(material: Material) -> anyhow::Result<ModelParts> {
-    let mut text = String::from(
+    let world = block_world(material, "dt_s = 0.001\n")?;
+    let spec = world
+        .objects
+        .first()
+        .context("the Hertz block has an object")?;
+    Ok(MassSpringModel::build(spec, Vec3::zeros()).to_parts())
+}
+
+/// The Hertz block's world with `material` and `step` (the object's `dt_s` and any rate keys), its indenter
+/// over the block's centre.
+fn block_world(material: Material, step: &str) -> anyhow::Result<World> {
+    let mut text = format!(
         "scene = \"hertz-block\"\n\
          [[objects]]\nname = \"block\"\nmesh = \"meshes/hertz_block.msh\"\nunits = \"mm\"\n\
-         integrator = \"implicit-euler\"\ndt_s = 0.001\n",
+         integrator = \"implicit-euler\"\n{step}"
     );
     text.push_str(&material.world_keys());
     for (point, normal) in [
@@ -95,12 +107,37 @@ pub fn block_parts(material: Material) -> anyhow::Result<ModelParts> {
         "[[tools]]\nname = \"indenter\"\ndevice = \"right\"\nshape = {{ kind = \"sphere\", radius_mm = {RADIUS_MM} }}\n"
     ));
     let path = crate::harness::worlds_dir().join("hertz_block.toml");
-    let world = parse_world(Path::new(&path), &text).context("the Hertz block's world")?;
-    let spec = world
-        .objects
-        .first()
-        .context("the Hertz block has an object")?;
-    Ok(MassSpringModel::build(spec, Vec3::zeros()).to_parts())
+    parse_world(Path::new(&path), &text).context("the Hertz block's world")
+}
+
+/// The force, N, the simulation itself renders to the indenter pressed to each of `depths_mm` (increasing)
+/// and held still, with the block a multi-rate object stepping at `step_hz` (one step a period): the force
+/// a hand feels at 1 kHz from the local model of the object's latest step, once the block has settled.
+pub fn sim_press(material: Material, step_hz: u32, depths_mm: &[f32]) -> anyhow::Result<Vec<f32>> {
+    let step = format!("dt_s = {}\nstep_hz = {step_hz}\n", 1.0 / f64::from(step_hz));
+    let world = block_world(material, &step)?;
+    let mut sim = Sim::new(&world)?;
+    let dt_s = (1.0 / world.tick_hz) as f32;
+    let mut out = [ToolOutput::default()];
+    let mut forces = Vec::with_capacity(depths_mm.len());
+    let mut from_mm = -2.0f32;
+    for &depth in depths_mm {
+        // 0.5 s down to the depth, 1.5 s held (the sphere's lowest point `depth` below the block's top).
+        for k in 0..2000 {
+            let d = from_mm + (depth - from_mm) * ((k + 1) as f32 / 500.0).min(1.0);
+            let command = ToolCommand {
+                active: true,
+                position_device_mm: [0.0, 0.0, RADIUS_MM - d],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+                ..ToolCommand::default()
+            };
+            let report = sim.step(dt_s, &[command], &mut out);
+            anyhow::ensure!(report.faults == 0, "the block faulted at {depth} mm");
+        }
+        forces.push(out[0].force_world_n.z);
+        from_mm = depth;
+    }
+    Ok(forces)
 }
 
 /// Hertz's force at `depth_mm`, N.

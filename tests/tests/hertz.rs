@@ -46,3 +46,21 @@ fn a_sphere_pressed_into_a_large_fem_block_follows_hertz_within_10_percent() {
 fn a_sphere_pressed_into_calibrated_springs_follows_hertz_within_10_percent() {
     assert_within_10_percent(Material::CalibratedSprings);
 }
+
+#[test]
+fn the_force_a_hand_feels_from_a_multi_rate_fem_block_follows_hertz() {
+    // Not the static solve: the simulation itself, the block stepping at 25 Hz on its pinned-contact steps and
+    // the indenter's force rendered every tick from the local model of its latest step.
+    let forces = sinew::hertz::sim_press(Material::Fem, 25, &DEPTHS_MM).unwrap();
+    for (&d, &f) in DEPTHS_MM.iter().zip(&forces) {
+        let h = hertz_n(d);
+        println!(
+            "FEM at 25 Hz in the simulation: {d} mm: {f:.4} N, Hertz {h:.4} N ({:+.1}%)",
+            (f / h - 1.0) * 100.0
+        );
+        assert!(
+            (f / h - 1.0).abs() < 0.10,
+            "{d} mm: {f} N against Hertz {h} N"
+        );
+    }
+}

@@ -1878,7 +1878,8 @@ impl Context<'_> {
         self.check(
             at,
             &key,
-            step_hz.is_finite() && step_hz > 0.0 && step_hz <= tick_hz * (1.0 + 1e-9),
+            // The tick rate comes back from the f32 tick period: a rate equal to it is within rounding.
+            step_hz.is_finite() && step_hz > 0.0 && step_hz <= tick_hz * (1.0 + 1e-6),
             &format!("must be a positive rate no higher than sim.tick_hz = {tick_hz:.0} Hz (got {step_hz})"),
         )?;
         let ratio = tick_hz / step_hz;
