@@ -109,6 +109,9 @@ pub struct SimObject {
     /// Some when the object steps at its own, lower rate (`step_hz`): its steps run as jobs, and `state` is
     /// the latest finished step's (see [`crate::multirate`]).
     lane: Option<StepLane>,
+    /// The integrator solves with the tools' held nodes pinned (implicit Euler): each substep pushes out
+    /// first, then integrates, and the contacts are sticky.
+    pins_held: bool,
 }
 
 impl SimObject {
@@ -158,6 +161,14 @@ impl SimObject {
             let burnt = (f32::from(a) + f32::from(b)) / (2.0 * f32::from(u16::MAX));
             self.model
                 .set_spring_rest_share(s, 1.0 - self.burn_shrink * burnt);
+        }
+    }
+
+    /// One substep of `h` of the integrator, over the region of deformation when there is one.
+    fn integrate(&mut self, h: f32) -> u32 {
+        match &mut self.region {
+            Some(region) => region.step(self.integrator.as_mut(), &mut self.state, h),
+            None => self.integrator.step(&self.model, &mut self.state, h),
         }
     }
 
@@ -469,6 +480,7 @@ impl Sim {
                 friction: spec.material.friction_coefficient,
                 torn: Vec::new(),
                 lane: None,
+                pins_held: spec.integrator == IntegratorName::ImplicitEuler,
                 parts: ModelParts::default(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
@@ -567,7 +579,14 @@ impl Sim {
                 entry_mm,
                 contacts: objects
                     .iter()
-                    .map(|_| ProbeContacts::with_capacity(4096))
+                    .map(|o| {
+                        let contacts = ProbeContacts::with_capacity(4096);
+                        if o.pins_held {
+                            contacts.sticky()
+                        } else {
+                            contacts
+                        }
+                    })
                     .collect(),
             });
         }
@@ -584,6 +603,11 @@ impl Sim {
                 reach_mm: tool.reach_mm,
             })
             .collect();
+        for object in objects.iter_mut().filter(|o| o.pins_held) {
+            object.state.pinned = Vec::with_capacity(
+                (4096 + usize::from(crate::interaction::MAX_ATTACHMENTS)) * tools.len(),
+            );
+        }
         for (object, spec) in objects.iter_mut().zip(&world.objects) {
             if spec.ticks_per_step > 1 {
                 object.lane = Some(StepLane::new(
@@ -1416,34 +1440,29 @@ impl Sim {
                 if object.lane.is_some() {
                     continue;
                 }
-                report.solver_iterations += match &mut object.region {
-                    Some(region) => region.step(object.integrator.as_mut(), &mut object.state, h),
-                    None => object.integrator.step(&object.model, &mut object.state, h),
-                };
-                for tool in self.tools.iter_mut().filter(|t| t.active) {
-                    let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
-                    let body = ToolBody {
-                        tip: &tool.collider,
-                        shaft: tool.shaft.as_ref().map(|s| (s, tool.shaft_centre_mm())),
-                        position_mm: tool.position_mm,
-                        rotation: tool.rotation,
-                    };
-                    tool.contacts[o].project(
-                        &body,
-                        &object.model,
-                        &mut object.state,
-                        grasped,
-                        object.friction,
-                    );
-                    if let Some(grasp) = &tool.grasp {
-                        grasp.hold(
-                            o,
-                            &tool.position_mm,
-                            &tool.rotation,
-                            &object.model,
-                            &mut object.state,
-                        );
+                if object.pins_held {
+                    // Implicit Euler: push out and grasp first, then solve with the held nodes pinned where
+                    // the tools hold them (see `TissueState::pinned`), so the rest of the tissue answers them there.
+                    hold_in_tools(&mut self.tools, o, object);
+                    object.state.pinned.clear();
+                    for tool in self.tools.iter().filter(|t| t.active) {
+                        object
+                            .state
+                            .pinned
+                            .extend_from_slice(&tool.contacts[o].held);
+                        if let Some(grasp) = &tool.grasp {
+                            object
+                                .state
+                                .pinned
+                                .extend_from_slice(grasp.attached_nodes(o));
+                        }
                     }
+                    object.state.pinned.sort_unstable();
+                    object.state.pinned.dedup();
+                    report.solver_iterations += object.integrate(h);
+                } else {
+                    report.solver_iterations += object.integrate(h);
+                    hold_in_tools(&mut self.tools, o, object);
                 }
             }
             report.substeps += self.objects.iter().filter(|o| o.lane.is_none()).count() as u32;
@@ -1555,6 +1574,35 @@ fn entry_point_mm(origin: &Vec3, reach_mm: f32, objects: &[SimObject]) -> Vec3 {
         .map(|mm| origin + up * mm as f32)
         .find(|p| !near(p))
         .unwrap_or(*origin)
+}
+
+/// Push object `o`'s tissue out of every active tool and hold what each grasper holds on its jaws.
+fn hold_in_tools(tools: &mut [SimTool], o: usize, object: &mut SimObject) {
+    for tool in tools.iter_mut().filter(|t| t.active) {
+        let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+        let body = ToolBody {
+            tip: &tool.collider,
+            shaft: tool.shaft.as_ref().map(|s| (s, tool.shaft_centre_mm())),
+            position_mm: tool.position_mm,
+            rotation: tool.rotation,
+        };
+        tool.contacts[o].project(
+            &body,
+            &object.model,
+            &mut object.state,
+            grasped,
+            object.friction,
+        );
+        if let Some(grasp) = &tool.grasp {
+            grasp.hold(
+                o,
+                &tool.position_mm,
+                &tool.rotation,
+                &object.model,
+                &mut object.state,
+            );
+        }
+    }
 }
 
 /// How many points a release let go.

@@ -79,9 +79,12 @@ fn the_fem_block_presses_back_harder_the_deeper_it_goes_and_relaxes_after() {
         from = depth;
     }
     assert!(forces.windows(2).all(|w| w[1] > 1.5 * w[0]), "{forces:?}");
-    // Hertz for a 4 mm sphere on a half-space of E = 5 kPa, nu = 0.45 at 3 mm is 0.087 N; this block is only
-    // 10 mm thick on a fixed floor, so it must be stiffer than that, and not wildly so.
-    assert!(forces[2] > 0.087 && forces[2] < 0.5, "{forces:?}");
+    // Hertz for a 4 mm sphere on a half-space of E = 5 kPa, nu = 0.45 at 3 mm is 0.087 N. This block is only
+    // 10 mm thick on a fixed floor, which stiffens it, and its elements (about 2 mm) resolve a 3.5 mm contact
+    // radius coarsely, which softens it; on a fine mesh the same simulation path is within 1-5% of Hertz
+    // (tests/tests/hertz.rs). So near Hertz, within -20% / +100%. (Before the held nodes were pinned in the
+    // implicit solve, this read 0.18 N: the bound here was then "above 0.087 N".)
+    assert!(forces[2] > 0.07 && forces[2] < 0.174, "{forces:?}");
 
     // Lift off: the surface comes back to rest.
     let out = move_to(&mut sim, 3.0, -5.0, 200, 800);

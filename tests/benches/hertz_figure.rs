@@ -35,8 +35,10 @@ fn parse_figure_path() -> anyhow::Result<Option<PathBuf>> {
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--figure" => figure = Some(args.next().context("--figure needs a path")?.into()),
-            "--bench" => {} // cargo bench passes it
-            other => anyhow::bail!("unknown argument `{other}` (known: --figure PATH)"),
+            "--bench" | "--simulated" => {} // cargo bench passes the first; main reads the second
+            other => {
+                anyhow::bail!("unknown argument `{other}` (known: --figure PATH, --simulated)")
+            }
         }
     }
     Ok(figure)

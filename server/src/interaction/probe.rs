@@ -95,6 +95,8 @@ pub struct ProbeContacts {
     sticky: bool,
     /// Last projection's held nodes with their normals, sorted by node (sticky contacts only).
     held_before: Vec<(u32, Vec3)>,
+    /// `held_before` was filled by [`Self::clear`] (a new tick's broad phase): the next projection uses it as is.
+    carried: bool,
 }
 
 impl ProbeContacts {
@@ -110,6 +112,7 @@ impl ProbeContacts {
             anchors_now: Vec::with_capacity(capacity),
             sticky: false,
             held_before: Vec::new(),
+            carried: false,
         }
     }
 
@@ -127,6 +130,10 @@ impl ProbeContacts {
     /// Forget last tick's contacts before a new broad phase (keeps capacity). The side each node was held
     /// on is kept for [`Self::project`].
     pub fn clear(&mut self) {
+        if self.sticky {
+            self.remember_held();
+            self.carried = true;
+        }
         self.candidates.clear();
         self.held.clear();
         self.normals.clear();
@@ -135,10 +142,20 @@ impl ProbeContacts {
     /// Forget everything, sides included (the tissue was reset, or the tool left).
     pub fn forget(&mut self) {
         self.clear();
+        self.held_before.clear();
+        self.carried = false;
         self.in_front.clear();
         self.in_front_now.clear();
         self.anchors.clear();
         self.anchors_now.clear();
+    }
+
+    /// Keep the held nodes and their normals for the sticky test, sorted by node. No allocation beyond capacity.
+    fn remember_held(&mut self) {
+        self.held_before.clear();
+        self.held_before
+            .extend(self.held.iter().copied().zip(self.normals.iter().copied()));
+        self.held_before.sort_unstable_by_key(|h| h.0);
     }
 
     /// Push every candidate node that is inside the tool out to its surface; record the held nodes. With
@@ -153,11 +170,8 @@ impl ProbeContacts {
         grasped: &[u32],
         friction: f32,
     ) {
-        if self.sticky {
-            self.held_before.clear();
-            self.held_before
-                .extend(self.held.iter().copied().zip(self.normals.iter().copied()));
-            self.held_before.sort_unstable_by_key(|h| h.0);
+        if self.sticky && !std::mem::take(&mut self.carried) {
+            self.remember_held();
         }
         self.held.clear();
         self.normals.clear();

@@ -137,7 +137,7 @@ impl RegionTracker {
                 velocities_mm_s: Vec::new(),
                 forces_n: Vec::new(),
                 external_forces_n: Vec::new(),
-                pinned: Vec::new(),
+                pinned: Vec::with_capacity(n),
             },
             sub_nodes: Vec::with_capacity(n),
             sub_active: Vec::with_capacity(n),
@@ -326,6 +326,15 @@ impl RegionTracker {
             };
             s.external_forces_n[k] = state.external_forces_n[g];
         }
+        s.pinned.clear();
+        for &g in &state.pinned {
+            if let Some(&local) = self.local_of.get(g as usize)
+                && local != OUTSIDE
+            {
+                s.pinned.push(local);
+            }
+        }
+        s.pinned.sort_unstable();
         let iterations = integrator.step(sub, s, dt_s);
         for (k, (&g, &active)) in self.sub_nodes.iter().zip(&self.sub_active).enumerate() {
             if active {
