@@ -3,44 +3,20 @@
 //! the same world's elements solved without corotation at small depth.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use common::{fem_block_press as press, worlds};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{World, load_world};
 
-fn worlds() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds")
+/// Move the left probe to `depth_mm` over `ticks` and hold it `hold` more; returns the last output.
+fn move_to(sim: &mut Sim, from_mm: f32, depth_mm: f32, ticks: usize, hold: usize) -> ToolOutput {
+    let mut outputs = common::fem_block_move(sim, from_mm, depth_mm, ticks, hold);
+    outputs.pop().expect("at least one tick")
 }
 
 fn fem_block_world() -> World {
     load_world(&worlds().join("fem_block.toml")).expect("fem_block world loads")
-}
-
-/// The left probe (sphere radius 4, device origin at world x = -10) with its bottom `depth_mm` below the
-/// block's top face.
-fn press(depth_mm: f32) -> ToolCommand {
-    ToolCommand {
-        active: true,
-        position_device_mm: [0.0, 0.0, 4.0 - depth_mm],
-        velocity_device_mm_s: [0.0; 3],
-        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-        ..ToolCommand::default()
-    }
-}
-
-/// Move the left probe to `depth_mm` over `ticks` and hold it `hold` more; returns the last output. Every tick
-/// stays finite, within the tool's limit, with neither a step halving nor a reset.
-fn move_to(sim: &mut Sim, from_mm: f32, depth_mm: f32, ticks: usize, hold: usize) -> ToolOutput {
-    let mut out = [ToolOutput::default(); 2];
-    for k in 0..ticks + hold {
-        let s = ((k + 1) as f32 / ticks as f32).min(1.0);
-        let d = from_mm + (depth_mm - from_mm) * s;
-        let report = sim.step(0.001, &[press(d), ToolCommand::default()], &mut out);
-        assert_eq!((report.faults, report.retries), (0, 0), "tick {k}");
-        let f = out[0].force_world_n;
-        assert!(f.iter().all(|c| c.is_finite()) && f.norm() <= 3.3 + 1e-4);
-    }
-    out[0]
 }
 
 #[test]

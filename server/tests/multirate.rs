@@ -5,16 +5,13 @@
 //! most, and an object frozen (not a kick) when its thread is lost.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use common::{fem_block_move as move_to, fem_block_press as press, worlds};
 use sinew_server::multirate::{StepJob, StepRunner};
 use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{World, load_world, parse_world};
-
-fn worlds() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds")
-}
 
 /// The shipped fem_block, stepped every tick.
 fn every_tick() -> World {
@@ -29,40 +26,6 @@ fn multi_rate(step_hz: u32) -> World {
         &format!("dt_s = {}\nstep_hz = {step_hz}\n", 1.0 / f64::from(step_hz)),
     );
     parse_world(&path, &text).expect("the multi-rate block loads")
-}
-
-/// The left probe (sphere radius 4 over world x = -10) with its bottom `depth_mm` below the block's top face.
-fn press(depth_mm: f32) -> ToolCommand {
-    ToolCommand {
-        active: true,
-        position_device_mm: [0.0, 0.0, 4.0 - depth_mm],
-        velocity_device_mm_s: [0.0; 3],
-        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-        ..ToolCommand::default()
-    }
-}
-
-/// Move the left probe from `from_mm` to `depth_mm` deep over `ticks`, hold `hold` more; every tick's output.
-/// Every tick stays finite and within the tool's limit, with neither a halving nor a reset.
-fn move_to(
-    sim: &mut Sim,
-    from_mm: f32,
-    depth_mm: f32,
-    ticks: usize,
-    hold: usize,
-) -> Vec<ToolOutput> {
-    let mut out = [ToolOutput::default(); 2];
-    let mut all = Vec::with_capacity(ticks + hold);
-    for k in 0..ticks + hold {
-        let s = ((k + 1) as f32 / ticks as f32).min(1.0);
-        let d = from_mm + (depth_mm - from_mm) * s;
-        let report = sim.step(0.001, &[press(d), ToolCommand::default()], &mut out);
-        assert_eq!((report.faults, report.retries), (0, 0), "tick {k}");
-        let f = out[0].force_world_n;
-        assert!(f.iter().all(|c| c.is_finite()) && f.norm() <= 3.3 + 1e-4);
-        all.push(out[0]);
-    }
-    all
 }
 
 #[test]

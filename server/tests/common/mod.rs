@@ -4,9 +4,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
 
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{grid_sheet, to_obj_text};
 
 /// A fresh directory under the system temp dir, unique per process and call.
@@ -187,4 +188,48 @@ pub fn calibrated_spring_model(
     );
     parts.tet_bulk_modulus_n_per_mm2 = volume_supplement_n_per_mm2(youngs_n_per_mm2, poisson);
     MassSpringModel::from_parts(parts)
+}
+
+/// The repository's `worlds/` directory.
+pub fn worlds() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds")
+}
+
+/// worlds/fem_block.toml's left probe (a 4 mm sphere, device origin at world x = -10) with its bottom
+/// `depth_mm` below the block's top face.
+pub fn fem_block_press(depth_mm: f32) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        position_device_mm: [0.0, 0.0, 4.0 - depth_mm],
+        velocity_device_mm_s: [0.0; 3],
+        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..ToolCommand::default()
+    }
+}
+
+/// Move fem_block's left probe from `from_mm` to `depth_mm` deep over `ticks` and hold it `hold` more; every
+/// tick's output. Every tick stays finite and within the tool's limit, with neither a halving nor a reset.
+pub fn fem_block_move(
+    sim: &mut Sim,
+    from_mm: f32,
+    depth_mm: f32,
+    ticks: usize,
+    hold: usize,
+) -> Vec<ToolOutput> {
+    let mut out = [ToolOutput::default(); 2];
+    let mut all = Vec::with_capacity(ticks + hold);
+    for k in 0..ticks + hold {
+        let s = ((k + 1) as f32 / ticks as f32).min(1.0);
+        let d = from_mm + (depth_mm - from_mm) * s;
+        let report = sim.step(
+            0.001,
+            &[fem_block_press(d), ToolCommand::default()],
+            &mut out,
+        );
+        assert_eq!((report.faults, report.retries), (0, 0), "tick {k}");
+        let f = out[0].force_world_n;
+        assert!(f.iter().all(|c| c.is_finite()) && f.norm() <= 3.3 + 1e-4);
+        all.push(out[0]);
+    }
+    all
 }
