@@ -177,17 +177,15 @@ impl StepJob {
                 // them: the rest of the tissue answers the tool's new place within this substep.
                 self.state.pinned.clear();
                 for tool in self.tools.iter_mut().filter(|t| t.active) {
-                    let body = ToolBody {
-                        tip: &tool.seed.tip,
-                        shaft: tool.seed.shaft.as_ref().map(|(shaft, half_mm)| {
-                            (
-                                shaft,
-                                tool.position_mm + tool.rotation * Vec3::new(0.0, 0.0, *half_mm),
-                            )
-                        }),
-                        position_mm: tool.position_mm,
-                        rotation: tool.rotation,
-                    };
+                    let body = ToolBody::posed(
+                        &tool.seed.tip,
+                        tool.seed
+                            .shaft
+                            .as_ref()
+                            .map(|(shaft, half_mm)| (shaft, *half_mm)),
+                        tool.position_mm,
+                        tool.rotation,
+                    );
                     tool.contacts
                         .project(&body, &self.model, &mut self.state, &[], self.friction);
                     self.state.pinned.extend_from_slice(&tool.contacts.held);

@@ -1580,12 +1580,13 @@ fn entry_point_mm(origin: &Vec3, reach_mm: f32, objects: &[SimObject]) -> Vec3 {
 fn hold_in_tools(tools: &mut [SimTool], o: usize, object: &mut SimObject) {
     for tool in tools.iter_mut().filter(|t| t.active) {
         let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
-        let body = ToolBody {
-            tip: &tool.collider,
-            shaft: tool.shaft.as_ref().map(|s| (s, tool.shaft_centre_mm())),
-            position_mm: tool.position_mm,
-            rotation: tool.rotation,
-        };
+        let half_mm = tool.shaft_spec.map_or(0.0, |s| 0.5 * s.length_mm);
+        let body = ToolBody::posed(
+            &tool.collider,
+            tool.shaft.as_ref().map(|s| (s, half_mm)),
+            tool.position_mm,
+            tool.rotation,
+        );
         tool.contacts[o].project(
             &body,
             &object.model,

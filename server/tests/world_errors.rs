@@ -795,6 +795,22 @@ fn a_cut_resistance_burn_shrink_or_friction_out_of_range_is_refused_by_key_and_l
     }
 }
 
+/// Each case `(from, to, key, line_text, says)` replaces `from` with `to` in `good` (the sheet mesh beside it);
+/// the world is refused naming `key` on the line holding `line_text`, with a message containing `says`.
+fn assert_refused_by_key_and_line(good: &str, cases: &[(&str, &str, &str, &str, &str)]) {
+    for &(from, to, key, line_text, says) in cases {
+        assert!(good.contains(from), "{from}");
+        let bad = good.replacen(from, to, 1);
+        let (error, message, _) = refused(&bad, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&bad, line_text)),
+            "{message}"
+        );
+        assert!(message.contains(says), "{message}");
+    }
+}
+
 /// `GOOD_WORLD`'s sheet extruded into a 1 mm volume of corotational finite elements.
 fn fem_world() -> String {
     GOOD_WORLD
@@ -869,17 +885,7 @@ fn finite_element_keys_are_checked_by_key_and_line() {
             "force-based integrator",
         ),
     ];
-    for (from, to, key, line_text, says) in cases {
-        assert!(good.contains(from), "{from}");
-        let bad = good.replacen(from, to, 1);
-        let (error, message, _) = refused(&bad, None);
-        assert_eq!(
-            invalid_key_and_line(&error),
-            (key, line_of(&bad, line_text)),
-            "{message}"
-        );
-        assert!(message.contains(says), "{message}");
-    }
+    assert_refused_by_key_and_line(&good, &cases);
     // A mass-spring object with neither a stiffness nor a modulus names the stiffness.
     let bare = GOOD_WORLD.replace("stiffness_n_per_mm = 0.01\n", "");
     let (error, message, _) = refused(&bare, None);
@@ -1082,15 +1088,5 @@ fn a_multi_rate_object_is_checked_by_key_and_line() {
             "tear_strain",
         ),
     ];
-    for (from, to, key, line_text, says) in cases {
-        assert!(good.contains(from), "{from}");
-        let bad = good.replacen(from, to, 1);
-        let (error, message, _) = refused(&bad, None);
-        assert_eq!(
-            invalid_key_and_line(&error),
-            (key, line_of(&bad, line_text)),
-            "{message}"
-        );
-        assert!(message.contains(says), "{message}");
-    }
+    assert_refused_by_key_and_line(&good, &cases);
 }

@@ -40,7 +40,24 @@ pub struct ToolBody<'a> {
 /// A node held last time stays held (sticky contacts) while it is this close to the tool, mm.
 pub const STICK_TOLERANCE_MM: f32 = 1e-3;
 
-impl ToolBody<'_> {
+impl<'a> ToolBody<'a> {
+    /// The body of a tool at `position_mm`, `rotation`: its tip, and its shaft (a capsule of half length
+    /// `half_mm` along the tool's z from its origin) if it has one.
+    pub fn posed(
+        tip: &'a ToolCollider,
+        shaft: Option<(&'a ToolCollider, f32)>,
+        position_mm: Vec3,
+        rotation: UnitQuaternion<f32>,
+    ) -> Self {
+        Self {
+            tip,
+            shaft: shaft
+                .map(|(s, half_mm)| (s, position_mm + rotation * Vec3::new(0.0, 0.0, half_mm))),
+            position_mm,
+            rotation,
+        }
+    }
+
     /// Distance from `point_mm` to the body (tip or shaft, whichever is nearer), mm; 0 inside.
     pub fn distance_mm(&self, point_mm: &Vec3) -> f32 {
         let tip = self
