@@ -27,6 +27,16 @@ pub enum HapticError {
         /// The rate given.
         rate_hz: u32,
     },
+    /// The phase alignment's target wait is out of range.
+    #[error(
+        "phase target {target_us} us is invalid: must be in [0, {period_us}) us, the loop period"
+    )]
+    PhaseTarget {
+        /// The target given, us.
+        target_us: f32,
+        /// The loop period, us.
+        period_us: f32,
+    },
     /// A zenoh call failed.
     #[error("zenoh: {what}: {detail}")]
     Zenoh {

@@ -43,6 +43,12 @@ pub struct HapticConfig {
     pub passivity: crate::passivity::PassivityMode,
     /// Direct, moderated or auto (default).
     pub mode: crate::render_mode::ModePolicy,
+    /// Shift the loop's phase so poses arrive just before the server's ticks while rendering directly
+    /// (default on; `--phase-align off` for the comparison).
+    pub phase_align: bool,
+    /// The pose wait at the server the alignment settles at, us (`--phase-target-us`, default 150): the
+    /// margin that keeps a jittered pose ahead of the server's tick.
+    pub phase_target_us: f32,
     /// Emulated delay, jitter and loss on the poses this hapticserver publishes (`--emulate-*`).
     pub emulation: EmulationConfig,
     /// Record this many ticks of trace (0 = none); [`crate::HapticHandle::take_trace`] returns it after stop.
@@ -66,6 +72,8 @@ impl std::fmt::Debug for HapticConfig {
             .field("safety", &self.safety)
             .field("passivity", &self.passivity)
             .field("mode", &self.mode)
+            .field("phase_align", &self.phase_align)
+            .field("phase_target_us", &self.phase_target_us)
             .field("emulation", &self.emulation)
             .field("trace_ticks", &self.trace_ticks)
             .field("panic_at_tick", &self.panic_at_tick)
@@ -88,6 +96,8 @@ impl HapticConfig {
             safety: None,
             passivity: crate::passivity::PassivityMode::Observe,
             mode: crate::render_mode::ModePolicy::default(),
+            phase_align: true,
+            phase_target_us: crate::phase_align::DEFAULT_TARGET_WAIT_US,
             emulation: EmulationConfig::default(),
             trace_ticks: 0,
             panic_at_tick: None,

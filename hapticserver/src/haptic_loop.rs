@@ -23,6 +23,7 @@ use crate::clock::ns_to_s;
 use crate::device::Device;
 use crate::force_inbox::{ForceInbox, ReceivedForce};
 use crate::passivity::{Passivity, PassivityMode};
+use crate::phase_align::{PhaseAligner, PhaseConfig};
 use crate::render::{ModelRenderer, RenderConfig};
 use crate::render_mode::{ModePolicy, ModeSwitch};
 use crate::report::HapticReport;
@@ -55,6 +56,8 @@ pub struct HapticLoop {
     passivity_mode: PassivityMode,
     renderer: ModelRenderer,
     mode: ModeSwitch,
+    phase: PhaseAligner,
+    phase_shift_ns: i64,
     allowance_mj: f64,
     trace: Trace,
     last_velocity_mm_s: [f32; 3],
@@ -105,6 +108,8 @@ impl HapticLoop {
             passivity_mode: PassivityMode::Observe,
             renderer: ModelRenderer::new(RenderConfig::default()),
             mode: ModeSwitch::new(ModePolicy::default()),
+            phase: PhaseAligner::new(PhaseConfig::for_period_us(period.as_secs_f32() * 1e6), true),
+            phase_shift_ns: 0,
             allowance_mj: 0.0,
             trace: Trace::default(),
             last_velocity_mm_s: [0.0; 3],
@@ -137,6 +142,22 @@ impl HapticLoop {
     /// Choose between the streamed force and the local model (default: auto).
     pub fn set_mode_policy(&mut self, policy: ModePolicy) {
         self.mode = ModeSwitch::new(policy);
+    }
+
+    /// Align the loop's phase with the server's tick while rendering directly (default on), settling at a
+    /// pose wait of `target_wait_us` at the server.
+    pub fn set_phase_align(&mut self, enabled: bool, target_wait_us: f32) {
+        let config = PhaseConfig {
+            target_wait_us,
+            ..self.phase.config()
+        };
+        self.phase = PhaseAligner::new(config, enabled);
+    }
+
+    /// The shift of the loop's next deadline the latest tick asked for, ns (positive: later); the pacer
+    /// applies it. Zero once taken.
+    pub fn take_phase_shift_ns(&mut self) -> i64 {
+        std::mem::take(&mut self.phase_shift_ns)
     }
 
     /// Record up to `capacity` ticks (allocated now).
@@ -277,6 +298,13 @@ impl HapticLoop {
                 );
                 self.last_round_trip_us = u32::try_from(round_trip_ns / 1000).unwrap_or(u32::MAX);
                 self.mode.observe_round_trip(round_trip_ns as f32 * 1e-6);
+                // The phase matters only while the streamed force is rendered; a local model is evaluated
+                // against the current position whenever it arrives.
+                if let Some(wait_us) = command.pose_wait_us
+                    && !self.mode.moderated()
+                {
+                    self.phase.observe(command.echo_pose_seq, wait_us);
+                }
             }
         }
 
@@ -337,6 +365,7 @@ impl HapticLoop {
             passivity_energy_mj: self.passivity.counters().energy_mj,
         });
         self.stillness.push(now_s, force_n, velocity_mm_s);
+        self.phase_shift_ns = self.phase.shift_ns(self.pose_seq);
         self.counters.last_rendered_force_n = force_n;
         self.counters.max_rendered_force_n =
             self.counters.max_rendered_force_n.max(norm3(&force_n));
@@ -397,6 +426,7 @@ impl HapticLoop {
         report.last_position_mm = c.last_position_mm;
         report.safety = self.safety.counters();
         report.passivity = self.passivity.counters();
+        report.phase = self.phase.counters();
         report.decode_rejects = self.inbox.rejects();
         report.device_read_errors = c.device_read_errors;
         report.device_write_errors = c.device_write_errors;

@@ -69,6 +69,8 @@ impl HapticServer {
             safety,
             passivity,
             mode,
+            phase_align,
+            phase_target_us,
             emulation,
             trace_ticks,
             panic_at_tick,
@@ -79,6 +81,13 @@ impl HapticServer {
         if !(1..=20_000).contains(&loop_rate_hz) {
             return Err(HapticError::LoopRate {
                 rate_hz: loop_rate_hz,
+            });
+        }
+        let period_us = 1e6 / loop_rate_hz as f32;
+        if !(0.0..period_us).contains(&phase_target_us) {
+            return Err(HapticError::PhaseTarget {
+                target_us: phase_target_us,
+                period_us,
             });
         }
         let keys = SceneKeys::new(&scene)?;
@@ -229,6 +238,7 @@ impl HapticServer {
         let mut haptic = HapticLoop::new(device, safety, inbox.clone(), period);
         haptic.set_passivity_mode(passivity);
         haptic.set_mode_policy(mode);
+        haptic.set_phase_align(phase_align, phase_target_us);
         haptic.record_trace(trace_ticks);
         let outlet = if emulation.is_off() {
             PoseOutlet::Direct(pose_publisher)
@@ -411,6 +421,7 @@ impl DeviceLoop {
             );
             self.haptic
                 .tick(self.clock.now_ns(), interval, &mut publish);
+            pacer.shift_ns(self.haptic.take_phase_shift_ns());
             if self.haptic.ticks().is_multiple_of(self.report_every_ticks) {
                 self.haptic.try_publish_report(&self.report);
             }

@@ -4,7 +4,7 @@
 //! [`hand_model`], [`hand_script`]), device-side force safety ([`safety`]), the 1 kHz loop body
 //! ([`haptic_loop`]) and the process around it ([`haptic_server`]: zenoh declarations, threads, handle,
 //! [`report`], with the last second's [`stillness`]), and the latency-moderated renderer of the server's
-//! local models ([`render`]).
+//! local models ([`render`]), and the alignment of the loop's phase with the server's tick ([`phase_align`]).
 //!
 //! Data flow: device --read--> [`haptic_loop::HapticLoop::tick`] --DevicePose, 1 kHz--> server;
 //! server --ForceCommand--> zenoh callback --> [`force_inbox::ForceInbox`] (latest-value mailbox) -->
@@ -27,6 +27,7 @@ pub mod haptic_server;
 #[cfg(feature = "openhaptics")]
 pub mod openhaptics;
 pub mod passivity;
+pub mod phase_align;
 pub mod render;
 pub mod render_mode;
 pub mod replay_device;
@@ -50,6 +51,7 @@ pub use hand_script::{
 pub use haptic_config::HapticConfig;
 pub use haptic_server::{HapticHandle, HapticServer};
 pub use passivity::{Passivity, PassivityCounters, PassivityMode};
+pub use phase_align::{PhaseAligner, PhaseConfig, PhaseCounters};
 pub use render_mode::{ModePolicy, ModeSwitch};
 pub use replay_device::{ReplayDevice, ReplayError, ReplaySample};
 pub use report::HapticReport;

@@ -26,6 +26,13 @@ enum DeviceKind {
     Openhaptics,
 }
 
+/// `--phase-align` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum OnOff {
+    On,
+    Off,
+}
+
 /// `--passivity` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum PassivityArg {
@@ -83,6 +90,15 @@ struct Args {
     /// round trip, direct below 10 ms).
     #[arg(long, default_value = "auto")]
     mode: ModePolicy,
+    /// Phase alignment while rendering directly: `on` (default) shifts the loop's phase, in steps of at most
+    /// 10 us, until its poses reach the server just before its ticks (one device period of round trip);
+    /// `off` leaves the phase alone.
+    #[arg(long, value_enum, default_value_t = OnOff::On)]
+    phase_align: OnOff,
+    /// The pose wait at the server that phase alignment settles at, us (a margin against jitter; below the
+    /// loop period).
+    #[arg(long, default_value_t = hapticserver::phase_align::DEFAULT_TARGET_WAIT_US)]
+    phase_target_us: f32,
     /// Simulated operator: grip (default), light, nominal or firm.
     #[arg(long, default_value = "grip")]
     hand: HandPreset,
@@ -198,6 +214,9 @@ fn main() -> Result<()> {
     config.loop_rate_hz = args.rate_hz;
     config.spin_accuracy_ns = args.spin_ns;
     config.mode = args.mode;
+    config.phase_align = args.phase_align == OnOff::On;
+    // Checked by HapticServer::start (below the loop period), which names it.
+    config.phase_target_us = args.phase_target_us;
     config.emulation = args.emulation.config().map_err(anyhow::Error::msg)?;
     config.panic_at_tick = args.fault_panic_at_tick;
     if args.trace_csv.is_some() {

@@ -11,6 +11,7 @@ use sinew_protocol::rt::LatencyHistogram;
 
 use crate::force_inbox::DecodeRejects;
 use crate::passivity::PassivityCounters;
+use crate::phase_align::PhaseCounters;
 use crate::safety::SafetyCounters;
 
 /// A snapshot of a hapticserver's health and state.
@@ -53,6 +54,8 @@ pub struct HapticReport {
     pub safety: SafetyCounters,
     /// What the passivity controller did.
     pub passivity: PassivityCounters,
+    /// What the phase alignment did (direct mode).
+    pub phase: PhaseCounters,
     /// Refused force payloads.
     pub decode_rejects: DecodeRejects,
     /// Failed device reads.
@@ -112,6 +115,7 @@ impl HapticReport {
             last_position_mm: [0.0; 3],
             safety: SafetyCounters::default(),
             passivity: PassivityCounters::default(),
+            phase: PhaseCounters::default(),
             decode_rejects: DecodeRejects::default(),
             device_read_errors: 0,
             device_write_errors: 0,

@@ -87,6 +87,7 @@ fn force(rng: &mut fastrand::Rng) -> ForceCommand {
         },
         in_contact: rng.bool(),
         device_instance: rng.u64(..),
+        pose_wait_us: rng.bool().then(|| rng.u32(..)),
     }
 }
 

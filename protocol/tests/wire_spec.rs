@@ -34,6 +34,7 @@ fn force_direct() -> ForceCommand {
         mode: ForceMode::Direct,
         in_contact: true,
         device_instance: 0x1122_3344_5566_7788,
+        pose_wait_us: Some(150),
     }
 }
 

@@ -15,8 +15,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
-    surgeon_scripts,
+    Pacing, SimDeviceSetup, free_loopback_endpoint, load_shipped_world, start_server,
+    start_sim_device_emulated, surgeon_scripts,
 };
 use sinew_protocol::DevicePose;
 use sinew_protocol::codec::encode_to_vec;
@@ -86,6 +86,90 @@ fn ping_pong(seconds: f64, payload_len: usize) -> LatencyHistogram {
     histogram.lock().unwrap().clone()
 }
 
+/// One run of the live system: server + two simulated hapticservers, `phase_align` on or off. Prints its
+/// rows of the table (measured over `seconds` after 1.5 s of settling) and returns what the caller reports.
+fn run_system(
+    seconds: f64,
+    phase_align: bool,
+    baseline: &LatencyHistogram,
+) -> (
+    sinew_protocol::ServerStats,
+    sinew_protocol::ServerStats,
+    f64,
+    usize,
+    Vec<hapticserver::HapticReport>,
+) {
+    let endpoint = free_loopback_endpoint().unwrap();
+    let world = load_shipped_world("pad.toml").unwrap();
+    let mut server = start_server(world, &endpoint, Pacing::Spin).unwrap();
+    let (left, right) = surgeon_scripts();
+    let setup = SimDeviceSetup {
+        phase_align,
+        ..SimDeviceSetup::default()
+    };
+    let mut devices = [
+        start_sim_device_emulated("pad", "left", left, &endpoint, Pacing::Spin, setup).unwrap(),
+        start_sim_device_emulated("pad", "right", right, &endpoint, Pacing::Spin, setup).unwrap(),
+    ];
+    std::thread::sleep(Duration::from_secs_f64(1.5));
+    let before = server.stats();
+    let settled: Vec<_> = devices.iter().map(|d| d.report()).collect();
+    let vertices = server.published_positions(0).map(|(_, p)| p.len()).unwrap();
+    let t0 = Instant::now();
+    std::thread::sleep(Duration::from_secs_f64(seconds));
+    let elapsed = t0.elapsed().as_secs_f64();
+    let after = server.stats();
+    let mut reports: Vec<_> = devices.iter().map(|d| d.report()).collect();
+    for d in &mut devices {
+        d.stop().unwrap();
+    }
+    server.stop();
+    for (r, s) in reports.iter_mut().zip(&settled) {
+        r.round_trip = r.round_trip.since(&s.round_trip);
+        r.wire_round_trip = r.wire_round_trip.since(&s.wire_round_trip);
+        r.interval_deviation = r.interval_deviation.since(&s.interval_deviation);
+    }
+    let label = if phase_align {
+        "phase aligned"
+    } else {
+        "phase alignment off"
+    };
+    for r in &reports {
+        for (what, h) in [
+            ("wire (force arrival)", &r.wire_round_trip),
+            ("rendered (device tick)", &r.round_trip),
+        ] {
+            println!(
+                "| pose -> force, device `{}`, {what}, {label} | {:.0} us | {:.0} us | {:.1} / {:.1} | {} |",
+                r.device_id,
+                us(h, 50.0),
+                us(h, 99.0),
+                us(h, 50.0) / us(baseline, 50.0),
+                us(h, 99.0) / us(baseline, 99.0),
+                h.count()
+            );
+        }
+    }
+    for r in &reports {
+        println!(
+            "| hapticserver `{}` loop interval deviation from 1 ms, {label} | {:.1} us | {:.1} us | - | {} (overruns {}; phase: {} corrections, net shift {:+.0} us, median wait {:.0} us) |",
+            r.device_id,
+            us(&r.interval_deviation, 50.0),
+            us(&r.interval_deviation, 99.0),
+            r.interval_deviation.count(),
+            r.overruns,
+            r.phase.corrections,
+            r.phase.net_shift_us,
+            r.phase.last_median_wait_us,
+        );
+    }
+    println!(
+        "| server tick in the live system (whole run, 2 tools), {label} | {:.0} us | {:.0} us | - | {} (overruns {}) |",
+        after.tick_p50_us, after.tick_p99_us, after.ticks, after.overruns
+    );
+    (before, after, elapsed, vertices, reports)
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let seconds: f64 = args
@@ -107,27 +191,6 @@ fn main() {
 
     let baseline = ping_pong(seconds, pose_len);
 
-    let endpoint = free_loopback_endpoint().unwrap();
-    let world = load_shipped_world("pad.toml").unwrap();
-    let mut server = start_server(world, &endpoint, Pacing::Spin).unwrap();
-    let (left, right) = surgeon_scripts();
-    let mut devices = [
-        start_sim_device("pad", "left", left, &endpoint, Pacing::Spin).unwrap(),
-        start_sim_device("pad", "right", right, &endpoint, Pacing::Spin).unwrap(),
-    ];
-    std::thread::sleep(Duration::from_secs_f64(1.5));
-    let before = server.stats();
-    let vertices = server.published_positions(0).map(|(_, p)| p.len()).unwrap();
-    let t0 = Instant::now();
-    std::thread::sleep(Duration::from_secs_f64(seconds));
-    let elapsed = t0.elapsed().as_secs_f64();
-    let after = server.stats();
-    let reports: Vec<_> = devices.iter().map(|d| d.report()).collect();
-    for d in &mut devices {
-        d.stop().unwrap();
-    }
-    server.stop();
-
     println!("| measurement | p50 | p99 | ratio p50 / p99 to baseline | samples |");
     println!("|---|---|---|---|---|");
     println!(
@@ -136,36 +199,10 @@ fn main() {
         us(&baseline, 99.0),
         baseline.count()
     );
-    for r in &reports {
-        for (what, h) in [
-            ("wire (force arrival)", &r.wire_round_trip),
-            ("rendered (device tick)", &r.round_trip),
-        ] {
-            println!(
-                "| pose -> force, device `{}`, {what} | {:.0} us | {:.0} us | {:.1} / {:.1} | {} |",
-                r.device_id,
-                us(h, 50.0),
-                us(h, 99.0),
-                us(h, 50.0) / us(&baseline, 50.0),
-                us(h, 99.0) / us(&baseline, 99.0),
-                h.count()
-            );
-        }
-    }
-    for r in &reports {
-        println!(
-            "| hapticserver `{}` loop interval deviation from 1 ms | {:.1} us | {:.1} us | - | {} (overruns {}) |",
-            r.device_id,
-            us(&r.interval_deviation, 50.0),
-            us(&r.interval_deviation, 99.0),
-            r.interval_deviation.count(),
-            r.overruns
-        );
-    }
-    println!(
-        "| server tick in the live system (whole run, 2 tools) | {:.0} us | {:.0} us | - | {} (overruns {}) |",
-        after.tick_p50_us, after.tick_p99_us, after.ticks, after.overruns
-    );
+    // Without phase alignment first (the device loops keep whatever phase they start at), then with it (the
+    // default). Each run measures after a settling time that covers the alignment's convergence.
+    let _ = run_system(seconds, false, &baseline);
+    let (before, after, elapsed, vertices, reports) = run_system(seconds, true, &baseline);
     let delta_bytes = (after.delta_bytes_sent - before.delta_bytes_sent) as f64;
     let full_mesh_bytes_per_s = (vertices * 6) as f64 * 60.0;
     println!();

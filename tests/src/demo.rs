@@ -92,6 +92,7 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
                 mode: options.mode,
                 emulation: one_way,
                 hand: options.hand,
+                phase_align: true,
             },
         )
     };

@@ -186,6 +186,8 @@ pub struct SimDeviceSetup {
     pub emulation: sinew_protocol::rt::EmulationConfig,
     /// The simulated operator.
     pub hand: HandPreset,
+    /// Align the loop's phase with the server's tick while rendering directly (the default).
+    pub phase_align: bool,
 }
 
 impl Default for SimDeviceSetup {
@@ -194,6 +196,7 @@ impl Default for SimDeviceSetup {
             mode: hapticserver::ModePolicy::default(),
             emulation: sinew_protocol::rt::EmulationConfig::default(),
             hand: HandPreset::Grip,
+            phase_align: true,
         }
     }
 }
@@ -217,6 +220,7 @@ pub fn start_sim_device_emulated(
     config.spin_accuracy_ns = pacing.native_accuracy_ns();
     config.mode = setup.mode;
     config.emulation = setup.emulation;
+    config.phase_align = setup.phase_align;
     HapticServer::start(config).with_context(|| format!("starting hapticserver `{id}`"))
 }
 

@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 8
+PROTOCOL_VERSION = 9
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -242,6 +242,8 @@ class ForceCommand:
     local_model: Optional[LocalModel] = wire_field(("opt", LocalModel), default=None)
     in_contact: bool = wire_field("bool", default=False)
     device_instance: int = wire_field("u64", default=0)
+    # Microseconds the answered pose waited at the server before the tick that used it; None if not measured.
+    pose_wait_us: Optional[int] = wire_field(("opt", "u32"), default=None)
 
 
 @dataclass

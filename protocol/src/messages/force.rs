@@ -44,6 +44,11 @@ pub struct ForceCommand {
     /// The instance (envelope sender) of the device whose poses this answers: the one holding the device id.
     /// Another hapticserver started with the same id (refused by the server) must not render it.
     pub device_instance: u64,
+    /// How long the answered pose waited at the server, microseconds: from its arrival to the start of the
+    /// tick that first used it. A device in direct mode shifts its loop's phase with it, so its poses arrive
+    /// just before the server's ticks (one device period of round trip). None when not measured (a replay, a
+    /// release, the zeros after a failure).
+    pub pose_wait_us: Option<u32>,
 }
 
 impl Message for ForceCommand {

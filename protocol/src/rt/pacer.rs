@@ -56,6 +56,21 @@ impl Pacer {
         interval
     }
 
+    /// Move the next deadline (and every one after it) by `ns`: later when positive. A loop aligning its phase
+    /// with another's calls this with small steps; a shift is bounded to half a period.
+    pub fn shift_ns(&mut self, ns: i64) {
+        let half = i64::try_from(self.period.as_nanos() / 2).unwrap_or(i64::MAX);
+        let ns = ns.clamp(-half, half);
+        let by = Duration::from_nanos(ns.unsigned_abs());
+        if ns >= 0 {
+            self.next += by;
+        } else {
+            // The next deadline was at least one period after the previous wake: half a period back stays
+            // after it.
+            self.next = self.next.checked_sub(by).unwrap_or(self.next);
+        }
+    }
+
     /// Periods skipped because the loop ran late.
     pub fn overruns(&self) -> u64 {
         self.overruns

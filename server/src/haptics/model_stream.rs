@@ -251,6 +251,7 @@ impl ModelStream {
             in_contact: out.in_contact,
             // Set by the node from the pose's sender; the sim core knows no instances.
             device_instance: 0,
+            pose_wait_us: None,
         })
     }
 
@@ -267,6 +268,7 @@ impl ModelStream {
             mode: ForceMode::Direct,
             in_contact: false,
             device_instance: 0,
+            pose_wait_us: None,
         }
     }
 

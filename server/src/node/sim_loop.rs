@@ -217,6 +217,7 @@ fn supervise(shared: &Shared, sim: Sim, outlets: &mut [ForceOutlet], options: Si
                     mode: ForceMode::Direct,
                     in_contact: false,
                     device_instance,
+                    pose_wait_us: None,
                 },
                 &mut buf,
             );
@@ -262,6 +263,7 @@ fn run(
 
     let mut seen = vec![0u64; n];
     let mut last_pose: Vec<Option<PoseArrival>> = vec![None; n];
+    let mut pose_wait_us: Vec<Option<u32>> = vec![None; n];
     let mut inputs: Vec<Option<PoseInput>> = vec![None; n];
     let mut limits: Vec<Option<f32>> = vec![None; n];
     let mut commands: Vec<Option<ForceCommand>> = vec![None; n];
@@ -308,6 +310,8 @@ fn run(
             };
             if let Some(arrival) = slot.pose.take_newer(&mut seen[t]) {
                 last_pose[t] = Some(arrival);
+                // Measured once, at the tick that first uses the pose: the device aligns its phase with it.
+                pose_wait_us[t] = Some(wait_us(start, arrival.received));
             }
             let usable = !slot.gone.load(Ordering::Acquire);
             inputs[t] = last_pose[t].map(|a| PoseInput {
@@ -346,6 +350,11 @@ fn run(
                 continue;
             };
             command.device_instance = last_pose[t].map_or(InstanceId::NONE, |a| a.from).0;
+            command.pose_wait_us = if recorded.is_some() {
+                None
+            } else {
+                pose_wait_us[t]
+            };
             encode(shared.instance, command, &mut buf);
             if let Some(outlet) = outlets.get_mut(t) {
                 outlet.send(&buf);
@@ -423,6 +432,12 @@ fn run(
                 .collect(),
         });
     }
+}
+
+/// Microseconds from a pose's arrival to the tick that takes it (saturating: a pose stamped after the tick's
+/// start, by a callback racing it, waited 0).
+fn wait_us(tick_start: Instant, received: Instant) -> u32 {
+    u32::try_from(tick_start.saturating_duration_since(received).as_micros()).unwrap_or(u32::MAX)
 }
 
 /// Copy the training layer's live view into the report (no allocation).

@@ -133,8 +133,8 @@ pub fn replay_inspected(
     Ok(outcome)
 }
 
-/// The recorded and replayed commands are the same to the bit (the device instance is the node's stamp, not
-/// the tick's output, and is left out).
+/// The recorded and replayed commands are the same to the bit (the device instance and the pose's wait are the
+/// node's stamps, not the tick's output, and are left out).
 pub(crate) fn same_bits(
     device: &DeviceTick,
     replayed: &Option<sinew_protocol::ForceCommand>,
@@ -142,6 +142,7 @@ pub(crate) fn same_bits(
     let strip = |c: &Option<sinew_protocol::ForceCommand>| {
         c.map(|mut c| {
             c.device_instance = 0;
+            c.pose_wait_us = None;
             postcard::to_allocvec(&c).unwrap_or_default()
         })
     };
