@@ -189,6 +189,7 @@ fn snapshot(rng: &mut fastrand::Rng) -> SceneSnapshot {
                     (0..n).map(|_| rng.u8(..)).collect()
                 },
                 topology_epoch: rng.u32(..),
+                error_bound_mm: rng.f32(),
             }
         })
         .collect();
@@ -465,6 +466,7 @@ fn out_of_domain_fields_are_refused_by_name() {
         frame: 0,
         burn: Vec::new(),
         topology_epoch: 0,
+        error_bound_mm: 0.0,
     });
     assert!(matches!(
         decode::<SceneSnapshot>(&encode_to_vec(sinew_protocol::InstanceId(1), &s)),
@@ -504,6 +506,7 @@ fn out_of_domain_fields_are_refused_by_name() {
         frame: 0,
         burn: vec![255; 2],
         topology_epoch: 0,
+        error_bound_mm: 0.0,
     });
     assert!(matches!(
         decode::<SceneSnapshot>(&encode_to_vec(sinew_protocol::InstanceId(1), &s)),

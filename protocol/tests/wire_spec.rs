@@ -128,6 +128,7 @@ fn snapshot() -> SceneSnapshot {
             frame: 12,
             burn: Vec::new(),
             topology_epoch: 0,
+            error_bound_mm: 0.01,
         }],
         tools: vec![ToolInfo {
             tool: 0,

@@ -170,6 +170,7 @@ fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::er
         object.model.rest_positions_mm(),
         object.model.triangles(),
         40.0,
+        0.0,
     );
     let mut topology = ObjectTopology::default();
     let mut delta = MeshDelta::default();

@@ -1,8 +1,11 @@
 //! Mesh replication state: quantization bounds, what each object last sent, and delta/snapshot building.
 //!
 //! Owns: the server side of the replica contract (see [`sinew_protocol::MeshDelta`]): a vertex is sent when
-//! its quantized position differs from the last one sent, so a replica that applied every delta holds
-//! exactly the server's quantized state. Pure data; must not touch zenoh.
+//! its quantized position differs from the last one sent and the position replicas hold (the last one sent,
+//! dequantized) is more than the object's delta tolerance from where it is now. A replica that applied every
+//! delta therefore holds every vertex within max(tolerance, the quantization's bound) of the server's
+//! position at that frame (the snapshot's `error_bound_mm`); with a tolerance of 0 it holds exactly the
+//! server's quantized state. Pure data; must not touch zenoh.
 
 use sinew_protocol::quantize::QuantBounds;
 use sinew_protocol::{MeshDelta, ObjectSnapshot, TopologyDelta};
@@ -61,15 +64,20 @@ pub struct ObjectReplication {
     sent_version: u32,
     /// Topology deltas sent (the wire's epoch).
     sent_epoch: u32,
+    /// A vertex is re-sent once replicas hold it further than this from its position, mm.
+    tolerance_mm: f32,
 }
 
 impl ObjectReplication {
-    /// Start from rest positions: bounds are their box grown by `margin_mm`; nothing sent yet (frame 0).
+    /// Start from rest positions: bounds are their box grown by `margin_mm`; nothing sent yet (frame 0). A
+    /// vertex is re-sent once replicas hold it more than `tolerance_mm` from its position (0: on every change
+    /// of its quantized position).
     pub fn new(
         name: &str,
         rest_positions_mm: &[Vec3],
         triangles: &[[u32; 3]],
         margin_mm: f32,
+        tolerance_mm: f32,
     ) -> Self {
         let mut min = [f32::INFINITY; 3];
         let mut max = [f32::NEG_INFINITY; 3];
@@ -96,7 +104,13 @@ impl ObjectReplication {
             clamped: 0,
             sent_version: 0,
             sent_epoch: 0,
+            tolerance_mm: tolerance_mm.max(0.0),
         }
+    }
+
+    /// How far a replica that applied every delta may be from the server's position of a vertex, mm.
+    pub fn error_bound_mm(&self) -> f32 {
+        self.tolerance_mm.max(self.bounds.max_error_mm())
     }
 
     /// Object name.
@@ -151,10 +165,11 @@ impl ObjectReplication {
                 out.burn.push(level);
             }
         }
+        let tolerance_sq = f64::from(self.tolerance_mm).powi(2);
         for (i, (p, sent)) in positions_mm.iter().zip(self.sent_q.iter_mut()).enumerate() {
             let (q, clamped) = self.bounds.quantize([p.x, p.y, p.z]);
             self.clamped += u64::from(clamped);
-            if q != *sent {
+            if q != *sent && distance_sq_mm(self.bounds.dequantize(*sent), p) > tolerance_sq {
                 *sent = q;
                 out.indices.push(i as u32);
                 out.positions_q.push(q);
@@ -246,8 +261,17 @@ impl ObjectReplication {
                 self.sent_burn.clone()
             },
             topology_epoch: self.sent_epoch,
+            error_bound_mm: self.error_bound_mm(),
         }
     }
+}
+
+/// Squared distance between a replica's position and the server's, mm^2, in f64 (exact for f32 inputs'
+/// differences, so the tolerance holds to the last bit).
+fn distance_sq_mm(replica_mm: [f32; 3], p: &Vec3) -> f64 {
+    (0..3)
+        .map(|a| (f64::from(replica_mm[a]) - f64::from(p[a])).powi(2))
+        .sum()
 }
 
 #[cfg(test)]
@@ -257,7 +281,7 @@ mod tests {
     #[test]
     fn deltas_carry_only_changed_vertices_and_chain_frames() {
         let rest = vec![Vec3::zeros(), Vec3::x(), Vec3::y()];
-        let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0);
+        let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0, 0.0);
         let mut out = MeshDelta::default();
         assert!(!rep.delta(0, &rest, &[], None, 1, &mut out));
         let mut moved = rest.clone();
@@ -276,9 +300,56 @@ mod tests {
     }
 
     #[test]
+    fn with_a_tolerance_a_vertex_is_resent_only_once_replicas_hold_it_further_than_that() {
+        let rest = vec![Vec3::zeros(), Vec3::x(), Vec3::y()];
+        let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0, 0.01);
+        assert_eq!(rep.error_bound_mm(), 0.01);
+        assert_eq!(rep.snapshot(0).error_bound_mm, 0.01);
+        let mut out = MeshDelta::default();
+        let mut replica: Vec<[u16; 3]> = rep.snapshot(0).positions_q;
+        let mut moved = rest.clone();
+        let mut frame = 0;
+        let mut worst: f32 = 0.0;
+        let mut sent = 0;
+        // Vertex 1 creeps 1 um a frame along z, vertex 2 jumps 0.5 mm once.
+        for k in 1..=100 {
+            moved[1].z = k as f32 * 0.001;
+            if k == 50 {
+                moved[2].x = 0.5;
+            }
+            frame += 1;
+            if rep.delta(0, &moved, &[], None, frame, &mut out) {
+                for (&i, q) in out.indices.iter().zip(&out.positions_q) {
+                    replica[i as usize] = *q;
+                    sent += 1;
+                }
+            }
+            for (q, p) in replica.iter().zip(&moved) {
+                let r = rep.bounds().dequantize(*q);
+                let e = ((r[0] - p.x).powi(2) + (r[1] - p.y).powi(2) + (r[2] - p.z).powi(2)).sqrt();
+                worst = worst.max(e);
+            }
+        }
+        assert!(worst <= 0.01 + 1e-6, "replica error {worst} mm");
+        // 100 um of creep in steps of 1 um: re-sent about every 10 um, not on each of its 2.5 um quanta.
+        assert!((9..=12).contains(&sent), "{sent} vertex updates");
+        // With no tolerance the same creep is sent on every quantum it crosses.
+        let mut exact = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0, 0.0);
+        let mut exact_sent = 0;
+        let mut creep = rest.clone();
+        for k in 1..=100 {
+            creep[1].z = k as f32 * 0.001;
+            if exact.delta(0, &creep, &[], None, k, &mut out) {
+                exact_sent += out.indices.len();
+            }
+        }
+        assert!(exact_sent >= 30, "{exact_sent}");
+    }
+
+    #[test]
     fn a_change_too_big_for_one_delta_spends_its_epoch_and_the_snapshot_carries_it() {
         let rest = vec![Vec3::zeros(), Vec3::x(), Vec3::y()];
-        let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0);
+        let mut rep = ObjectReplication::new("o", &rest, &[[0, 1, 2]], 10.0, 0.0);
         let mut out = MeshDelta::default();
         let small = ObjectTopology {
             version: 1,

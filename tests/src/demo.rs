@@ -337,7 +337,7 @@ fn summarize(running: &Running) -> DemoSummary {
     }
     match replica {
         Some(e) => println!(
-            "viewer replica error: {:.4} mm at frame {} (bound {:.4} mm: half a quantum plus f32 rounding)",
+            "viewer replica error: {:.4} mm at frame {} (bound {:.4} mm: the server's delta tolerance)",
             e.max_error_mm, e.frame, e.bound_mm
         ),
         None => println!(

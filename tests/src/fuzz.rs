@@ -195,6 +195,7 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
                     frame: 3,
                     burn: vec![0, 128, 255],
                     topology_epoch: 2,
+                    error_bound_mm: 0.0,
                 }],
                 tools: vec![ToolInfo {
                     tool: 0,

@@ -114,6 +114,8 @@ pub struct ReplicaObject {
     burn: Vec<u8>,
     /// Topology changes folded in (0: the world's mesh).
     topology_epoch: u32,
+    /// The server's bound on this replica's error, mm (its delta tolerance, or the quantization's bound).
+    error_bound_mm: f32,
 }
 
 impl ReplicaObject {
@@ -132,6 +134,7 @@ impl ReplicaObject {
             frame: object.frame,
             burn,
             topology_epoch: object.topology_epoch,
+            error_bound_mm: object.error_bound_mm,
         }
     }
 
@@ -154,6 +157,7 @@ impl ReplicaObject {
                 self.burn.clone()
             },
             topology_epoch: self.topology_epoch,
+            error_bound_mm: self.error_bound_mm,
         }
     }
 
@@ -269,10 +273,11 @@ impl ReplicaObject {
         self.positions_mm_iter().collect()
     }
 
-    /// Bound on the distance between a replica position and the server's position, mm (half a quantum per
-    /// axis plus f32 rounding, along the diagonal of one quantization cell).
+    /// Bound on the distance between a replica position and the server's position, mm: the server's delta
+    /// tolerance (it re-sends a vertex once the replica holds it further than that), or the quantization's
+    /// bound (half a quantum per axis plus f32 rounding, along a cell's diagonal) when larger.
     pub fn max_error_mm(&self) -> f32 {
-        self.bounds.max_error_mm()
+        self.bounds.max_error_mm().max(self.error_bound_mm)
     }
 }
 
@@ -582,6 +587,7 @@ mod tests {
                 frame,
                 burn: Vec::new(),
                 topology_epoch: 0,
+                error_bound_mm: 0.0,
             }],
             tools: vec![ToolInfo {
                 tool: 0,

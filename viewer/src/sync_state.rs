@@ -291,6 +291,7 @@ mod tests {
                 frame: object_frame,
                 burn: Vec::new(),
                 topology_epoch: 0,
+                error_bound_mm: 0.0,
             }],
             tools: Vec::new(),
             tool_states: ToolStates::default(),

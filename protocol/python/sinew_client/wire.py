@@ -330,6 +330,7 @@ class ObjectSnapshot:
     frame: int = wire_field("u64", default=0)
     burn: List[int] = wire_field(("vec", "u8"), default_factory=list)
     topology_epoch: int = wire_field("u32", default=0)
+    error_bound_mm: float = wire_field("f32", default=0.0)
 
 
 TOOL_SHAPE = (

@@ -131,6 +131,10 @@ pub struct ObjectSnapshot {
     /// Connectivity changes (cuts, tears) folded into `triangles` and `positions_q`; 0 for the world's own mesh.
     /// The next [`crate::TopologyDelta`] for this object has `epoch` one more. Protocol 7.
     pub topology_epoch: u32,
+    /// How far a replica that applied every delta may be from the server's position of any vertex at its
+    /// frame, mm: the server re-sends a vertex once it has moved more than its delta tolerance from what
+    /// replicas hold, so this is that tolerance, or the quantization's bound when larger. Protocol 9.
+    pub error_bound_mm: f32,
 }
 
 /// Everything a viewer (or a hapticserver) needs to start replicating.
@@ -159,6 +163,9 @@ impl Message for SceneSnapshot {
                 return Err(("objects.object", "indices are not 0..n in order"));
             }
             object.bounds.validate()?;
+            if !(object.error_bound_mm.is_finite() && object.error_bound_mm >= 0.0) {
+                return Err(("objects.error_bound_mm", "not a finite non-negative distance"));
+            }
             let n = object.positions_q.len() as u64;
             if object
                 .triangles

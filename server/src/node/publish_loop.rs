@@ -54,6 +54,7 @@ impl ReplicationState {
                     o.model.rest_positions_mm(),
                     o.model.triangles(),
                     spec.quant_margin_mm,
+                    spec.delta_tolerance_mm,
                 )
             })
             .collect();

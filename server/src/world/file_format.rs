@@ -228,6 +228,10 @@ pub(crate) struct ObjectSection {
     pub solver_iterations: Option<Spanned<u32>>,
     #[serde(default = "default_quant_margin_mm")]
     pub quant_margin_mm: Spanned<f32>,
+    /// A vertex is re-sent to viewers once they hold it further than this from its position, mm (default
+    /// 0.01: the replicas' error bound; 0 sends every change of its quantized position).
+    #[serde(default = "default_delta_tolerance_mm")]
+    pub delta_tolerance_mm: Spanned<f32>,
     /// A table of material keys, or a preset's name (`material = "liver"`).
     pub material: Spanned<MaterialValue>,
     #[serde(default)]
@@ -235,6 +239,10 @@ pub(crate) struct ObjectSection {
     /// Region of deformation: integrate only the part that moves, `{ threshold_mm }` (default: off).
     #[serde(default)]
     pub region: Option<Spanned<RegionSection>>,
+}
+
+fn default_delta_tolerance_mm() -> Spanned<f32> {
+    Spanned::new(0..0, 0.01)
 }
 
 fn default_quant_margin_mm() -> Spanned<f32> {

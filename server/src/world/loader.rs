@@ -112,6 +112,8 @@ pub struct ObjectSpec {
     pub dt_s: f32,
     /// Quantization bounds are the rest bounding box grown by this, mm.
     pub quant_margin_mm: f32,
+    /// A vertex is re-sent to viewers once they hold it further than this from its position, mm.
+    pub delta_tolerance_mm: f32,
     /// Material.
     pub material: MaterialSpec,
     /// Fixed-node selections.
@@ -524,6 +526,13 @@ impl Context<'_> {
             ),
         )?;
         let quant_margin_mm = self.positive(&object.quant_margin_mm, &key("quant_margin_mm"))?;
+        let delta_tolerance_mm = *object.delta_tolerance_mm.get_ref();
+        self.check(
+            &object.delta_tolerance_mm,
+            &key("delta_tolerance_mm"),
+            delta_tolerance_mm.is_finite() && (0.0..=1.0).contains(&delta_tolerance_mm),
+            &format!("must be in [0, 1] mm (got {delta_tolerance_mm})"),
+        )?;
         let is_volume = object.extrude.is_some() || is_msh_path(object.mesh.get_ref());
         let model = object
             .model
@@ -626,6 +635,7 @@ impl Context<'_> {
             solver_iterations,
             dt_s,
             quant_margin_mm,
+            delta_tolerance_mm,
             material,
             fixed,
             region,

@@ -69,6 +69,7 @@ pub fn sheet_snapshot(
             frame,
             burn: Vec::new(),
             topology_epoch: 0,
+            error_bound_mm: 0.0,
         }],
         tools: vec![ToolInfo {
             tool: 0,
