@@ -303,7 +303,15 @@ impl HapticLoop {
                 if let Some(wait_us) = command.pose_wait_us
                     && !self.mode.moderated()
                 {
-                    self.phase.observe(command.echo_pose_seq, wait_us);
+                    let wire_us = received
+                        .received_ns
+                        .saturating_sub(command.echo_device_time_ns)
+                        / 1000;
+                    self.phase.observe(
+                        command.echo_pose_seq,
+                        wait_us,
+                        u32::try_from(wire_us).unwrap_or(u32::MAX),
+                    );
                 }
             }
         }

@@ -7,6 +7,14 @@
 //! waits settle at a small target: each pose arrives just before a server tick, and its force (the tick's
 //! compute and the way back) is there for the device's next tick.
 //!
+//! The target leaves room on both sides. A pose that arrives after the tick waits a whole period; a force that
+//! arrives after the device's next tick is rendered a period late. With `x` the rest of the round trip (the
+//! way there and back and the tick's compute: the wire round trip minus the wait, measured per echo), a force
+//! is in time when `0 <= wait <= P - x`. The aligner aims at the middle of that room, `(P - x) / 2` with `x`
+//! the window's median, capped at the configured target (enough margin against a jittered pose when the
+//! server is quick) and floored at `MIN_TARGET_WAIT_US`. On a loaded server (a long tick) the target
+//! shrinks, so the force still makes the next device tick.
+//!
 //! The wait is a phase: it wraps at the period (a pose that arrives just after a tick waits almost a whole
 //! one). The error `wait - target` is wrapped into (-P/2, P/2], so a pose that just missed asks for a small
 //! shift earlier, not a large one later. The median of a window of errors decides a correction (one late pose
@@ -20,6 +28,9 @@
 /// The default wait to settle at, us.
 pub const DEFAULT_TARGET_WAIT_US: f32 = 150.0;
 
+/// The smallest target wait, us: a pose must still make the server's tick.
+pub const MIN_TARGET_WAIT_US: f32 = 20.0;
+
 /// Errors in one decision window.
 pub const PHASE_WINDOW: usize = 32;
 
@@ -28,7 +39,8 @@ pub const PHASE_WINDOW: usize = 32;
 pub struct PhaseConfig {
     /// The loop period, us (the server tick is assumed to run at the same rate).
     pub period_us: f32,
-    /// The wait to settle at, us: the margin that keeps a jittered pose ahead of the server's tick.
+    /// The largest wait to settle at, us: the margin that keeps a jittered pose ahead of the server's tick
+    /// when the server is quick (a loaded one gets a smaller target: the module doc).
     pub target_wait_us: f32,
     /// Median errors within this are left alone, us.
     pub deadband_us: f32,
@@ -62,6 +74,10 @@ pub struct PhaseCounters {
     pub last_error_us: f32,
     /// The median wait of the latest window, us.
     pub last_median_wait_us: f32,
+    /// The target wait of the latest window, us.
+    pub last_target_us: f32,
+    /// The median of the rest of the round trip (wire round trip minus wait) of the latest window, us.
+    pub last_rest_us: f32,
     /// The latest window was within the deadband.
     pub aligned: bool,
     /// Waits used (echoes that counted).
@@ -72,8 +88,8 @@ pub struct PhaseCounters {
 #[derive(Debug, Clone)]
 pub struct PhaseAligner {
     config: PhaseConfig,
-    errors_us: [f32; PHASE_WINDOW],
     waits_us: [f32; PHASE_WINDOW],
+    rests_us: [f32; PHASE_WINDOW],
     len: usize,
     pending_us: f32,
     ignore_through_seq: u64,
@@ -85,8 +101,8 @@ impl PhaseAligner {
     pub fn new(config: PhaseConfig, enabled: bool) -> Self {
         Self {
             config,
-            errors_us: [0.0; PHASE_WINDOW],
             waits_us: [0.0; PHASE_WINDOW],
+            rests_us: [0.0; PHASE_WINDOW],
             len: 0,
             pending_us: 0.0,
             ignore_through_seq: 0,
@@ -108,9 +124,9 @@ impl PhaseAligner {
     }
 
     /// `wait - target` wrapped into (-P/2, P/2], us.
-    pub fn wrapped_error_us(&self, wait_us: f32) -> f32 {
+    pub fn wrapped_error_us(&self, wait_us: f32, target_us: f32) -> f32 {
         let p = self.config.period_us;
-        let e = wait_us - self.config.target_wait_us;
+        let e = wait_us - target_us;
         let wrapped = e - p * (e / p).round();
         // `round` sends an exact half period to -P/2; keep the interval half-open on the other side.
         if wrapped <= -0.5 * p {
@@ -120,25 +136,40 @@ impl PhaseAligner {
         }
     }
 
-    /// The server's wait for the pose `echo_seq` (the first command echoing it). Ignored while a correction
-    /// is being paid out and for poses published before it was. Measured also when alignment is off.
-    pub fn observe(&mut self, echo_seq: u64, wait_us: u32) {
+    /// The target wait for a window whose rest of the round trip has median `rest_us`.
+    pub fn target_for_rest_us(&self, rest_us: f32) -> f32 {
+        let room = 0.5 * (self.config.period_us - rest_us);
+        room.min(self.config.target_wait_us)
+            .max(MIN_TARGET_WAIT_US.min(self.config.target_wait_us))
+    }
+
+    /// The server's wait for the pose `echo_seq` (the first command echoing it) and the pose's wire round
+    /// trip (pose read to force arrival), us. Ignored while a correction is being paid out and for poses
+    /// published before it was. Measured also when alignment is off.
+    pub fn observe(&mut self, echo_seq: u64, wait_us: u32, wire_round_trip_us: u32) {
         if self.pending_us != 0.0 || echo_seq <= self.ignore_through_seq {
             return;
         }
         let wait_us = wait_us as f32;
-        if !wait_us.is_finite() {
-            return;
-        }
-        self.errors_us[self.len] = self.wrapped_error_us(wait_us);
         self.waits_us[self.len] = wait_us;
+        // A pose that waited more than a period (a stalled server) measures its rest as if it had not.
+        self.rests_us[self.len] =
+            wire_round_trip_us as f32 - wait_us.rem_euclid(self.config.period_us);
         self.len += 1;
         self.counters.waits_used += 1;
         if self.len < PHASE_WINDOW {
             return;
         }
         self.len = 0;
-        let error_us = median(&mut self.errors_us);
+        let rest_us = median(&mut self.rests_us);
+        let target_us = self.target_for_rest_us(rest_us);
+        let mut errors_us = [0.0; PHASE_WINDOW];
+        for (e, &w) in errors_us.iter_mut().zip(&self.waits_us) {
+            *e = self.wrapped_error_us(w, target_us);
+        }
+        let error_us = median(&mut errors_us);
+        self.counters.last_rest_us = rest_us;
+        self.counters.last_target_us = target_us;
         self.counters.last_error_us = error_us;
         self.counters.last_median_wait_us = median(&mut self.waits_us);
         if error_us.abs() <= self.config.deadband_us {
@@ -239,7 +270,9 @@ mod tests {
             let wait = (tick_start - arrival).max(0.0);
             let force_arrival =
                 tick_start + self.compute + self.jitter() + self.one_way + self.jitter();
-            self.aligner.observe(k + 1, wait as u32);
+            let wire_round_trip = force_arrival - published;
+            self.aligner
+                .observe(k + 1, wait as u32, wire_round_trip as u32);
             let step_us = self.aligner.shift_ns(k + 1) as f64 / 1000.0;
             self.shift_total += step_us;
             let next_device_tick = (k + 1) as f64 * self.period + self.shift_total;
@@ -289,6 +322,34 @@ mod tests {
     }
 
     #[test]
+    fn on_a_loaded_server_the_target_shrinks_so_forces_still_make_the_next_tick() {
+        // A 750 us tick: the rest of the round trip is 860-935 us, so a wait of 150 us would put every force
+        // after the device's next tick. The target becomes half the room left, about 50 us.
+        for (i, server_phase) in [0.0, 250.0, 610.0, 900.0].into_iter().enumerate() {
+            let mut rig = Rig::new(server_phase, 21 + i as u64, true);
+            rig.compute = 750.0;
+            let mut late_after_1s = 0;
+            for k in 0..3000 {
+                let out = rig.tick(k);
+                if k >= 1000 {
+                    late_after_1s += u32::from(!out.in_time);
+                }
+            }
+            let c = rig.aligner.counters();
+            assert!(
+                (30.0..=80.0).contains(&c.last_target_us),
+                "phase {server_phase}: target {} us (rest {} us)",
+                c.last_target_us,
+                c.last_rest_us
+            );
+            assert!(
+                late_after_1s <= 100,
+                "phase {server_phase}: {late_after_1s} of 2000 late"
+            );
+        }
+    }
+
+    #[test]
     fn without_alignment_a_bad_phase_stays_bad() {
         // The control: the same rig with the aligner off leaves a pose that just misses the tick missing it,
         // so the test above measures the aligner, not the rig.
@@ -309,7 +370,7 @@ mod tests {
         let shift = rig.shift_total;
         // A few stalled poses (waits of a whole period and more) inside one window: the median ignores them.
         for k in 1500..1503 {
-            rig.aligner.observe(k + 1, 1900);
+            rig.aligner.observe(k + 1, 1900, 2500);
             rig.aligner.shift_ns(k + 1);
         }
         for k in 1503..3000 {
@@ -322,21 +383,21 @@ mod tests {
     #[test]
     fn the_error_wraps_to_the_nearer_direction() {
         let a = PhaseAligner::new(PhaseConfig::for_period_us(1000.0), true);
-        assert_eq!(a.wrapped_error_us(150.0), 0.0);
-        assert_eq!(a.wrapped_error_us(400.0), 250.0);
+        assert_eq!(a.wrapped_error_us(150.0, 150.0), 0.0);
+        assert_eq!(a.wrapped_error_us(400.0, 150.0), 250.0);
         // Just missed: wait almost a period, shift a little earlier.
-        assert_eq!(a.wrapped_error_us(990.0), -160.0);
-        assert_eq!(a.wrapped_error_us(650.0), 500.0);
-        assert_eq!(a.wrapped_error_us(651.0), -499.0);
+        assert_eq!(a.wrapped_error_us(990.0, 150.0), -160.0);
+        assert_eq!(a.wrapped_error_us(650.0, 150.0), 500.0);
+        assert_eq!(a.wrapped_error_us(651.0, 150.0), -499.0);
         // A stalled server: more than a period.
-        assert_eq!(a.wrapped_error_us(1200.0), 50.0);
+        assert_eq!(a.wrapped_error_us(1200.0, 150.0), 50.0);
     }
 
     #[test]
     fn echoes_of_poses_from_before_a_correction_do_not_count() {
         let mut a = PhaseAligner::new(PhaseConfig::for_period_us(1000.0), true);
         for seq in 1..=PHASE_WINDOW as u64 {
-            a.observe(seq, 450);
+            a.observe(seq, 450, 850);
         }
         assert_eq!(a.counters().corrections, 1);
         let mut published = PHASE_WINDOW as u64;
@@ -348,14 +409,14 @@ mod tests {
             step != 0
         } {
             // Echoes arriving while the correction is paid out are ignored.
-            a.observe(published - 2, 900);
+            a.observe(published - 2, 900, 1300);
         }
         assert_eq!(total_ns, 300_000);
         assert_eq!(a.counters().waits_used, PHASE_WINDOW as u64);
         // The pose published with the last step still measures the old phase.
-        a.observe(published - 1, 900);
+        a.observe(published - 1, 900, 1300);
         assert_eq!(a.counters().waits_used, PHASE_WINDOW as u64);
-        a.observe(published + 1, 150);
+        a.observe(published + 1, 150, 550);
         assert_eq!(a.counters().waits_used, PHASE_WINDOW as u64 + 1);
     }
 }

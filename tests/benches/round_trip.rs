@@ -152,7 +152,7 @@ fn run_system(
     }
     for r in &reports {
         println!(
-            "| hapticserver `{}` loop interval deviation from 1 ms, {label} | {:.1} us | {:.1} us | - | {} (overruns {}; phase: {} corrections, net shift {:+.0} us, median wait {:.0} us) |",
+            "| hapticserver `{}` loop interval deviation from 1 ms, {label} | {:.1} us | {:.1} us | - | {} (overruns {}; phase: {} corrections, net shift {:+.0} us, median wait {:.0} us, target {:.0} us, rest of the round trip {:.0} us) |",
             r.device_id,
             us(&r.interval_deviation, 50.0),
             us(&r.interval_deviation, 99.0),
@@ -161,6 +161,8 @@ fn run_system(
             r.phase.corrections,
             r.phase.net_shift_us,
             r.phase.last_median_wait_us,
+            r.phase.last_target_us,
+            r.phase.last_rest_us,
         );
     }
     println!(

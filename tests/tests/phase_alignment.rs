@@ -1,8 +1,9 @@
 //! Phase alignment over real zenoh sessions on loopback: the server and two simulated hapticservers rendering
-//! directly, each aligning its loop to a different target wait (150 and 600 us). Each settles at its own
-//! target: the server's measured waits for its poses (`ForceCommand::pose_wait_us`) end within 150 us of it,
-//! in steps of at most 10 us a tick. Two targets 450 us apart make a loop that never moved pass only by
-//! chance. A third device with alignment off still measures its waits and never shifts its loop. Wall-clock
+//! directly, each aligning its loop. Each settles at its target wait (at most 150 us, less on a loaded server:
+//! `hapticserver/src/phase_align.rs`): the server's measured waits for its poses (`ForceCommand::pose_wait_us`)
+//! end within 100 us of it, in steps of at most 10 us a tick. Two loops at independent random phases both land
+//! within 100 us of a target by chance only about one time in 25, and at least one of them must have moved. A
+//! device with alignment off still measures its waits and never shifts its loop. Wall-clock
 //! latency is not asserted (benches measure it: `cargo bench -p sinew --bench round_trip`).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
@@ -45,11 +46,10 @@ fn direct_devices_settle_at_their_target_pose_wait() {
     let mut server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
     let mut devices = [
         start_device(&endpoint, "left", 14.0, Some(150.0)),
-        start_device(&endpoint, "right", -14.0, Some(600.0)),
+        start_device(&endpoint, "right", -14.0, Some(150.0)),
     ];
 
-    // Alignment converges within a second of the first forces; give a loaded machine several, and wait for
-    // two windows in a row within 150 us of the target.
+    // Alignment converges within a second of the first forces; give a loaded machine several.
     let settled = wait_until(Duration::from_secs(30), || {
         devices.iter().all(|d| {
             let r = d.report();
@@ -61,12 +61,12 @@ fn direct_devices_settle_at_their_target_pose_wait() {
         "forces did not flow: {:?}",
         devices.iter().map(HapticHandle::report).collect::<Vec<_>>()
     );
-    let near_target = |d: &HapticHandle, target_us: f32| {
+    let near_target = |d: &HapticHandle| {
         let phase = d.report().phase;
-        (phase.last_median_wait_us - target_us).abs() <= 150.0
+        phase.waits_used >= 64 && (phase.last_median_wait_us - phase.last_target_us).abs() <= 100.0
     };
     let both_near = wait_until(Duration::from_secs(20), || {
-        near_target(&devices[0], 150.0) && near_target(&devices[1], 600.0)
+        near_target(&devices[0]) && near_target(&devices[1])
     });
     let reports: Vec<_> = devices.iter().map(HapticHandle::report).collect();
     for device in &mut devices {
@@ -76,14 +76,21 @@ fn direct_devices_settle_at_their_target_pose_wait() {
 
     assert!(
         both_near,
-        "median waits {} us (target 150) and {} us (target 600): {:?} {:?}",
+        "median waits {} us (target {}) and {} us (target {}): {:?} {:?}",
         reports[0].phase.last_median_wait_us,
+        reports[0].phase.last_target_us,
         reports[1].phase.last_median_wait_us,
+        reports[1].phase.last_target_us,
         reports[0].phase,
         reports[1].phase
     );
     for r in &reports {
         assert!(r.phase.enabled && r.phase.waits_used >= 64, "{:?}", r.phase);
+        assert!(
+            (20.0..=150.0).contains(&r.phase.last_target_us),
+            "{:?}",
+            r.phase
+        );
         // Every shift is at most 10 us: the net shift is at most 10 us per tick run.
         assert!(
             r.phase.net_shift_us.abs() <= 10.0 * r.ticks as f64,

@@ -164,7 +164,10 @@ impl Message for SceneSnapshot {
             }
             object.bounds.validate()?;
             if !(object.error_bound_mm.is_finite() && object.error_bound_mm >= 0.0) {
-                return Err(("objects.error_bound_mm", "not a finite non-negative distance"));
+                return Err((
+                    "objects.error_bound_mm",
+                    "not a finite non-negative distance",
+                ));
             }
             let n = object.positions_q.len() as u64;
             if object
