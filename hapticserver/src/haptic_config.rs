@@ -33,8 +33,12 @@ pub struct HapticConfig {
     pub mount: crate::calibration::WorldFromDevice,
     /// Loop rate, Hz.
     pub loop_rate_hz: u32,
-    /// Pacer spin accuracy, ns: 0 = plain sleep only (tests on shared cores), 100_000 for a real device.
+    /// Pacer spin accuracy, ns: 0 = plain sleep only (tests on shared cores), 100_000 for a real device. The
+    /// loop spins less when its scheduling allows (`protocol::rt::realtime`).
     pub spin_accuracy_ns: u32,
+    /// Ask for SCHED_FIFO and locked memory for the device loop (`--realtime`); refused quietly (and
+    /// reported) where the process may not have them.
+    pub realtime: bool,
     /// Safety limits; `None` = the device's own limits with default timing. Always tightened to the device's
     /// limits at start, never loosened.
     pub safety: Option<SafetyConfig>,
@@ -69,6 +73,7 @@ impl std::fmt::Debug for HapticConfig {
             .field("mount", &self.mount)
             .field("loop_rate_hz", &self.loop_rate_hz)
             .field("spin_accuracy_ns", &self.spin_accuracy_ns)
+            .field("realtime", &self.realtime)
             .field("safety", &self.safety)
             .field("passivity", &self.passivity)
             .field("mode", &self.mode)
@@ -93,6 +98,7 @@ impl HapticConfig {
             mount: crate::calibration::WorldFromDevice::identity(),
             loop_rate_hz: DEFAULT_LOOP_RATE_HZ,
             spin_accuracy_ns: DEFAULT_SPIN_ACCURACY_NS,
+            realtime: false,
             safety: None,
             passivity: crate::passivity::PassivityMode::Observe,
             mode: crate::render_mode::ModePolicy::default(),

@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::keys::SceneKeys;
+use sinew_protocol::rt::realtime::{self, RealtimeRequest};
 use sinew_protocol::rt::{DelayedSender, Pacer};
 use sinew_protocol::{InstanceId, ParticipantHello, Role, ServerStats, decode_from};
 use zenoh::Wait;
@@ -66,6 +67,7 @@ impl HapticServer {
             mount,
             loop_rate_hz,
             spin_accuracy_ns,
+            realtime,
             safety,
             passivity,
             mode,
@@ -264,6 +266,7 @@ impl HapticServer {
             clock,
             period,
             spin_accuracy_ns,
+            realtime,
             report_every_ticks: (REPORT_PERIOD.as_nanos() / period.as_nanos().max(1)).max(1) as u64,
             wind_down_ticks: (safety_config.ramp_to_zero_s / period.as_secs_f64()).ceil() as u64
                 + 2,
@@ -343,6 +346,7 @@ struct DeviceLoop {
     clock: MonotonicClock,
     period: Duration,
     spin_accuracy_ns: u32,
+    realtime: bool,
     report_every_ticks: u64,
     wind_down_ticks: u64,
     report: Arc<Mutex<HapticReport>>,
@@ -359,7 +363,15 @@ impl DeviceLoop {
     /// (`loop_failure`), and the thread ends; the process must then exit non-zero.
     fn run(mut self) {
         lock_report(&self.report).running = true;
-        let mut pacer = Pacer::new(self.period, self.spin_accuracy_ns);
+        let grant = realtime::configure_this_thread(if self.realtime {
+            RealtimeRequest::Fifo {
+                priority: realtime::DEVICE_LOOP_PRIORITY,
+            }
+        } else {
+            RealtimeRequest::Normal
+        });
+        let mut pacer = Pacer::new(self.period, grant.spin_window_ns(self.spin_accuracy_ns));
+        lock_report(&self.report).realtime = Some(grant);
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             self.tick_until_stopped(&mut pacer);
         }));

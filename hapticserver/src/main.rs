@@ -75,6 +75,10 @@ struct Args {
     /// Loop rate, Hz.
     #[arg(long, default_value_t = 1000)]
     rate_hz: u32,
+    /// Run the device loop as a real-time thread (SCHED_FIFO, locked memory) where the process may (root, or
+    /// CAP_SYS_NICE and an RLIMIT_RTPRIO allowance); the first status line says what it was given.
+    #[arg(long)]
+    realtime: bool,
     /// Pacer spin accuracy, ns (0 = plain sleep).
     #[arg(long, default_value_t = hapticserver::haptic_config::DEFAULT_SPIN_ACCURACY_NS)]
     spin_ns: u32,
@@ -213,6 +217,7 @@ fn main() -> Result<()> {
     )?;
     config.loop_rate_hz = args.rate_hz;
     config.spin_accuracy_ns = args.spin_ns;
+    config.realtime = args.realtime;
     config.mode = args.mode;
     config.phase_align = args.phase_align == OnOff::On;
     // Checked by HapticServer::start (below the loop period), which names it.
@@ -247,8 +252,13 @@ fn main() -> Result<()> {
         .duration_s
         .map(|s| started + Duration::from_secs_f64(s));
     let mut next_status = started + Duration::from_secs(1);
+    let mut told_scheduling = false;
     loop {
         let now = Instant::now();
+        if !told_scheduling && let Some(grant) = handle.report().realtime {
+            println!("device loop: {grant}");
+            told_scheduling = true;
+        }
         if deadline.is_some_and(|deadline| now >= deadline)
             || interrupted.load(std::sync::atomic::Ordering::Acquire)
         {

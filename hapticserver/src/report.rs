@@ -56,6 +56,8 @@ pub struct HapticReport {
     pub passivity: PassivityCounters,
     /// What the phase alignment did (direct mode).
     pub phase: PhaseCounters,
+    /// The device loop's scheduling (None until the loop has started).
+    pub realtime: Option<sinew_protocol::rt::realtime::RealtimeGrant>,
     /// Refused force payloads.
     pub decode_rejects: DecodeRejects,
     /// Failed device reads.
@@ -116,6 +118,7 @@ impl HapticReport {
             safety: SafetyCounters::default(),
             passivity: PassivityCounters::default(),
             phase: PhaseCounters::default(),
+            realtime: None,
             decode_rejects: DecodeRejects::default(),
             device_read_errors: 0,
             device_write_errors: 0,

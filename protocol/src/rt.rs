@@ -7,6 +7,8 @@
 //! - [`JoinedServer`]: which server instance a client follows when two are live for one scene.
 //! - [`Throttle`]: log a lasting condition once, then at most once a period with a count.
 //! - [`finish_within`]: a teardown step that may block on the network, abandoned after a deadline.
+//! - [`realtime`]: a 1 kHz loop thread's scheduling: 1 ns timer slack, and SCHED_FIFO with locked memory where
+//!   the process may have them.
 //! - [`panic_report`]: the role binaries' panic hook, which defers the backtrace so the 1 kHz threads'
 //!   supervisors zero the force first.
 
@@ -28,3 +30,4 @@ pub use latest_value::LatestValue;
 pub use pacer::Pacer;
 pub use throttle::Throttle;
 pub mod panic_report;
+pub mod realtime;

@@ -35,6 +35,10 @@ struct Args {
     /// it with `sinew replay FILE`.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// Run the sim tick as a real-time thread (SCHED_FIFO, locked memory) where the process may (root, or
+    /// CAP_SYS_NICE and an RLIMIT_RTPRIO allowance); the log says at start what it was given.
+    #[arg(long)]
+    realtime: bool,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -58,6 +62,7 @@ fn main() -> anyhow::Result<()> {
         emulation,
         panic_at_tick: args.fault_panic_at_tick,
         record: args.record,
+        realtime: args.realtime,
         ..ServerConfig::default()
     };
     let mut server = ServerNode::start(world, config).context("starting the server")?;

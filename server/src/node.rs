@@ -86,8 +86,12 @@ pub struct ServerConfig {
     pub network: NetworkOptions,
     /// Participant id for the presence token.
     pub server_id: String,
-    /// spin_sleep native accuracy for the sim thread, ns (0 = plain sleep; tests share two cores).
+    /// spin_sleep native accuracy for the sim thread, ns (0 = plain sleep; tests share two cores). The sim
+    /// thread spins less when its scheduling allows (`protocol::rt::realtime`).
     pub spin_native_accuracy_ns: u32,
+    /// Ask for SCHED_FIFO and locked memory for the sim thread (`--realtime`); refused quietly (and reported)
+    /// where the process may not have them.
+    pub realtime: bool,
     /// Emulated delay, jitter and loss on the force commands this server publishes (`--emulate-*`).
     pub emulation: EmulationConfig,
     /// Fault drill: the sim thread panics at this tick, as a bug in the simulation would (`--fault-panic-at-tick`,
@@ -118,6 +122,7 @@ impl Default for ServerConfig {
             network: NetworkOptions::server_default(),
             server_id: "server".into(),
             spin_native_accuracy_ns: 100_000,
+            realtime: false,
             emulation: EmulationConfig::default(),
             panic_at_tick: None,
             record: None,
@@ -149,6 +154,8 @@ pub(crate) struct Shared {
     pub(crate) foreign_servers: inbound::ForeignServers,
     /// Ticks run so far (the recording's clock for what it hears on the wire).
     pub(crate) ticks_run: std::sync::atomic::AtomicU64,
+    /// The sim thread's scheduling, set once when it starts.
+    pub(crate) realtime: std::sync::OnceLock<sinew_protocol::rt::realtime::RealtimeGrant>,
 }
 
 /// Starts a server.
@@ -245,6 +252,7 @@ impl ServerNode {
             rejects: inbound::RejectCounters::new(),
             stop: AtomicBool::new(false),
             failure: std::sync::OnceLock::new(),
+            realtime: std::sync::OnceLock::new(),
             instance,
             server_id: config.server_id.clone(),
             unknown_hello_log: Throttle::new(10_000_000_000),
@@ -290,6 +298,7 @@ impl ServerNode {
             sim,
             sim_loop::SimThreadOptions {
                 spin_native_accuracy_ns: config.spin_native_accuracy_ns,
+                realtime: config.realtime,
                 emulation: config.emulation,
                 panic_at_tick: config.panic_at_tick,
                 recorder: tap,
@@ -430,6 +439,11 @@ impl ServerHandle {
     /// sent an explicit zero force first). A process embedding the server must stop when this is `Some`.
     pub fn failure(&self) -> Option<&str> {
         self.shared.failure.get().map(String::as_str)
+    }
+
+    /// The sim thread's scheduling (None until the thread has started).
+    pub fn realtime(&self) -> Option<&sinew_protocol::rt::realtime::RealtimeGrant> {
+        self.shared.realtime.get()
     }
 
     /// Stop the sim thread, then the publish thread, the declarations and the session, the latter within

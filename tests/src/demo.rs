@@ -39,6 +39,8 @@ pub struct DemoOptions {
     pub hand: hapticserver::HandPreset,
     /// Record the session into this MCAP file (`sinew replay`, `sinew report` read it).
     pub record: Option<PathBuf>,
+    /// Real-time scheduling for the 1 kHz loops, where the process may have it.
+    pub realtime: bool,
 }
 
 /// The demo's final figures.
@@ -50,6 +52,8 @@ pub struct DemoSummary {
     pub tick_p50_us: f32,
     /// Tick time p99, us.
     pub tick_p99_us: f32,
+    /// The one-core bench tick's p99 in the same run, us.
+    pub bench_tick_p99_us: f32,
     /// Per device: id, round trip p50 / p99 us, max rendered force N.
     pub devices: Vec<(String, f64, f64, f32)>,
     /// Mesh delta bytes per second.
@@ -69,6 +73,19 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     let world = load_world(&options.world).context("the demo's world")?;
     let (left, right) = surgeon_scripts_for(&world);
     let scene = world.scene.clone();
+    // The one-core bench tick of this world, in this run: the live tick is read against it.
+    let bench_tick = sinew_server::node::tick_cost::press_and_stroke(&world, BENCH_TICKS)
+        .context("timing the bench tick")?;
+    println!(
+        "bench tick (one core, no network, two tools pressing and stroking, {BENCH_TICKS} ticks): p50 {:.0} us, p99 {:.0} us",
+        bench_tick.percentile_us(50.0),
+        bench_tick.percentile_us(99.0)
+    );
+    let pacing = if options.realtime {
+        Pacing::Realtime
+    } else {
+        Pacing::Spin
+    };
     let one_way = sinew_protocol::rt::EmulationConfig {
         delay_ms: options.rtt_ms / 2.0,
         ..Default::default()
@@ -77,7 +94,7 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     let server = start_server_recording(
         world,
         &options.endpoint,
-        Pacing::Spin,
+        pacing,
         one_way,
         options.record.clone(),
     )?;
@@ -87,7 +104,7 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
             id,
             script,
             &options.endpoint,
-            Pacing::Spin,
+            pacing,
             SimDeviceSetup {
                 mode: options.mode,
                 emulation: one_way,
@@ -119,7 +136,7 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     } else {
         live_lines(&running, options.duration);
     }
-    let summary = summarize(&running);
+    let summary = summarize(&running, &bench_tick);
     if let Some(path) = &options.png {
         let replica = running.viewer.replica();
         let overlay = sinew_viewer::InstructorOverlay::build(
@@ -232,7 +249,10 @@ fn print_line(
     );
 }
 
-fn summarize(running: &Running) -> DemoSummary {
+/// Ticks of the bench run before the live system.
+const BENCH_TICKS: usize = 3000;
+
+fn summarize(running: &Running, bench_tick: &sinew_protocol::rt::LatencyHistogram) -> DemoSummary {
     let s = running.server.stats();
     let replica = replica_error(&running.server, &running.viewer, 0, Duration::from_secs(2));
     let devices: Vec<(String, f64, f64, f32)> = running
@@ -264,6 +284,21 @@ fn summarize(running: &Running) -> DemoSummary {
         s.sim_faults,
         s.rejected.total()
     );
+    let bench_p99 = bench_tick.percentile_us(99.0);
+    println!(
+        "live tick against the bench tick of this run: p50 {:.2}x, p99 {:.2}x (bench p50 {:.0} us, p99 {:.0} us); sim thread: {}",
+        s.tick_p50_us / bench_tick.percentile_us(50.0).max(1e-3),
+        s.tick_p99_us / bench_p99.max(1e-3),
+        bench_tick.percentile_us(50.0),
+        bench_p99,
+        running
+            .server
+            .realtime()
+            .map_or_else(|| "not started".to_owned(), ToString::to_string),
+    );
+    if let Some(grant) = running.devices.first().and_then(|d| d.report().realtime) {
+        println!("device loops: {grant}");
+    }
     for ((id, p50, p99, max_force), device) in devices.iter().zip(&running.devices) {
         let report = device.report();
         let server_side = s.devices.iter().find(|d| &d.device_id == id);
@@ -348,6 +383,7 @@ fn summarize(running: &Running) -> DemoSummary {
         ticks: s.ticks,
         tick_p50_us: s.tick_p50_us,
         tick_p99_us: s.tick_p99_us,
+        bench_tick_p99_us: bench_p99,
         devices,
         delta_bytes_per_s,
         replica_error_mm: replica.map(|e| (e.max_error_mm, e.bound_mm)),

@@ -43,14 +43,21 @@ pub enum Pacing {
     Spin,
     /// Plain sleep (no spinning).
     Sleep,
+    /// spin_sleep, and real-time scheduling (SCHED_FIFO, locked memory) where the process may have it: the
+    /// loops then spin only their last 20 us.
+    Realtime,
 }
 
 impl Pacing {
     fn native_accuracy_ns(self) -> u32 {
         match self {
-            Pacing::Spin => 100_000,
+            Pacing::Spin | Pacing::Realtime => 100_000,
             Pacing::Sleep => 0,
         }
+    }
+
+    fn realtime(self) -> bool {
+        self == Pacing::Realtime
     }
 }
 
@@ -87,6 +94,7 @@ pub fn start_server_recording(
         },
         server_id: "server".into(),
         spin_native_accuracy_ns: pacing.native_accuracy_ns(),
+        realtime: pacing.realtime(),
         ..ServerConfig::default()
     };
     ServerNode::start(world, config).context("starting the server")
@@ -218,6 +226,7 @@ pub fn start_sim_device_emulated(
         ..NetworkOptions::default()
     };
     config.spin_accuracy_ns = pacing.native_accuracy_ns();
+    config.realtime = pacing.realtime();
     config.mode = setup.mode;
     config.emulation = setup.emulation;
     config.phase_align = setup.phase_align;

@@ -11,6 +11,7 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use sinew_protocol::rt::realtime::{self, RealtimeRequest};
 use sinew_protocol::rt::{DelayedSender, EmulationConfig, LatencyHistogram, Pacer};
 use sinew_protocol::{ForceCommand, ForceMode, InstanceId, RenderMode, encode};
 use zenoh::Wait;
@@ -113,8 +114,10 @@ impl SimReport {
 
 /// How the sim thread runs, beyond the shared state.
 pub(super) struct SimThreadOptions {
-    /// spin_sleep native accuracy, ns.
+    /// spin_sleep native accuracy, ns (the most the thread spins before a deadline).
     pub spin_native_accuracy_ns: u32,
+    /// Ask for SCHED_FIFO and locked memory.
+    pub realtime: bool,
     /// Emulated network on the force commands.
     pub emulation: EmulationConfig,
     /// Fault drill: panic at this tick.
@@ -240,6 +243,7 @@ fn run(
 ) {
     let SimThreadOptions {
         spin_native_accuracy_ns,
+        realtime,
         emulation: _,
         panic_at_tick,
         mut recorder,
@@ -250,9 +254,19 @@ fn run(
     let tick_dt_s = (1.0 / world.tick_hz) as f32;
     let ticks_per_frame = (world.tick_hz / world.publish_hz).round().max(1.0) as u64;
     let speed = replay.as_ref().map_or(1.0, |feed| feed.speed);
+    let grant = realtime::configure_this_thread(if realtime {
+        RealtimeRequest::Fifo {
+            priority: realtime::SIM_LOOP_PRIORITY,
+        }
+    } else {
+        RealtimeRequest::Normal
+    });
+    tracing::info!(scene = %world.scene, "sim thread: {grant}");
+    let spin_ns = grant.spin_window_ns(spin_native_accuracy_ns);
+    let _ = shared.realtime.set(grant);
     let mut pacer = Pacer::new(
         Duration::from_secs_f64(1.0 / (world.tick_hz * speed)),
-        spin_native_accuracy_ns,
+        spin_ns,
     );
     let mut tick = ServerTick::new(
         sim,

@@ -138,6 +138,48 @@ pub fn estimate(world: &World) -> Result<TickCost, SimBuildError> {
     })
 }
 
+/// The tick bench's workload on a throwaway copy of `world`, on the calling thread (one core, no network):
+/// its first two tools press 5 mm and stroke +-8 mm along x (2 s period, after a 0.5 s descent), `ticks`
+/// whole steps timed. `sinew demo` runs it before the live system, so its live tick is compared with this in
+/// the same run (`cargo bench -p sinew-server --bench tick` times the same workload). Multi-rate objects step
+/// inline here, so a world with them measures its hand-off ticks too.
+pub fn press_and_stroke(
+    world: &World,
+    ticks: usize,
+) -> Result<sinew_protocol::rt::LatencyHistogram, SimBuildError> {
+    let mut sim = Sim::new(world)?;
+    let dt_s = (1.0 / world.tick_hz) as f32;
+    let mut commands = vec![ToolCommand::default(); sim.tools.len()];
+    let mut outputs = vec![ToolOutput::default(); sim.tools.len()];
+    let mut histogram = sinew_protocol::rt::LatencyHistogram::new();
+    for k in 0..ticks {
+        let t = k as f32 * dt_s;
+        let depth = (t / 0.5).min(1.0) * 5.0;
+        let stroke = if t > 0.5 {
+            8.0 * (std::f32::consts::TAU * (t - 0.5) / 2.0).sin()
+        } else {
+            0.0
+        };
+        for (i, command) in commands.iter_mut().take(2).enumerate() {
+            let (x, y) = if i == 0 {
+                (stroke, 0.0)
+            } else {
+                (-stroke, 5.0)
+            };
+            *command = ToolCommand {
+                active: true,
+                position_device_mm: [x, y, 4.0 - depth],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+                ..ToolCommand::default()
+            };
+        }
+        let start = Instant::now();
+        sim.step(dt_s, &commands, &mut outputs);
+        histogram.record(start.elapsed());
+    }
+    Ok(histogram)
+}
+
 /// How the estimate reads.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Verdict {

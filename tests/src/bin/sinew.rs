@@ -49,6 +49,10 @@ enum Command {
         /// Record the session into this MCAP file (then `sinew replay FILE`, `sinew report FILE`).
         #[arg(long)]
         record: Option<PathBuf>,
+        /// Run the sim tick and the device loops as real-time threads (SCHED_FIFO, locked memory) where the
+        /// process may; the summary says what they were given.
+        #[arg(long)]
+        realtime: bool,
     },
     /// Re-run a recording (`sinew-server --record FILE`) through the simulation on virtual time and check that
     /// every force command and the final tissue come out bit for bit as recorded. With `--publish`, replay it
@@ -149,6 +153,7 @@ fn main() -> anyhow::Result<()> {
             mode,
             hand,
             record,
+            realtime,
         } => {
             anyhow::ensure!(
                 duration_s.is_finite() && duration_s > 0.0,
@@ -164,6 +169,7 @@ fn main() -> anyhow::Result<()> {
                 mode,
                 hand,
                 record,
+                realtime,
             })?;
         }
         Command::Replay {
