@@ -57,6 +57,11 @@ impl ServerTick {
         }
     }
 
+    /// Run the tick's tail ([`Sim::finish_tick`]) once its force commands are published.
+    pub fn finish_tick(&mut self) {
+        self.sim.finish_tick();
+    }
+
     /// The simulation.
     pub fn sim(&self) -> &Sim {
         &self.sim

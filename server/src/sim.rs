@@ -225,6 +225,9 @@ pub struct SimTool {
     device_velocity_mm_s: Vec3,
     /// One contact-stiffness solver per object.
     stiffness: Vec<ContactStiffness>,
+    /// Per object: the contact normal of a solver iteration due after this tick's forces went out (the tick's
+    /// tail, [`Sim::finish_tick`]), if one is.
+    stiffness_due: Vec<Option<Vec3>>,
     /// Tissue force on the tool and contact stiffness at the end of the last tick (the coupling's input).
     last_force_n: Vec3,
     contact_k: Matrix3<f32>,
@@ -421,6 +424,8 @@ pub struct Sim {
     collision_margin_mm: f32,
     time_s: f64,
     steps: u64,
+    /// The last step left work for its tail ([`Sim::finish_tick`]).
+    tail_due: bool,
 }
 
 impl Sim {
@@ -532,6 +537,7 @@ impl Sim {
                     .iter()
                     .map(|o| ContactStiffness::new(o.model.node_count()))
                     .collect(),
+                stiffness_due: vec![None; objects.len()],
                 last_force_n: Vec3::zeros(),
                 contact_k: Matrix3::zeros(),
                 plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,
@@ -627,6 +633,7 @@ impl Sim {
             tools,
             ties: world.ties.clone(),
             last_energy_n_mm: None,
+            tail_due: false,
             collision_margin_mm: world.collision_margin_mm,
             time_s: 0.0,
             steps: 0,
@@ -773,6 +780,9 @@ impl Sim {
         commands: &[ToolCommand],
         outputs: &mut [ToolOutput],
     ) -> StepReport {
+        // The last tick's tail, if whoever stepped it did not run it after publishing its forces: the same
+        // work on the same state, so a step's result never depends on who ran the tail, or when.
+        self.finish_tick();
         let mut report = StepReport::default();
         self.apply_commands(dt_s, commands);
         // Scalpels cut what their edges swept since the last tick, before anything reads the topology.
@@ -982,6 +992,37 @@ impl Sim {
         self.time_s += f64::from(dt_s);
         self.steps += 1;
         report
+    }
+
+    /// The tick's tail: work a step leaves for after its outputs went out (the contact-stiffness solver's
+    /// iterations, which refine the `K` of the next ticks' local models). The server runs it right after
+    /// publishing the tick's forces, so it is not in the pose -> force path; [`Sim::step`] runs it first if
+    /// nobody did, on the same state, so results do not depend on it being called. No allocation once warm.
+    pub fn finish_tick(&mut self) {
+        if !std::mem::take(&mut self.tail_due) {
+            return;
+        }
+        for tool in &mut self.tools {
+            for (o, object) in self.objects.iter().enumerate() {
+                let Some(normal) = tool.stiffness_due.get_mut(o).and_then(Option::take) else {
+                    continue;
+                };
+                let (Some(solver), Some(contacts)) =
+                    (tool.stiffness.get_mut(o), tool.contacts.get(o))
+                else {
+                    continue;
+                };
+                let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+                solver.advance(
+                    &object.model,
+                    &object.state,
+                    &contacts.held,
+                    &contacts.normals,
+                    grasped,
+                    &normal,
+                );
+            }
+        }
     }
 
     /// The tool's reaction force, clamped, and its contact state.
@@ -1300,14 +1341,10 @@ impl Sim {
                     .copied()
                     .unwrap_or_else(Vec3::z)
             });
-            solver.advance(
-                &object.model,
-                &object.state,
-                &contacts.held,
-                &contacts.normals,
-                grasped,
-                &normal,
-            );
+            // The solver's next iterations belong to the tick's tail: they read this tick's final state and
+            // contacts and refine K for the next ticks, so they run after this tick's forces are published.
+            tool.stiffness_due[o] = Some(normal);
+            self.tail_due = true;
             match solver.response() {
                 Some(response) => {
                     k += response.stiffness_n_per_mm;

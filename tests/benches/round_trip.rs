@@ -119,6 +119,7 @@ fn run_system(
     std::thread::sleep(Duration::from_secs_f64(seconds));
     let elapsed = t0.elapsed().as_secs_f64();
     let after = server.stats();
+    let sim_report = server.sim_report();
     let mut reports: Vec<_> = devices.iter().map(|d| d.report()).collect();
     for d in &mut devices {
         d.stop().unwrap();
@@ -169,6 +170,14 @@ fn run_system(
         "| server tick in the live system (whole run, 2 tools), {label} | {:.0} us | {:.0} us | - | {} (overruns {}) |",
         after.tick_p50_us, after.tick_p99_us, after.ticks, after.overruns
     );
+    if let Some(report) = &sim_report {
+        println!(
+            "| server tick start -> forces handed to zenoh (whole run), {label} | {:.0} us | {:.0} us | - | {} |",
+            us(&report.force_time, 50.0),
+            us(&report.force_time, 99.0),
+            report.force_time.count()
+        );
+    }
     (before, after, elapsed, vertices, reports)
 }
 

@@ -74,8 +74,11 @@ pub struct SimReport {
     pub faults: u64,
     /// Simulated time, s.
     pub sim_time_s: f64,
-    /// Whole-tick compute time (inputs, step, force publishing), ns.
+    /// Whole-tick compute time (inputs, step, force publishing, the tick's tail), ns.
     pub tick_time: LatencyHistogram,
+    /// From the tick's start to its last force command handed to zenoh, ns: the server's share of the pose
+    /// -> force round trip.
+    pub force_time: LatencyHistogram,
     /// Per tool-bound device.
     pub devices: Vec<DeviceReport>,
     /// The world's exercise, scored live (None: the world is not an exercise).
@@ -93,6 +96,7 @@ impl SimReport {
             faults: 0,
             sim_time_s: 0.0,
             tick_time: LatencyHistogram::new(),
+            force_time: LatencyHistogram::new(),
             devices: vec![DeviceReport::default(); tools],
             exercise: None,
             replay: None,
@@ -106,6 +110,7 @@ impl SimReport {
         self.faults = other.faults;
         self.sim_time_s = other.sim_time_s;
         self.tick_time.copy_from(&other.tick_time);
+        self.force_time.copy_from(&other.force_time);
         self.devices.copy_from_slice(&other.devices);
         self.exercise = other.exercise;
         self.replay = other.replay;
@@ -384,6 +389,9 @@ fn run(
             d.last_round_trip_us = inputs[t].map_or(0, |i| i.pose.round_trip_us);
             d.moderated = inputs[t].is_some_and(|i| i.pose.render_mode == RenderMode::Moderated);
         }
+        // The forces are out: now the tick's tail (the contact-stiffness iterations for the next ticks).
+        local.force_time.record(start.elapsed());
+        tick.finish_tick();
         for (t, d) in local.devices.iter_mut().enumerate() {
             d.suppressed = tick.stream_counters(t).suppressed;
         }
