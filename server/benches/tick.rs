@@ -17,6 +17,7 @@ use sinew_protocol::rt::LatencyHistogram;
 use sinew_protocol::rt::Pacer;
 use sinew_server::collision::SurfaceCollider;
 use sinew_server::node::step_threads::ThreadRunner;
+use sinew_server::node::tick_cost::press_and_stroke_commands;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, SymplecticEuler};
 use sinew_server::world::load_world;
@@ -72,29 +73,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut retries = 0u64;
     for k in 0..ticks {
         // Both probes press 5 mm and stroke +-8 mm along x with a 2 s period (after a 0.5 s descent).
-        let t = k as f32 * dt_s;
-        let depth = (t / 0.5).min(1.0) * 5.0;
-        let stroke = if t > 0.5 {
-            8.0 * (std::f32::consts::TAU * (t - 0.5) / 2.0).sin()
-        } else {
-            0.0
-        };
-        let commands = [
-            ToolCommand {
-                active: true,
-                position_device_mm: [stroke, 0.0, 4.0 - depth],
-                velocity_device_mm_s: [0.0; 3],
-                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-                ..ToolCommand::default()
-            },
-            ToolCommand {
-                active: true,
-                position_device_mm: [-stroke, 5.0, 4.0 - depth],
-                velocity_device_mm_s: [0.0; 3],
-                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-                ..ToolCommand::default()
-            },
-        ];
+        let mut commands = [ToolCommand::default(); 2];
+        press_and_stroke_commands(k as f32 * dt_s, &mut commands);
         if let Some(pacer) = &mut pacer {
             pacer.wait();
         }

@@ -153,31 +153,36 @@ pub fn press_and_stroke(
     let mut outputs = vec![ToolOutput::default(); sim.tools.len()];
     let mut histogram = sinew_protocol::rt::LatencyHistogram::new();
     for k in 0..ticks {
-        let t = k as f32 * dt_s;
-        let depth = (t / 0.5).min(1.0) * 5.0;
-        let stroke = if t > 0.5 {
-            8.0 * (std::f32::consts::TAU * (t - 0.5) / 2.0).sin()
-        } else {
-            0.0
-        };
-        for (i, command) in commands.iter_mut().take(2).enumerate() {
-            let (x, y) = if i == 0 {
-                (stroke, 0.0)
-            } else {
-                (-stroke, 5.0)
-            };
-            *command = ToolCommand {
-                active: true,
-                position_device_mm: [x, y, 4.0 - depth],
-                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-                ..ToolCommand::default()
-            };
-        }
+        press_and_stroke_commands(k as f32 * dt_s, &mut commands);
         let start = Instant::now();
         sim.step(dt_s, &commands, &mut outputs);
         histogram.record(start.elapsed());
     }
     Ok(histogram)
+}
+
+/// The bench workload's commands at time `t_s`: the first two of `commands` press 5 mm (over 0.5 s) and then
+/// stroke +-8 mm along x with a 2 s period, in opposite directions, the second 5 mm along y from the first.
+pub fn press_and_stroke_commands(t_s: f32, commands: &mut [ToolCommand]) {
+    let depth = (t_s / 0.5).min(1.0) * 5.0;
+    let stroke = if t_s > 0.5 {
+        8.0 * (std::f32::consts::TAU * (t_s - 0.5) / 2.0).sin()
+    } else {
+        0.0
+    };
+    for (i, command) in commands.iter_mut().take(2).enumerate() {
+        let (x, y) = if i == 0 {
+            (stroke, 0.0)
+        } else {
+            (-stroke, 5.0)
+        };
+        *command = ToolCommand {
+            active: true,
+            position_device_mm: [x, y, 4.0 - depth],
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            ..ToolCommand::default()
+        };
+    }
 }
 
 /// How the estimate reads.
