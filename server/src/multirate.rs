@@ -164,7 +164,7 @@ impl StepJob {
                 } else {
                     t.seed.reach_mm
                 };
-                4.0 * f64::from(t.seed.max_force_n) * f64::from(travel_mm)
+                crate::tissue::guard::tool_work_allowance_n_mm(t.seed.max_force_n, travel_mm)
             })
             .sum();
         self.guard.save(&self.state);

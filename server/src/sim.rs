@@ -1436,9 +1436,8 @@ impl Sim {
         (broken, energy)
     }
 
-    /// The most work the tools can have done on the tissue this tick, N mm: four times each active tool's
-    /// force limit times how far it moved (times its size when it has just become active), so a tool's real
-    /// work never looks like divergence.
+    /// The most work the tools can have done on the tissue this tick, N mm
+    /// ([`guard::tool_work_allowance_n_mm`] of each active tool).
     fn tool_work_allowance_n_mm(&self) -> f64 {
         self.tools
             .iter()
@@ -1449,7 +1448,7 @@ impl Sim {
                 } else {
                     t.reach_mm
                 };
-                4.0 * f64::from(t.max_force_n) * f64::from(travel_mm)
+                guard::tool_work_allowance_n_mm(t.max_force_n, travel_mm)
             })
             .sum()
     }

@@ -66,13 +66,7 @@ fn the_fem_block_presses_back_harder_the_deeper_it_goes_and_relaxes_after() {
     let out = move_to(&mut sim, 3.0, -5.0, 200, 800);
     assert!(!out.in_contact);
     let object = &sim.objects[0];
-    let furthest = object
-        .state
-        .positions_mm
-        .iter()
-        .zip(object.model.rest_positions_mm())
-        .map(|(x, r)| (x - r).norm())
-        .fold(0.0f32, f32::max);
+    let furthest = common::furthest_from_rest_mm(object);
     assert!(furthest < 0.05, "{furthest} mm from rest after release");
 }
 

@@ -99,13 +99,7 @@ fn the_block_rests_at_the_same_force_whatever_its_step_rate_and_as_stepped_every
     let out = move_to(slow, 3.0, -5.0, 200, 800).pop().unwrap();
     assert!(!out.in_contact && out.force_world_n.norm() == 0.0);
     let object = &slow.objects[0];
-    let furthest = object
-        .state
-        .positions_mm
-        .iter()
-        .zip(object.model.rest_positions_mm())
-        .map(|(x, r)| (x - r).norm())
-        .fold(0.0f32, f32::max);
+    let furthest = common::furthest_from_rest_mm(object);
     assert!(furthest < 0.05, "{furthest} mm from rest after release");
 }
 

@@ -939,38 +939,32 @@ fn calibrated_springs_take_youngs_modulus_and_check_what_a_network_can_be() {
     // The 2 mm grid's right triangles: every edge gets some stiffness, of the order of E t from each triangle.
     let k = &model.springs().stiffness_n_per_mm;
     assert!(k.iter().all(|&k| k > 0.0 && k < 2.0 * 20e-3 * 2.0), "{k:?}");
-    for (from, to, key, line_text, says) in [
-        (
-            "poisson_ratio = 0.333",
-            "poisson_ratio = 0.45",
-            "objects[0].material.poisson_ratio",
-            "poisson_ratio",
-            "1/3",
-        ),
-        (
-            "thickness_mm = 2.0",
-            "",
-            "objects[0].material.thickness_mm",
-            "youngs_modulus_kpa",
-            "need thickness_mm",
-        ),
-        (
-            "youngs_modulus_kpa = 20.0",
-            "youngs_modulus_kpa = 20.0\nstiffness_n_per_mm = 0.01",
-            "objects[0].material.stiffness_n_per_mm",
-            "stiffness_n_per_mm",
-            "not both",
-        ),
-    ] {
-        let bad = sheet.replacen(from, to, 1);
-        let (error, message, _) = refused(&bad, None);
-        assert_eq!(
-            invalid_key_and_line(&error),
-            (key, line_of(&bad, line_text)),
-            "{message}"
-        );
-        assert!(message.contains(says), "{message}");
-    }
+    assert_refused_by_key_and_line(
+        &sheet,
+        &[
+            (
+                "poisson_ratio = 0.333",
+                "poisson_ratio = 0.45",
+                "objects[0].material.poisson_ratio",
+                "poisson_ratio",
+                "1/3",
+            ),
+            (
+                "thickness_mm = 2.0",
+                "",
+                "objects[0].material.thickness_mm",
+                "youngs_modulus_kpa",
+                "need thickness_mm",
+            ),
+            (
+                "youngs_modulus_kpa = 20.0",
+                "youngs_modulus_kpa = 20.0\nstiffness_n_per_mm = 0.01",
+                "objects[0].material.stiffness_n_per_mm",
+                "stiffness_n_per_mm",
+                "not both",
+            ),
+        ],
+    );
 }
 
 #[test]

@@ -36,6 +36,13 @@ pub fn energy_grew(before_n_mm: f64, after_n_mm: f64, allowance_n_mm: f64) -> bo
         || after_n_mm > ENERGY_GROWTH * before_n_mm + allowance_n_mm + ENERGY_FLOOR_N_MM
 }
 
+/// The most work one active tool can have done on the tissue in a step, N mm: four times its force limit times
+/// how far it moved (its size when it has just become active), so a tool's real work never looks like
+/// divergence.
+pub fn tool_work_allowance_n_mm(max_force_n: f32, travel_mm: f32) -> f64 {
+    4.0 * f64::from(max_force_n) * f64::from(travel_mm)
+}
+
 /// What [`DivergenceGuard::assess`] measured on one object.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Assessment {

@@ -233,3 +233,14 @@ pub fn fem_block_move(
     }
     all
 }
+
+/// How far the node furthest from its rest position is from it, mm.
+pub fn furthest_from_rest_mm(object: &sinew_server::sim::SimObject) -> f32 {
+    object
+        .state
+        .positions_mm
+        .iter()
+        .zip(object.model.rest_positions_mm())
+        .map(|(x, r)| (x - r).norm())
+        .fold(0.0f32, f32::max)
+}
