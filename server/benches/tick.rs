@@ -18,9 +18,12 @@ use sinew_protocol::rt::Pacer;
 use sinew_server::collision::SurfaceCollider;
 use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::node::tick_cost::press_and_stroke_commands;
+use sinew_server::node::worker_pool::WorkerPool;
+use sinew_server::parallel::ChunkRunner;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, SymplecticEuler};
 use sinew_server::world::load_world;
+use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
 #[path = "support/bench_args.rs"]
@@ -179,5 +182,107 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         us(&refit, 50.0),
         us(&refit, 99.0)
     );
+    thread_scaling(&world, ticks)
+}
+
+/// The full tick at each thread count of `--threads` (default 1, 2 and the machine's cores), the sims stepped
+/// in turn tick by tick so the machine's noise falls on all of them alike; then each sim's final state against
+/// the one-thread sim's, bit for bit.
+fn thread_scaling(
+    world: &sinew_server::world::World,
+    ticks: usize,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let counts: Vec<usize> = match bench_args::text_arg("threads") {
+        Some(list) => list
+            .split(',')
+            .map(|t| t.trim().parse())
+            .collect::<Result<_, _>>()?,
+        None => {
+            let mut counts = vec![1, 2, cores];
+            counts.dedup();
+            counts
+        }
+    };
+    let dt_s = (1.0 / world.tick_hz) as f32;
+    let mut runs = Vec::new();
+    for &threads in &counts {
+        let mut sim = Sim::new(world)?;
+        let pool = (threads > 1)
+            .then(|| WorkerPool::new(threads, true))
+            .transpose()?;
+        if let Some(pool) = &pool {
+            println!("  {}", pool.report());
+        }
+        sim.set_chunk_runner(pool.map(|p| Arc::new(p) as Arc<dyn ChunkRunner>));
+        runs.push((threads, sim, LatencyHistogram::new()));
+    }
+    let mut outputs = [ToolOutput::default(); 2];
+    for k in 0..ticks {
+        let mut commands = [ToolCommand::default(); 2];
+        press_and_stroke_commands(k as f32 * dt_s, &mut commands);
+        for (_, sim, histogram) in &mut runs {
+            let start = Instant::now();
+            sim.step(dt_s, &commands, &mut outputs);
+            histogram.record(start.elapsed());
+        }
+    }
+    let us = |h: &LatencyHistogram, p: f64| h.percentile_ns(p) as f64 / 1000.0;
+    // The passes alone, back to back (workers spinning, caches warm): forces, and a whole step.
+    for (threads, sim, _) in &mut runs {
+        let object = &mut sim.objects[0];
+        let (mut forces, mut step) = (LatencyHistogram::new(), LatencyHistogram::new());
+        let mut out = object.state.forces_n.clone();
+        let mut integrator = SymplecticEuler;
+        let mut state = object.state.clone();
+        for _ in 0..3_000 {
+            let start = Instant::now();
+            object.model.compute_forces(
+                &state.positions_mm,
+                &state.velocities_mm_s,
+                None,
+                &mut out,
+            );
+            forces.record(start.elapsed());
+            let start = Instant::now();
+            integrator.step(&object.model, &mut state, world.objects[0].dt_s);
+            step.record(start.elapsed());
+        }
+        println!(
+            "  warm, {threads} thread(s): spring+anchor forces p50 {:.0} us, whole symplectic-Euler step p50 {:.0} us p99 {:.0} us",
+            us(&forces, 50.0),
+            us(&step, 50.0),
+            us(&step, 99.0)
+        );
+    }
+    let bits = |sim: &Sim| -> Vec<u32> {
+        sim.objects[0]
+            .state
+            .positions_mm
+            .iter()
+            .chain(&sim.objects[0].state.velocities_mm_s)
+            .flat_map(|v| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()])
+            .collect()
+    };
+    let reference = bits(&runs[0].1);
+    let (base_p50, base_p99) = (us(&runs[0].2, 50.0), us(&runs[0].2, 99.0));
+    println!(
+        "thread scaling, full tick, {ticks} ticks interleaved on {cores} cores (ratio to {} thread(s) in the same run):",
+        runs[0].0
+    );
+    for (threads, sim, histogram) in &runs {
+        println!(
+            "  {threads} thread(s): p50 {:.0} us ({:.2}x)  p99 {:.0} us ({:.2}x)  state after {ticks} ticks {} the first run's",
+            us(histogram, 50.0),
+            us(histogram, 50.0) / base_p50,
+            us(histogram, 99.0),
+            us(histogram, 99.0) / base_p99,
+            if bits(sim) == reference {
+                "bit-identical to"
+            } else {
+                "DIFFERS from"
+            }
+        );
+    }
     Ok(())
 }

@@ -19,6 +19,7 @@ mod session;
 mod sim_loop;
 pub mod step_threads;
 pub mod tick_cost;
+pub mod worker_pool;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -190,6 +191,16 @@ impl ServerNode {
         });
         if let Some(err) = spawn_failed {
             return Err(ServerError::Thread(err));
+        }
+        // The tissue passes spread over pinned workers beside the tick (the same bits on any count).
+        let threads = world
+            .tissue_threads
+            .unwrap_or_else(crate::world::default_tissue_threads);
+        if threads > 1 {
+            let pool = worker_pool::WorkerPool::new(threads, true)
+                .map_err(|e| ServerError::Thread(e.to_string()))?;
+            tracing::info!("tissue passes: {}", pool.report());
+            sim.set_chunk_runner(Some(std::sync::Arc::new(pool)));
         }
         for object in &sim.objects {
             if let Some(lane) = object.step_lane() {

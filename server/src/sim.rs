@@ -4,6 +4,8 @@
 //! (integrate, push out of tools); tool reaction forces; refit colliders; fault containment`. Time and dt come in as arguments, so tests run
 //! on virtual time and a recording replays exactly. Must not: touch zenoh, threads or wall-clock time.
 
+use std::sync::Arc;
+
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion};
 use thiserror::Error;
 
@@ -17,6 +19,7 @@ use crate::interaction::{
     swept_seams, torn_seams,
 };
 use crate::multirate::{StepLane, StepRunner, ToolSeed};
+use crate::parallel::ChunkRunner;
 use crate::tissue::seams::{Facet, Opening, open_model_into, shared_by_two};
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TieSet, TissueState,
@@ -650,6 +653,15 @@ impl Sim {
         }
     }
 
+    /// Spread the tissue passes of every object the tick steps (not the multi-rate ones: they have threads of
+    /// their own) over `runner`; `None` steps them on the calling thread. The results are the same bits either
+    /// way (see [`crate::parallel`]): a recording replays the same on any thread count.
+    pub fn set_chunk_runner(&mut self, runner: Option<Arc<dyn ChunkRunner>>) {
+        for object in self.objects.iter_mut().filter(|o| o.lane.is_none()) {
+            object.model.set_chunk_runner(runner.clone());
+        }
+    }
+
     /// Open `seams` in object `object` (see [`crate::tissue::seams`]): vertices whose ring the seams split are
     /// duplicated (new ids appended, each starting where its parent is, with its velocity and burn), elements
     /// keep their ids, and everything built on the object's topology is rebuilt for the new one: springs and
@@ -783,6 +795,10 @@ impl Sim {
         // The last tick's tail, if whoever stepped it did not run it after publishing its forces: the same
         // work on the same state, so a step's result never depends on who ran the tail, or when.
         self.finish_tick();
+        // The tissue passes come within the next hundred microseconds: idle workers get ready.
+        if let Some(object) = self.objects.iter().find(|o| o.lane.is_none()) {
+            object.model.chunk_runner().prepare();
+        }
         let mut report = StepReport::default();
         self.apply_commands(dt_s, commands);
         // Scalpels cut what their edges swept since the last tick, before anything reads the topology.
@@ -952,7 +968,9 @@ impl Sim {
                         .refit_nodes(&object.state.positions_mm, region.active_nodes());
                 }
                 None => {
-                    object.collider.refit(&object.state.positions_mm);
+                    object
+                        .collider
+                        .refit_on(&object.state.positions_mm, object.model.chunk_runner());
                 }
             }
         }

@@ -23,8 +23,9 @@ pub use instrument::{
     CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
 };
 pub use loader::{
-    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec, SpringCalibration,
-    ToolShapeSpec, ToolSpec, World, WorldError, load_world, parse_world,
+    FixedSelection, MAX_TISSUE_THREADS, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec,
+    SpringCalibration, ToolShapeSpec, ToolSpec, World, WorldError, default_tissue_threads,
+    load_world, parse_world,
 };
 pub use material_presets::{MaterialPreset, PRESETS_TOML, material_presets};
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};

@@ -312,6 +312,7 @@ fn world_of(objects: Vec<ObjectSpec>) -> World {
         pose_timeout_s: 0.1,
         collision_margin_mm: 2.0,
         gravity_mm_per_s2: [0.0; 3],
+        tissue_threads: None,
         ties: Vec::new(),
         objects,
         tools: Vec::new(),

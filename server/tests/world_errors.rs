@@ -372,6 +372,8 @@ fn durations_and_rates_out_of_their_real_range_name_the_key_and_line() {
         ("tick_hz = 1e-300", "sim.tick_hz"),
         ("tick_hz = 50.0", "sim.tick_hz"),
         ("publish_hz = 1e-300", "sim.publish_hz"),
+        ("threads = 0", "sim.threads"),
+        ("threads = 65", "sim.threads"),
     ];
     for (line, expected_key) in cases {
         let world = with_sim(line);
@@ -384,6 +386,11 @@ fn durations_and_rates_out_of_their_real_range_name_the_key_and_line() {
             other => panic!("`{line}`: wrong error {other:?}"),
         }
     }
+    // A thread count in range loads as given; left out, the machine's share is used when the server starts.
+    let world = load_world(&write_world(&with_sim("threads = 3"), None)).unwrap();
+    assert_eq!(world.tissue_threads, Some(3));
+    let world = load_world(&write_world(GOOD_WORLD, None)).unwrap();
+    assert_eq!(world.tissue_threads, None);
     // A step so small that one tick would take a billion substeps.
     let world = GOOD_WORLD.replace("dt_s = 0.001", "dt_s = 1e-12");
     let (error, message, _) = refused(&world, None);

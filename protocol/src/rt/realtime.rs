@@ -103,6 +103,13 @@ pub fn configure_this_thread(request: RealtimeRequest) -> RealtimeGrant {
     os::configure(request)
 }
 
+/// Pin the calling thread to CPU `cpu` (the tissue step's workers: a spinning worker that migrates loses its
+/// caches and steals a core the scheduler gave someone else). Err with the OS's reason (a CPU outside the
+/// process's allowed set, say), and the thread keeps running where it was.
+pub fn pin_this_thread(cpu: usize) -> Result<(), String> {
+    os::pin(cpu)
+}
+
 #[cfg(target_os = "linux")]
 #[allow(unsafe_code)] // FFI into libc: each block says why it is sound
 mod os {
@@ -155,6 +162,27 @@ mod os {
         }
         grant
     }
+
+    pub(super) fn pin(cpu: usize) -> Result<(), String> {
+        if cpu >= libc::CPU_SETSIZE as usize {
+            return Err(format!("CPU {cpu} is beyond the CPU set's size"));
+        }
+        // SAFETY: cpu_set_t is plain bits, valid when zeroed; CPU_SET writes inside it (cpu checked above);
+        // sched_setaffinity(0, ..) reads the set for the calling thread and writes none of our memory.
+        let rc = unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            libc::CPU_SET(cpu, &mut set);
+            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
+        };
+        if rc == 0 {
+            Ok(())
+        } else {
+            Err(format!(
+                "pin to CPU {cpu}: {}",
+                std::io::Error::last_os_error()
+            ))
+        }
+    }
 }
 
 #[cfg(not(target_os = "linux"))]
@@ -167,6 +195,10 @@ mod os {
                 .then(|| "real-time scheduling is implemented for Linux only".to_owned()),
             ..RealtimeGrant::default()
         }
+    }
+
+    pub(super) fn pin(_cpu: usize) -> Result<(), String> {
+        Err("pinning threads is implemented for Linux only".to_owned())
     }
 }
 
@@ -186,6 +218,16 @@ mod tests {
         assert_eq!(grant.refused, None);
         assert_eq!(grant.spin_window_ns(100_000), TIGHT_SLACK_SPIN_NS);
         assert_eq!(grant.spin_window_ns(0), 0);
+    }
+
+    #[test]
+    fn a_thread_pins_to_an_allowed_cpu_and_is_refused_an_impossible_one() {
+        let (pinned, refused) =
+            std::thread::spawn(|| (pin_this_thread(0), pin_this_thread(1 << 20)))
+                .join()
+                .unwrap();
+        assert_eq!(pinned, Ok(()));
+        assert!(refused.unwrap_err().contains("CPU 1048576"));
     }
 
     #[test]

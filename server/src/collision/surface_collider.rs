@@ -18,6 +18,7 @@ use parry3d::shape::Triangle;
 use thiserror::Error;
 
 use super::glam_boundary::to_parry;
+use crate::parallel::{ChunkRunner, chunk_range, for_chunks_mut};
 use crate::tissue::Vec3;
 
 /// Per-index stamps (nodes, or triangles) that deduplicate without clearing or allocating.
@@ -91,7 +92,14 @@ pub struct SurfaceCollider {
     /// A copy of every leaf's box as the tree holds it, so the common case (the triangle is still inside its
     /// fattened box) is one containment test here instead of a leaf lookup inside parry.
     leaf_boxes: Vec<Aabb>,
+    /// Scratch of [`Self::refit_on`]: per triangle, its new box when it left its stored one.
+    fresh_boxes: Vec<Option<Aabb>>,
 }
+
+/// Vertices per chunk of [`SurfaceCollider::refit_on`]'s copy.
+const VERTEX_CHUNK: usize = 1024;
+/// Triangles per chunk of its box tests.
+const TRIANGLE_CHUNK: usize = 1024;
 
 impl std::fmt::Debug for SurfaceCollider {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -156,6 +164,7 @@ impl SurfaceCollider {
             triangle_marks: NodeMarks::new(triangles.len()),
             refit_margin_mm: 0.0,
             leaf_boxes,
+            fresh_boxes: Vec::new(),
         })
     }
 
@@ -204,6 +213,49 @@ impl SurfaceCollider {
         for t in 0..self.triangles.len() as u32 {
             if self.update_leaf(t) {
                 self.changed.push(t);
+            }
+        }
+        self.refit_changed();
+        self.changed.len()
+    }
+
+    /// [`Self::refit`] with the vertex copy and the box tests spread over `runner`; the leaves that moved are
+    /// then rewritten on this thread in triangle order, so the tree, the changed list and every later query are
+    /// the same as `refit`'s on any thread count. Allocates only when the triangle count grew.
+    pub fn refit_on(&mut self, positions_mm: &[Vec3], runner: &dyn ChunkRunner) -> usize {
+        if runner.threads() <= 1 {
+            return self.refit(positions_mm);
+        }
+        let n = self.vertices.len().min(positions_mm.len());
+        for_chunks_mut(runner, &mut self.vertices[..n], VERTEX_CHUNK, |c, out| {
+            for (dst, i) in out.iter_mut().zip(chunk_range(c, n, VERTEX_CHUNK)) {
+                *dst = to_parry(&positions_mm[i]);
+            }
+        });
+        let count = self.triangles.len().min(self.leaf_boxes.len());
+        if self.fresh_boxes.len() != count {
+            self.fresh_boxes.resize(count, None);
+        }
+        let (vertices, triangles, stored) = (&self.vertices, &self.triangles, &self.leaf_boxes);
+        let margin = self.refit_margin_mm;
+        for_chunks_mut(runner, &mut self.fresh_boxes, TRIANGLE_CHUNK, |c, out| {
+            for (fresh, t) in out.iter_mut().zip(chunk_range(c, count, TRIANGLE_CHUNK)) {
+                let aabb = triangle_aabb(vertices, &triangles[t]);
+                *fresh = (margin <= 0.0 || !stored[t].contains(&aabb)).then_some(aabb);
+            }
+        });
+        self.changed.clear();
+        for t in 0..count {
+            let Some(aabb) = self.fresh_boxes[t] else {
+                continue;
+            };
+            self.leaf_boxes[t] = aabb.loosened(self.refit_margin_mm);
+            if self
+                .bvh
+                .update_partially_if_present(aabb, t as u32, self.refit_margin_mm)
+                .is_some()
+            {
+                self.changed.push(t as u32);
             }
         }
         self.refit_changed();

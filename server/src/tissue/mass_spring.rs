@@ -7,12 +7,14 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use std::cell::RefCell;
+use std::sync::Arc;
 
 use super::fem::{FemElements, FemLinearization, FemMaterial, NodeTets};
-use super::springs::{KernelScratch, SpringSet};
+use super::springs::{KernelScratch, NodeSprings, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
 use crate::incidence::incidence_into;
+use crate::parallel::{ChunkRunner, Inline};
 use crate::world::{MassSpec, ObjectSpec};
 
 /// Everything a model is built from. Public so tests and the region tracker can build models that are not
@@ -87,6 +89,9 @@ pub struct MassSpringModel {
     /// The spring kernel's padded buffers: scratch, not state (a model is stepped by one thread at a time;
     /// `compute_forces` stays `&self` so every integrator shares one model).
     kernel_scratch: RefCell<KernelScratch>,
+    /// The threads the spring passes and the integration spread over (`None`: the calling thread alone). Not
+    /// part of the model's physics: any runner gives the same bits.
+    runner: Option<Arc<dyn ChunkRunner>>,
 }
 
 /// Source of [`MassSpringModel::id`].
@@ -240,6 +245,7 @@ impl MassSpringModel {
             diagonal_stiffness_n_per_mm: Vec::new(),
             kernel_scratch: RefCell::new(KernelScratch::default()),
             build_order: Vec::new(),
+            runner: None,
         }
     }
 
@@ -522,6 +528,25 @@ impl MassSpringModel {
         &self.node_tets[self.node_tet_start[i] as usize..self.node_tet_start[i + 1] as usize]
     }
 
+    /// Spread this model's passes over `runner` (`None`: the calling thread alone). Results are the same bits
+    /// either way; only the time changes.
+    pub fn set_chunk_runner(&mut self, runner: Option<Arc<dyn ChunkRunner>>) {
+        self.runner = runner;
+    }
+
+    /// The runner this model's passes use.
+    pub fn chunk_runner(&self) -> &dyn ChunkRunner {
+        match &self.runner {
+            Some(runner) => runner.as_ref(),
+            None => &Inline,
+        }
+    }
+
+    /// The runner as shared (for a model built from this one, the region's sub-model, say).
+    pub fn shared_chunk_runner(&self) -> Option<&Arc<dyn ChunkRunner>> {
+        self.runner.as_ref()
+    }
+
     /// Sum over incident springs of their small-strain stiffness, plus the anchor: the diagonal of the
     /// stiffness matrix at rest, N/mm (quasi-static relaxation divides by it).
     pub fn diagonal_stiffness_n_per_mm(&self, i: usize) -> f32 {
@@ -590,6 +615,10 @@ impl MassSpringModel {
                 None => own,
             }
         };
+        let incidence = NodeSprings {
+            start: &self.node_spring_start,
+            list: &self.node_springs,
+        };
         match self.kernel_scratch.try_borrow_mut() {
             Ok(mut scratch) => self.springs.forces_into(
                 self.law,
@@ -598,6 +627,8 @@ impl MassSpringModel {
                 base,
                 forces_n,
                 &mut scratch,
+                self.chunk_runner(),
+                incidence,
             ),
             // Re-entered (never, in practice): a throwaway scratch is slower but correct.
             Err(_) => self.springs.forces_into(
@@ -607,6 +638,8 @@ impl MassSpringModel {
                 base,
                 forces_n,
                 &mut KernelScratch::default(),
+                self.chunk_runner(),
+                incidence,
             ),
         }
         self.tets.accumulate_forces(positions_mm, forces_n);
@@ -621,8 +654,19 @@ impl MassSpringModel {
     /// Energy stored in the springs, the volume terms and the finite elements (not the anchors or gravity),
     /// N mm.
     pub fn elastic_energy_n_mm(&self, positions_mm: &[Vec3]) -> f64 {
-        let mut total = self.springs.energy_n_mm(self.law, positions_mm)
-            + self.fem.energy_n_mm(&self.tets, positions_mm);
+        let springs = match self.kernel_scratch.try_borrow_mut() {
+            Ok(mut scratch) => {
+                self.springs
+                    .energy_n_mm(self.law, positions_mm, self.chunk_runner(), &mut scratch)
+            }
+            Err(_) => self.springs.energy_n_mm(
+                self.law,
+                positions_mm,
+                self.chunk_runner(),
+                &mut KernelScratch::default(),
+            ),
+        };
+        let mut total = springs + self.fem.energy_n_mm(&self.tets, positions_mm);
         let tets = &self.tets;
         if tets.bulk_modulus_n_per_mm2 > 0.0 {
             for (t, &v0) in tets.rest_volume_mm3.iter().enumerate() {

@@ -555,6 +555,8 @@ impl RegionTracker {
             None => MassSpringModel::from_parts(ModelParts::default()),
         };
         sub.rebuild_from(&self.parts);
+        // The region steps on the same threads as the whole object would.
+        sub.set_chunk_runner(model.shared_chunk_runner().cloned());
         let s = &mut self.sub_state;
         for buffer in [
             &mut s.positions_mm,

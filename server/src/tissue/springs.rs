@@ -9,9 +9,23 @@
 //! defeat store forwarding), 55 us for this kernel plus about 9 us of copies. Real-time contract of every
 //! function here: no allocation once the scratch is sized, never blocks, never panics on non-finite input (a
 //! zero-length edge contributes nothing).
+//!
+//! With more than one thread ([`crate::parallel::ChunkRunner`]) the same forces come from three passes over
+//! fixed chunks: the padded copies by node chunk, each spring's force into its own slot by spring chunk, then
+//! each node gathers its springs' slots in spring order by node chunk. Each node adds the very same products
+//! in the very same order as the one-thread scatter, so every thread count, one included, gives the same
+//! bits. The elastic energy sums fixed chunks of [`SPRING_CHUNK`] springs, then the chunks in order, on any
+//! thread count.
 
 use super::Vec3;
 use super::spring_law::SpringLaw;
+use crate::parallel::{ChunkRunner, chunk_count, chunk_range, for_chunks_mut, for_chunks_mut2};
+
+/// Springs per chunk of the parallel passes (a multiple of the energy kernel's block of 8). Fixed: the energy's
+/// partial sums, and so its bits, depend on it, never on the thread count.
+pub const SPRING_CHUNK: usize = 1024;
+/// Nodes per chunk of the parallel passes.
+pub const NODE_CHUNK: usize = 512;
 
 /// A 3-vector in a 16-byte-aligned four-float slot (the fourth lane stays zero).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -31,12 +45,25 @@ impl Padded {
     }
 }
 
-/// The kernel's padded copies of positions, velocities and forces (sized to the node count on first use).
+/// The kernel's padded copies of positions, velocities and forces (sized to the node count on first use),
+/// each spring's force for the parallel gather, and the energy's per-chunk partial sums.
 #[derive(Debug, Clone, Default)]
 pub struct KernelScratch {
     x: Vec<Padded>,
     v: Vec<Padded>,
     f: Vec<Padded>,
+    per_spring: Vec<Padded>,
+    energy_partials: Vec<f64>,
+}
+
+/// Node -> incident springs in spring order (compressed rows): the springs touching node `i` are
+/// `list[start[i]..start[i + 1]]`. The parallel gather reads it.
+#[derive(Debug, Clone, Copy)]
+pub struct NodeSprings<'a> {
+    /// Row starts, one per node plus one.
+    pub start: &'a [u32],
+    /// Spring indices, ascending within each row.
+    pub list: &'a [u32],
 }
 
 /// Springs in SoA layout.
@@ -160,16 +187,33 @@ impl SpringSet {
     }
 
     /// Write into `forces_n` each node's `base_n(i)` plus every spring's force (end `a` gets `+f`, end `b`
-    /// gets `-f`); with `velocities_mm_s` the dampers too, without them springs only (a static solve).
+    /// gets `-f`); with `velocities_mm_s` the dampers too, without them springs only (a static solve). On a
+    /// runner with more than one thread the passes are spread over it through `incidence` (the same bits).
+    #[allow(clippy::too_many_arguments)] // the kernel's inputs, its output, its scratch and its threads
     pub fn forces_into(
         &self,
         law: SpringLaw,
         positions_mm: &[Vec3],
         velocities_mm_s: Option<&[Vec3]>,
-        base_n: impl Fn(usize) -> Vec3,
+        base_n: impl Fn(usize) -> Vec3 + Sync,
         forces_n: &mut [Vec3],
         scratch: &mut KernelScratch,
+        runner: &dyn ChunkRunner,
+        incidence: NodeSprings<'_>,
     ) {
+        if runner.threads() > 1 && incidence.start.len() > positions_mm.len().min(forces_n.len()) {
+            self.forces_into_parallel(
+                law,
+                positions_mm,
+                velocities_mm_s,
+                base_n,
+                forces_n,
+                scratch,
+                runner,
+                incidence,
+            );
+            return;
+        }
         let n = positions_mm.len().min(forces_n.len());
         for buffer in [&mut scratch.x, &mut scratch.v, &mut scratch.f] {
             if buffer.len() != n {
@@ -198,6 +242,132 @@ impl SpringSet {
         }
         for (f, p) in forces_n.iter_mut().zip(&scratch.f) {
             *f = Vec3::new(p.0[0], p.0[1], p.0[2]);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)] // as forces_into
+    fn forces_into_parallel(
+        &self,
+        law: SpringLaw,
+        positions_mm: &[Vec3],
+        velocities_mm_s: Option<&[Vec3]>,
+        base_n: impl Fn(usize) -> Vec3 + Sync,
+        forces_n: &mut [Vec3],
+        scratch: &mut KernelScratch,
+        runner: &dyn ChunkRunner,
+        incidence: NodeSprings<'_>,
+    ) {
+        let n = positions_mm.len().min(forces_n.len());
+        let m = self.len();
+        let KernelScratch {
+            x,
+            v,
+            f,
+            per_spring,
+            ..
+        } = scratch;
+        for buffer in [&mut *x, &mut *v, &mut *f] {
+            if buffer.len() != n {
+                buffer.resize(n, Padded::default());
+            }
+        }
+        if per_spring.len() != m {
+            per_spring.resize(m, Padded::default());
+        }
+        // Pass 1, by node: the padded copies, and each node's own force.
+        for_chunks_mut2(runner, x, f, NODE_CHUNK, |c, xs, fs| {
+            for ((px, pf), i) in xs.iter_mut().zip(fs).zip(chunk_range(c, n, NODE_CHUNK)) {
+                *px = Padded::from_vec3(&positions_mm[i]);
+                *pf = Padded::from_vec3(&base_n(i));
+            }
+        });
+        if let Some(velocities) = velocities_mm_s {
+            for_chunks_mut(runner, v, NODE_CHUNK, |c, vs| {
+                for (pv, i) in vs.iter_mut().zip(chunk_range(c, n, NODE_CHUNK)) {
+                    *pv = Padded::from_vec3(&velocities[i]);
+                }
+            });
+        }
+        // Pass 2, by spring: each spring's force on its end a, into its own slot.
+        let (x, v) = (&*x, &*v);
+        for_chunks_mut(runner, per_spring, SPRING_CHUNK, |c, out| {
+            let springs = chunk_range(c, m, SPRING_CHUNK);
+            match (law, velocities_mm_s.is_some()) {
+                (SpringLaw::Linear, false) => {
+                    self.spring_forces::<false>(|s, _rest, k| k * s, x, v, springs, out)
+                }
+                (other, false) => self.spring_forces::<false>(
+                    |s, rest, k| other.tension_n(s, rest, k),
+                    x,
+                    v,
+                    springs,
+                    out,
+                ),
+                (SpringLaw::Linear, true) => {
+                    self.spring_forces::<true>(|s, _rest, k| k * s, x, v, springs, out)
+                }
+                (other, true) => self.spring_forces::<true>(
+                    |s, rest, k| other.tension_n(s, rest, k),
+                    x,
+                    v,
+                    springs,
+                    out,
+                ),
+            }
+        });
+        // Pass 3, by node: the node's own force plus its springs' slots, in spring order (the scatter's order).
+        let (f, per_spring) = (&*f, &*per_spring);
+        for_chunks_mut(runner, &mut forces_n[..n], NODE_CHUNK, |c, out| {
+            for (force, i) in out.iter_mut().zip(chunk_range(c, n, NODE_CHUNK)) {
+                let mut sum = f[i].0;
+                let row = incidence.start[i] as usize..incidence.start[i + 1] as usize;
+                for &s in incidence.list.get(row).unwrap_or(&[]) {
+                    let Some(spring) = per_spring.get(s as usize) else {
+                        continue;
+                    };
+                    if self.a[s as usize] as usize == i {
+                        for (acc, q) in sum.iter_mut().zip(spring.0) {
+                            *acc += q;
+                        }
+                    } else {
+                        for (acc, q) in sum.iter_mut().zip(spring.0) {
+                            *acc -= q;
+                        }
+                    }
+                }
+                *force = Vec3::new(sum[0], sum[1], sum[2]);
+            }
+        });
+    }
+
+    /// Each spring of `springs`' force on its end a (the scatter kernel's `d * scale`, to the bit) into `out`.
+    #[inline(always)]
+    fn spring_forces<const DAMPED: bool>(
+        &self,
+        tension: impl Fn(f32, f32, f32) -> f32,
+        x: &[Padded],
+        v: &[Padded],
+        springs: std::ops::Range<usize>,
+        out: &mut [Padded],
+    ) {
+        for (slot, s) in out.iter_mut().zip(springs) {
+            let (a, b) = (self.a[s] as usize, self.b[s] as usize);
+            let (Some(xa), Some(xb)) = (x.get(a), x.get(b)) else {
+                *slot = Padded::default();
+                continue;
+            };
+            let d = xb.minus(xa);
+            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let inv = if len > 1e-9 { 1.0 / len } else { 0.0 };
+            let rest = self.rest_mm[s];
+            let mut magnitude = tension(len - rest, rest, self.stiffness_n_per_mm[s]);
+            if DAMPED && let (Some(va), Some(vb)) = (v.get(a), v.get(b)) {
+                let dv = vb.minus(va);
+                let rate = (dv[0] * d[0] + dv[1] * d[1] + dv[2] * d[2]) * inv;
+                magnitude += self.damping_n_s_per_mm[s] * rate;
+            }
+            let scale = magnitude * inv;
+            *slot = Padded([d[0] * scale, d[1] * scale, d[2] * scale, d[3] * scale]);
         }
     }
 
@@ -248,22 +418,42 @@ impl SpringSet {
         }
     }
 
-    /// Elastic energy stored in every spring at these positions, N mm (= mJ). A pure reduction: blocks of
-    /// eight springs gather their endpoint differences, then take eight square roots at once.
-    pub fn energy_n_mm(&self, law: SpringLaw, x: &[Vec3]) -> f64 {
-        match law {
-            SpringLaw::Linear => self.energy_kernel(|s, _rest, k| 0.5 * k * s * s, x),
-            other => self.energy_kernel(|s, rest, k| other.energy_n_mm(s, rest, k), x),
-        }
+    /// Elastic energy stored in every spring at these positions, N mm (= mJ). A pure reduction: each chunk of
+    /// [`SPRING_CHUNK`] springs sums into its own partial (blocks of eight springs gather their endpoint
+    /// differences, then take eight square roots at once), then the partials add up in chunk order.
+    pub fn energy_n_mm(
+        &self,
+        law: SpringLaw,
+        x: &[Vec3],
+        runner: &dyn ChunkRunner,
+        scratch: &mut KernelScratch,
+    ) -> f64 {
+        let m = self.len();
+        let partials = &mut scratch.energy_partials;
+        partials.clear();
+        partials.resize(chunk_count(m, SPRING_CHUNK), 0.0);
+        for_chunks_mut(runner, partials, 1, |c, partial| {
+            let springs = chunk_range(c, m, SPRING_CHUNK);
+            partial[0] = match law {
+                SpringLaw::Linear => self.energy_kernel(|s, _rest, k| 0.5 * k * s * s, x, springs),
+                other => self.energy_kernel(|s, rest, k| other.energy_n_mm(s, rest, k), x, springs),
+            };
+        });
+        partials.iter().fold(0.0, |total, p| total + p)
     }
 
     #[inline(always)]
-    fn energy_kernel(&self, energy: impl Fn(f32, f32, f32) -> f32, x: &[Vec3]) -> f64 {
+    fn energy_kernel(
+        &self,
+        energy: impl Fn(f32, f32, f32) -> f32,
+        x: &[Vec3],
+        springs: std::ops::Range<usize>,
+    ) -> f64 {
         const BLOCK: usize = 8;
         let mut total = 0.0f64;
-        let blocks = self.len() / BLOCK;
+        let blocks = springs.len() / BLOCK;
         for block in 0..blocks {
-            let base = block * BLOCK;
+            let base = springs.start + block * BLOCK;
             let mut len2 = [0.0f32; BLOCK];
             for (j, l) in len2.iter_mut().enumerate() {
                 let (a, b) = (self.a[base + j] as usize, self.b[base + j] as usize);
@@ -278,7 +468,7 @@ impl SpringSet {
             }
             total += f64::from(sum);
         }
-        for s in blocks * BLOCK..self.len() {
+        for s in springs.start + blocks * BLOCK..springs.end {
             let (ia, ib, rest, k, _) = self.get(s);
             if let (Some(xa), Some(xb)) = (x.get(ia), x.get(ib)) {
                 total += f64::from(energy((xb - xa).norm() - rest, rest, k));

@@ -157,6 +157,9 @@ pub(crate) struct SimSection {
     pub pose_timeout_s: Spanned<f64>,
     #[serde(default = "default_gravity")]
     pub gravity_mm_per_s2: Spanned<[f32; 3]>,
+    /// Threads the tissue passes spread over (absent: what the machine can spare).
+    #[serde(default)]
+    pub threads: Option<Spanned<i64>>,
 }
 
 impl Default for SimSection {
@@ -166,6 +169,7 @@ impl Default for SimSection {
             publish_hz: default_publish_hz(),
             pose_timeout_s: default_pose_timeout_s(),
             gravity_mm_per_s2: Spanned::new(0..0, [0.0; 3]),
+            threads: None,
         }
     }
 }

@@ -84,6 +84,9 @@ pub struct World {
     pub collision_margin_mm: f32,
     /// Uniform acceleration of every free node, mm/s^2 (default none: the tissue's anchors hold it).
     pub gravity_mm_per_s2: [f32; 3],
+    /// `[sim] threads`: threads the tissue passes spread over, the tick's own included (`None`: what the
+    /// machine can spare, [`default_tissue_threads`]). Never changes a result, only the time.
+    pub tissue_threads: Option<usize>,
     /// Tie-nodes between objects.
     pub ties: Vec<TieSet>,
     /// Deformable objects.
@@ -341,6 +344,22 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         pose_timeout_s >= 1.0 / tick_hz && pose_timeout_s <= 10.0,
         "must be in [one tick, 10] s (a device silent this long has its tool released)",
     )?;
+    let tissue_threads = match &file.sim.threads {
+        Some(threads) => {
+            let n = *threads.get_ref();
+            cx.check(
+                threads,
+                "sim.threads",
+                (1..=MAX_TISSUE_THREADS as i64).contains(&n),
+                &format!(
+                    "must be in [1, {MAX_TISSUE_THREADS}] (threads for the tissue passes, the tick's own included; \
+                     leave it out for what the machine can spare)"
+                ),
+            )?;
+            Some(n as usize)
+        }
+        None => None,
+    };
     let gravity_mm_per_s2 = *file.sim.gravity_mm_per_s2.get_ref();
     cx.check(
         &file.sim.gravity_mm_per_s2,
@@ -414,11 +433,23 @@ pub fn parse_world(path: &Path, text: &str) -> Result<World, WorldError> {
         pose_timeout_s,
         collision_margin_mm: margin,
         gravity_mm_per_s2,
+        tissue_threads,
         ties,
         objects,
         tools,
         exercise,
     })
+}
+
+/// The most threads `[sim] threads` may ask for.
+pub const MAX_TISSUE_THREADS: usize = 64;
+
+/// What the machine can spare for the tissue passes when the world does not say: every core but two (one for
+/// zenoh and the publisher, one for the device loops and whatever else shares the machine), at least one (the
+/// tick's own thread: no workers), at most 8 (the pad's passes stop scaling well before that).
+pub fn default_tissue_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    cores.saturating_sub(2).clamp(1, 8)
 }
 
 /// The most targets an exercise may have.

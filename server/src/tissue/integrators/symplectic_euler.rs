@@ -1,6 +1,8 @@
 //! Semi-implicit (symplectic) Euler, the default.
 
 use super::{Integrator, flush_subnormal};
+use crate::parallel::{chunk_range, for_chunks_mut2};
+use crate::tissue::springs::NODE_CHUNK;
 use crate::tissue::{MassSpringModel, TissueState};
 
 /// `v += h a(x, v)`, then `x += h v` with the new velocity. Drag is applied implicitly (`v /= 1 + h drag`).
@@ -22,19 +24,25 @@ impl Integrator for SymplecticEuler {
             &mut state.forces_n,
         );
         let drag_factor = 1.0 / (1.0 + dt_s * model.drag_per_s());
-        for (((x, v), f), &w) in state
-            .positions_mm
-            .iter_mut()
-            .zip(state.velocities_mm_s.iter_mut())
-            .zip(&state.forces_n)
-            .zip(model.accel_per_force())
-        {
-            if w == 0.0 {
-                continue;
-            }
-            *v = flush_subnormal((*v + f * (w * dt_s)) * drag_factor);
-            *x = flush_subnormal(*x + *v * dt_s);
-        }
+        let (forces, accel_per_force) = (&state.forces_n, model.accel_per_force());
+        // Node by node, so any chunking of the nodes gives the same bits.
+        for_chunks_mut2(
+            model.chunk_runner(),
+            &mut state.positions_mm,
+            &mut state.velocities_mm_s,
+            NODE_CHUNK,
+            |c, xs, vs| {
+                let nodes = chunk_range(c, forces.len().min(accel_per_force.len()), NODE_CHUNK);
+                for ((x, v), i) in xs.iter_mut().zip(vs.iter_mut()).zip(nodes) {
+                    let w = accel_per_force[i];
+                    if w == 0.0 {
+                        continue;
+                    }
+                    *v = flush_subnormal((*v + forces[i] * (w * dt_s)) * drag_factor);
+                    *x = flush_subnormal(*x + *v * dt_s);
+                }
+            },
+        );
         0
     }
 }
