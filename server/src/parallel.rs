@@ -48,6 +48,32 @@ unsafe impl ChunkRunner for Inline {
     }
 }
 
+/// Scratch buffers a `&self` pass writes (the spring kernel's padded copies, say), shareable between threads
+/// so a model can be read by several at once (each tool's contact solve on its own worker). A pass takes the
+/// buffers with a `try_lock` that never waits; should another thread hold them (two passes on one model at
+/// once, which the tick never does) it works in fresh buffers instead: slower, allocating, the same result,
+/// since scratch never carries anything from one pass to the next. A clone starts with empty buffers.
+#[derive(Debug, Default)]
+pub struct ScratchCell<T>(std::sync::Mutex<T>);
+
+impl<T: Default> ScratchCell<T> {
+    /// Run `pass` with the buffers.
+    pub fn with<R>(&self, pass: impl FnOnce(&mut T) -> R) -> R {
+        match self.0.try_lock() {
+            Ok(mut buffers) => pass(&mut buffers),
+            // A pass that panicked holding them left buffers, not results: keep using them.
+            Err(std::sync::TryLockError::Poisoned(poisoned)) => pass(&mut poisoned.into_inner()),
+            Err(std::sync::TryLockError::WouldBlock) => pass(&mut T::default()),
+        }
+    }
+}
+
+impl<T: Default> Clone for ScratchCell<T> {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
 /// The number of chunks of `chunk_len` items that cover `len` items (the last may be short).
 pub fn chunk_count(len: usize, chunk_len: usize) -> usize {
     len.div_ceil(chunk_len.max(1))

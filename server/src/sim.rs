@@ -19,7 +19,7 @@ use crate::interaction::{
     swept_seams, torn_seams,
 };
 use crate::multirate::{StepLane, StepRunner, ToolSeed};
-use crate::parallel::ChunkRunner;
+use crate::parallel::{ChunkRunner, for_chunks_mut};
 use crate::tissue::seams::{Facet, Opening, open_model_into, shared_by_two};
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TieSet, TissueState,
@@ -1020,26 +1020,31 @@ impl Sim {
         if !std::mem::take(&mut self.tail_due) {
             return;
         }
-        for tool in &mut self.tools {
-            for (o, object) in self.objects.iter().enumerate() {
-                let Some(normal) = tool.stiffness_due.get_mut(o).and_then(Option::take) else {
-                    continue;
-                };
-                let (Some(solver), Some(contacts)) =
-                    (tool.stiffness.get_mut(o), tool.contacts.get(o))
-                else {
-                    continue;
-                };
-                let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
-                solver.advance(
-                    &object.model,
-                    &object.state,
-                    &contacts.held,
-                    &contacts.normals,
-                    grasped,
-                    &normal,
-                );
-            }
+        // Each tool's solve on an object reads that object and writes only its own solver: the tools run
+        // side by side on the object's threads (one chunk per tool), to the same bits as one after another.
+        for (o, object) in self.objects.iter().enumerate() {
+            let (model, state) = (&object.model, &object.state);
+            for_chunks_mut(model.chunk_runner(), &mut self.tools, 1, |_, tools| {
+                for tool in tools {
+                    let Some(normal) = tool.stiffness_due.get_mut(o).and_then(Option::take) else {
+                        continue;
+                    };
+                    let (Some(solver), Some(contacts)) =
+                        (tool.stiffness.get_mut(o), tool.contacts.get(o))
+                    else {
+                        continue;
+                    };
+                    let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+                    solver.advance(
+                        model,
+                        state,
+                        &contacts.held,
+                        &contacts.normals,
+                        grasped,
+                        &normal,
+                    );
+                }
+            });
         }
     }
 

@@ -1,7 +1,7 @@
 //! The tissue step spread over worker threads gives the same bits as on one thread: positions, velocities and
 //! the forces sent to the tools, tick by tick, through the real `Sim`, the real world loader and the real
-//! worker pool (`sinew_server::node::worker_pool`), on the shipped pad and on a region-tracked sheet with a
-//! stiffening law under every integrator.
+//! worker pool (`sinew_server::node::worker_pool`): on the shipped pad, on a sheet with a stiffening law under
+//! every integrator (with and without a region of deformation), and on the shipped volumetric blocks.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 mod common;
@@ -135,5 +135,16 @@ fn every_integrator_with_a_stiffening_law_with_and_without_a_region_is_the_same_
                 };
             });
         }
+    }
+}
+
+#[test]
+fn volumetric_worlds_are_the_same_to_the_bit_on_1_and_3_threads() {
+    // Corotational finite elements under implicit Euler, and springs with per-tetrahedron volume terms.
+    for name in ["fem_block.toml", "tet_block.toml"] {
+        let world = load_world(&common::worlds().join(name)).unwrap();
+        assert_same_bits(&world, &[1, 3], 200, |k, commands| {
+            commands[0] = common::fem_block_press(4.0 * (k as f32 / 150.0).min(1.0) - 0.5);
+        });
     }
 }

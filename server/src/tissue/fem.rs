@@ -27,7 +27,7 @@
 
 #![allow(clippy::needless_range_loop)] // loops walk several parallel per-node arrays by index
 
-use std::cell::RefCell;
+use crate::parallel::ScratchCell;
 
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 
@@ -195,7 +195,7 @@ pub struct FemElements {
     node_diagonal_n_per_mm: Vec<f32>,
     /// Gershgorin bound on each node's row of the rest stiffness, N/mm.
     node_row_bound_n_per_mm: Vec<f32>,
-    scratch: RefCell<FemScratch>,
+    scratch: ScratchCell<FemScratch>,
 }
 
 /// `sym(m) - I` with its trace removed: the deviatoric small strain of a rotated gradient `m`.
@@ -331,8 +331,18 @@ impl FemElements {
         if !self.is_on() {
             return;
         }
-        let mut guard = self.scratch.borrow_mut();
-        let scratch = &mut *guard;
+        self.scratch
+            .with(|scratch| self.accumulate_with(tets, x, forces_n, lin, scratch));
+    }
+
+    fn accumulate_with(
+        &self,
+        tets: &TetVolumes,
+        x: &[Vec3],
+        forces_n: &mut [Vec3],
+        mut lin: Option<&mut FemLinearization>,
+        scratch: &mut FemScratch,
+    ) {
         self.node_pressures(tets, x, scratch);
         for (t, &tet) in tets.tets.iter().enumerate() {
             let v0 = tets.rest_volume_mm3[t];
@@ -443,13 +453,18 @@ impl FemElements {
             let e = deviatoric_strain(&(r.transpose() * f));
             total += f64::from(self.shear_n_per_mm2 * tets.rest_volume_mm3[t] * e.norm_squared());
         }
-        let mut guard = self.scratch.borrow_mut();
-        self.node_pressures(tets, x, &mut guard);
-        for (&v, &v0) in guard.node_volume_mm3.iter().zip(&self.node_rest_volume_mm3) {
-            if v0 > 0.0 {
-                total += f64::from(0.5 * self.bulk_n_per_mm2 * (v - v0) * (v - v0) / v0);
+        self.scratch.with(|scratch| {
+            self.node_pressures(tets, x, scratch);
+            for (&v, &v0) in scratch
+                .node_volume_mm3
+                .iter()
+                .zip(&self.node_rest_volume_mm3)
+            {
+                if v0 > 0.0 {
+                    total += f64::from(0.5 * self.bulk_n_per_mm2 * (v - v0) * (v - v0) / v0);
+                }
             }
-        }
+        });
         total
     }
 

@@ -6,7 +6,6 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use std::cell::RefCell;
 use std::sync::Arc;
 
 use super::fem::{FemElements, FemLinearization, FemMaterial, NodeTets};
@@ -14,7 +13,7 @@ use super::springs::{KernelScratch, NodeSprings, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
 use crate::incidence::incidence_into;
-use crate::parallel::{ChunkRunner, Inline};
+use crate::parallel::{ChunkRunner, Inline, ScratchCell};
 use crate::world::{MassSpec, ObjectSpec};
 
 /// Everything a model is built from. Public so tests and the region tracker can build models that are not
@@ -87,8 +86,9 @@ pub struct MassSpringModel {
     /// Scratch of [`Self::rebuild_from`]: the spring sort order.
     build_order: Vec<usize>,
     /// The spring kernel's padded buffers: scratch, not state (a model is stepped by one thread at a time;
-    /// `compute_forces` stays `&self` so every integrator shares one model).
-    kernel_scratch: RefCell<KernelScratch>,
+    /// `compute_forces` stays `&self` so every integrator shares one model, and the model stays `Sync` so the
+    /// tools' contact solves read it from several threads).
+    kernel_scratch: ScratchCell<KernelScratch>,
     /// The threads the spring passes and the integration spread over (`None`: the calling thread alone). Not
     /// part of the model's physics: any runner gives the same bits.
     runner: Option<Arc<dyn ChunkRunner>>,
@@ -243,7 +243,7 @@ impl MassSpringModel {
             node_tet_start: Vec::new(),
             node_tets: Vec::new(),
             diagonal_stiffness_n_per_mm: Vec::new(),
-            kernel_scratch: RefCell::new(KernelScratch::default()),
+            kernel_scratch: ScratchCell::default(),
             build_order: Vec::new(),
             runner: None,
         }
@@ -619,29 +619,18 @@ impl MassSpringModel {
             start: &self.node_spring_start,
             list: &self.node_springs,
         };
-        match self.kernel_scratch.try_borrow_mut() {
-            Ok(mut scratch) => self.springs.forces_into(
+        self.kernel_scratch.with(|scratch| {
+            self.springs.forces_into(
                 self.law,
                 positions_mm,
                 velocities_mm_s,
                 base,
                 forces_n,
-                &mut scratch,
+                scratch,
                 self.chunk_runner(),
                 incidence,
-            ),
-            // Re-entered (never, in practice): a throwaway scratch is slower but correct.
-            Err(_) => self.springs.forces_into(
-                self.law,
-                positions_mm,
-                velocities_mm_s,
-                base,
-                forces_n,
-                &mut KernelScratch::default(),
-                self.chunk_runner(),
-                incidence,
-            ),
-        }
+            )
+        });
         self.tets.accumulate_forces(positions_mm, forces_n);
         self.fem
             .accumulate_forces(&self.tets, positions_mm, forces_n, fem);
@@ -654,18 +643,10 @@ impl MassSpringModel {
     /// Energy stored in the springs, the volume terms and the finite elements (not the anchors or gravity),
     /// N mm.
     pub fn elastic_energy_n_mm(&self, positions_mm: &[Vec3]) -> f64 {
-        let springs = match self.kernel_scratch.try_borrow_mut() {
-            Ok(mut scratch) => {
-                self.springs
-                    .energy_n_mm(self.law, positions_mm, self.chunk_runner(), &mut scratch)
-            }
-            Err(_) => self.springs.energy_n_mm(
-                self.law,
-                positions_mm,
-                self.chunk_runner(),
-                &mut KernelScratch::default(),
-            ),
-        };
+        let springs = self.kernel_scratch.with(|scratch| {
+            self.springs
+                .energy_n_mm(self.law, positions_mm, self.chunk_runner(), scratch)
+        });
         let mut total = springs + self.fem.energy_n_mm(&self.tets, positions_mm);
         let tets = &self.tets;
         if tets.bulk_modulus_n_per_mm2 > 0.0 {
