@@ -39,6 +39,10 @@ struct Args {
     /// CAP_SYS_NICE and an RLIMIT_RTPRIO allowance); the log says at start what it was given.
     #[arg(long)]
     realtime: bool,
+    /// Threads for the tissue passes, the tick's own included, instead of the world's `[sim] threads` (or, when
+    /// it has none, every core but two). Any count gives the same results; only the tick's time changes.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
+    tissue_threads: Option<u16>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -47,7 +51,11 @@ fn main() -> anyhow::Result<()> {
     sinew_protocol::rt::panic_report::install_deferred_backtrace_hook();
     let args = Args::parse();
     let emulation = args.emulation.config().map_err(anyhow::Error::msg)?;
-    let world = load_world(&args.world).context("the server refuses to start with this world")?;
+    let mut world =
+        load_world(&args.world).context("the server refuses to start with this world")?;
+    if let Some(threads) = args.tissue_threads {
+        world.tissue_threads = Some(usize::from(threads));
+    }
     println!(
         "world {}: scene `{}`, {} object(s), {} tool(s), tick {} Hz",
         args.world.display(),

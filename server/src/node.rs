@@ -196,12 +196,16 @@ impl ServerNode {
         let threads = world
             .tissue_threads
             .unwrap_or_else(crate::world::default_tissue_threads);
-        if threads > 1 {
+        let tissue = if threads > 1 {
             let pool = worker_pool::WorkerPool::new(threads, true)
                 .map_err(|e| ServerError::Thread(e.to_string()))?;
-            tracing::info!("tissue passes: {}", pool.report());
+            let report = pool.report().to_string();
             sim.set_chunk_runner(Some(std::sync::Arc::new(pool)));
-        }
+            report
+        } else {
+            "1 tissue thread (the tick's own)".to_owned()
+        };
+        tracing::info!("tissue passes: {tissue}");
         for object in &sim.objects {
             if let Some(lane) = object.step_lane() {
                 tracing::info!(
@@ -327,6 +331,7 @@ impl ServerNode {
             recorder,
             wire_tap,
             record_summary: None,
+            tissue,
         })
     }
 }
@@ -342,6 +347,7 @@ pub struct ServerHandle {
     recorder: Option<crate::recording::Recorder>,
     wire_tap: Option<crate::recording::WireTap>,
     record_summary: Option<crate::recording::RecordSummary>,
+    tissue: String,
 }
 
 /// How long [`ServerHandle::stop`] waits for the publish thread and zenoh's goodbyes once the sim has stopped.
@@ -356,6 +362,11 @@ impl std::fmt::Debug for ServerHandle {
 }
 
 impl ServerHandle {
+    /// The threads the tissue passes run on (`[sim] threads`), and where the workers were pinned.
+    pub fn tissue_threads(&self) -> &str {
+        &self.tissue
+    }
+
     /// Current stats (the same content the 1 Hz stats message carries).
     pub fn stats(&self) -> ServerStats {
         publish_loop::build_stats(&self.shared)

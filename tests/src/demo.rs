@@ -41,6 +41,8 @@ pub struct DemoOptions {
     pub record: Option<PathBuf>,
     /// Real-time scheduling for the 1 kHz loops, where the process may have it.
     pub realtime: bool,
+    /// Threads for the server's tissue passes (`None`: the world's `[sim] threads`, or the machine's share).
+    pub tissue_threads: Option<usize>,
 }
 
 /// The demo's final figures.
@@ -70,7 +72,10 @@ struct Running {
 
 /// Run the demo. Prints as it goes; returns the summary.
 pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
-    let world = load_world(&options.world).context("the demo's world")?;
+    let mut world = load_world(&options.world).context("the demo's world")?;
+    if let Some(threads) = options.tissue_threads {
+        world.tissue_threads = Some(threads);
+    }
     let (left, right) = surgeon_scripts_for(&world);
     let scene = world.scene.clone();
     // The one-core bench tick of this world, in this run: the live tick is read against it.
@@ -286,7 +291,7 @@ fn summarize(running: &Running, bench_tick: &sinew_protocol::rt::LatencyHistogra
     );
     let bench_p99 = bench_tick.percentile_us(99.0);
     println!(
-        "live tick against the bench tick of this run: p50 {:.2}x, p99 {:.2}x (bench p50 {:.0} us, p99 {:.0} us); sim thread: {}",
+        "live tick against the bench tick of this run: p50 {:.2}x, p99 {:.2}x (bench p50 {:.0} us, p99 {:.0} us); sim thread: {}; {}",
         s.tick_p50_us / bench_tick.percentile_us(50.0).max(1e-3),
         s.tick_p99_us / bench_p99.max(1e-3),
         bench_tick.percentile_us(50.0),
@@ -295,6 +300,7 @@ fn summarize(running: &Running, bench_tick: &sinew_protocol::rt::LatencyHistogra
             .server
             .realtime()
             .map_or_else(|| "not started".to_owned(), ToString::to_string),
+        running.server.tissue_threads(),
     );
     if let Some(grant) = running.devices.first().and_then(|d| d.report().realtime) {
         println!("device loops: {grant}");

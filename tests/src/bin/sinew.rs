@@ -53,6 +53,10 @@ enum Command {
         /// process may; the summary says what they were given.
         #[arg(long)]
         realtime: bool,
+        /// Threads for the server's tissue passes instead of the world's `[sim] threads` (default: every core
+        /// but two); the same results on any count.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
+        tissue_threads: Option<u16>,
     },
     /// Re-run a recording (`sinew-server --record FILE`) through the simulation on virtual time and check that
     /// every force command and the final tissue come out bit for bit as recorded. With `--publish`, replay it
@@ -154,6 +158,7 @@ fn main() -> anyhow::Result<()> {
             hand,
             record,
             realtime,
+            tissue_threads,
         } => {
             anyhow::ensure!(
                 duration_s.is_finite() && duration_s > 0.0,
@@ -170,6 +175,7 @@ fn main() -> anyhow::Result<()> {
                 hand,
                 record,
                 realtime,
+                tissue_threads: tissue_threads.map(usize::from),
             })?;
         }
         Command::Replay {
