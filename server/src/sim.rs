@@ -115,9 +115,29 @@ pub struct SimObject {
     /// The integrator solves with the tools' held nodes pinned (implicit Euler): each substep pushes out
     /// first, then integrates, and the contacts are sticky.
     pins_held: bool,
+    /// The collider has not followed this tick's motion yet (it does in the tick's tail, after the forces).
+    refit_due: bool,
 }
 
 impl SimObject {
+    /// Refit the collider to the positions, if this tick's refit is still due: the moved nodes' triangles for a
+    /// region object (only its active nodes moved), every leaf otherwise.
+    fn finish_refit(&mut self) {
+        if !std::mem::take(&mut self.refit_due) {
+            return;
+        }
+        match &self.region {
+            Some(region) => {
+                self.collider
+                    .refit_nodes(&self.state.positions_mm, region.active_nodes());
+            }
+            None => {
+                self.collider
+                    .refit_on(&self.state.positions_mm, self.model.chunk_runner());
+            }
+        }
+    }
+
     /// The integrator's name.
     pub fn integrator_name(&self) -> &'static str {
         self.integrator.name()
@@ -492,6 +512,7 @@ impl Sim {
                 parts: ModelParts::default(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
+                refit_due: false,
                 integrator: integrator_for(spec.integrator, spec.solver_iterations),
                 integrator_spec: (spec.integrator, spec.solver_iterations),
                 guard: DivergenceGuard::new(&model),
@@ -674,6 +695,9 @@ impl Sim {
         let Some(o) = self.objects.get_mut(object).filter(|o| o.lane.is_none()) else {
             return Opening::default();
         };
+        // A tear opens mid-tick: the collider first follows the tick's motion (the tree is kept across the
+        // change, and the region it would refit by is rebuilt below).
+        o.finish_refit();
         // Nothing new: the facets cut before and still joined did not open with this model, and will not now
         // (a blade sweeping again through a crack it made finds them again; no allocation).
         if seams.iter().all(|f| o.severed.binary_search(f).is_ok()) {
@@ -959,20 +983,11 @@ impl Sim {
             halvings += 1;
             report.retries += 1;
         }
+        // The colliders follow this tick's motion in the tail, after the forces are out: nothing between here and
+        // the outputs needs them but the nearby-surface planes, whose candidates a tree one step old (fat leaves,
+        // a look-ahead box) still finds; the next tick's broad phase sees them refitted, as before.
         for object in self.objects.iter_mut().filter(|o| o.lane.is_none()) {
-            match &object.region {
-                // Only the active nodes moved this tick (nodes leaving the region kept their positions).
-                Some(region) => {
-                    object
-                        .collider
-                        .refit_nodes(&object.state.positions_mm, region.active_nodes());
-                }
-                None => {
-                    object
-                        .collider
-                        .refit_on(&object.state.positions_mm, object.model.chunk_runner());
-                }
-            }
+            object.refit_due = true;
         }
 
         // Sheets overstretched this tick tear before the grasps measure their pull.
@@ -1012,11 +1027,15 @@ impl Sim {
         report
     }
 
-    /// The tick's tail: work a step leaves for after its outputs went out (the contact-stiffness solver's
-    /// iterations, which refine the `K` of the next ticks' local models). The server runs it right after
+    /// The tick's tail: work a step leaves for after its outputs went out (the colliders' refit to the tick's
+    /// motion, and the contact-stiffness solver's iterations, which refine the `K` of the next ticks' local
+    /// models). The server runs it right after
     /// publishing the tick's forces, so it is not in the pose -> force path; [`Sim::step`] runs it first if
     /// nobody did, on the same state, so results do not depend on it being called. No allocation once warm.
     pub fn finish_tick(&mut self) {
+        for object in &mut self.objects {
+            object.finish_refit();
+        }
         if !std::mem::take(&mut self.tail_due) {
             return;
         }
