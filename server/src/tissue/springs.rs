@@ -351,24 +351,39 @@ impl SpringSet {
         out: &mut [Padded],
     ) {
         for (slot, s) in out.iter_mut().zip(springs) {
-            let (a, b) = (self.a[s] as usize, self.b[s] as usize);
-            let (Some(xa), Some(xb)) = (x.get(a), x.get(b)) else {
-                *slot = Padded::default();
-                continue;
+            *slot = match self.spring_along::<DAMPED>(&tension, x, v, s) {
+                Some((_, _, d, scale)) => {
+                    Padded([d[0] * scale, d[1] * scale, d[2] * scale, d[3] * scale])
+                }
+                None => Padded::default(),
             };
-            let d = xb.minus(xa);
-            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            let inv = if len > 1e-9 { 1.0 / len } else { 0.0 };
-            let rest = self.rest_mm[s];
-            let mut magnitude = tension(len - rest, rest, self.stiffness_n_per_mm[s]);
-            if DAMPED && let (Some(va), Some(vb)) = (v.get(a), v.get(b)) {
-                let dv = vb.minus(va);
-                let rate = (dv[0] * d[0] + dv[1] * d[1] + dv[2] * d[2]) * inv;
-                magnitude += self.damping_n_s_per_mm[s] * rate;
-            }
-            let scale = magnitude * inv;
-            *slot = Padded([d[0] * scale, d[1] * scale, d[2] * scale, d[3] * scale]);
         }
+    }
+
+    /// Spring `s`'s endpoints, its end-to-end difference `d` (padded) and the factor `scale` that makes
+    /// `d * scale` its force on end a: the one computation both kernels share, so they agree to the bit.
+    /// `None` when an endpoint is out of range.
+    #[inline(always)]
+    fn spring_along<const DAMPED: bool>(
+        &self,
+        tension: &impl Fn(f32, f32, f32) -> f32,
+        x: &[Padded],
+        v: &[Padded],
+        s: usize,
+    ) -> Option<(usize, usize, [f32; 4], f32)> {
+        let (a, b) = (self.a[s] as usize, self.b[s] as usize);
+        let (xa, xb) = (x.get(a)?, x.get(b)?);
+        let d = xb.minus(xa);
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let inv = if len > 1e-9 { 1.0 / len } else { 0.0 };
+        let rest = self.rest_mm[s];
+        let mut magnitude = tension(len - rest, rest, self.stiffness_n_per_mm[s]);
+        if DAMPED && let (Some(va), Some(vb)) = (v.get(a), v.get(b)) {
+            let dv = vb.minus(va);
+            let rate = (dv[0] * d[0] + dv[1] * d[1] + dv[2] * d[2]) * inv;
+            magnitude += self.damping_n_s_per_mm[s] * rate;
+        }
+        Some((a, b, d, magnitude * inv))
     }
 
     #[inline(always)]
@@ -379,21 +394,9 @@ impl SpringSet {
     ) {
         let (x, v, f) = (&scratch.x, &scratch.v, &mut scratch.f);
         for s in 0..self.len() {
-            let (a, b) = (self.a[s] as usize, self.b[s] as usize);
-            let (Some(xa), Some(xb)) = (x.get(a), x.get(b)) else {
+            let Some((a, b, d, scale)) = self.spring_along::<DAMPED>(&tension, x, v, s) else {
                 continue;
             };
-            let d = xb.minus(xa);
-            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            let inv = if len > 1e-9 { 1.0 / len } else { 0.0 };
-            let rest = self.rest_mm[s];
-            let mut magnitude = tension(len - rest, rest, self.stiffness_n_per_mm[s]);
-            if DAMPED && let (Some(va), Some(vb)) = (v.get(a), v.get(b)) {
-                let dv = vb.minus(va);
-                let rate = (dv[0] * d[0] + dv[1] * d[1] + dv[2] * d[2]) * inv;
-                magnitude += self.damping_n_s_per_mm[s] * rate;
-            }
-            let scale = magnitude * inv;
             if let Some(fa) = f.get_mut(a) {
                 for (out, dq) in fa.0.iter_mut().zip(d) {
                     *out += dq * scale;
