@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use super::fem::{FemElements, FemLinearization, FemMaterial, NodeTets};
-use super::springs::{KernelScratch, NodeSprings, SpringSet};
+use super::springs::{ForcePass, KernelScratch, NodeSprings, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
 use crate::incidence::incidence_into;
@@ -619,17 +619,15 @@ impl MassSpringModel {
             start: &self.node_spring_start,
             list: &self.node_springs,
         };
+        let pass = ForcePass {
+            law: self.law,
+            positions_mm,
+            velocities_mm_s,
+            base_n: base,
+        };
         self.kernel_scratch.with(|scratch| {
-            self.springs.forces_into(
-                self.law,
-                positions_mm,
-                velocities_mm_s,
-                base,
-                forces_n,
-                scratch,
-                self.chunk_runner(),
-                incidence,
-            )
+            self.springs
+                .forces_into(pass, forces_n, scratch, self.chunk_runner(), incidence)
         });
         self.tets.accumulate_forces(positions_mm, forces_n);
         self.fem

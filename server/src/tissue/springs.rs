@@ -56,6 +56,31 @@ pub struct KernelScratch {
     energy_partials: Vec<f64>,
 }
 
+impl KernelScratch {
+    /// Size the per-node buffers for `n` nodes (allocates only when they grow past their capacity).
+    fn fit_nodes(&mut self, n: usize) {
+        for buffer in [&mut self.x, &mut self.v, &mut self.f] {
+            if buffer.len() != n {
+                buffer.resize(n, Padded::default());
+            }
+        }
+    }
+}
+
+/// What a force pass reads: the law, the positions, the velocities (none: springs only, a static solve), and
+/// each node's own force before the springs (`base_n(i)`: anchor, gravity, external), N.
+#[derive(Debug, Clone, Copy)]
+pub struct ForcePass<'a, B> {
+    /// The spring law.
+    pub law: SpringLaw,
+    /// Node positions, mm.
+    pub positions_mm: &'a [Vec3],
+    /// Node velocities, mm/s (`None`: no dampers).
+    pub velocities_mm_s: Option<&'a [Vec3]>,
+    /// Each node's own force, N.
+    pub base_n: B,
+}
+
 /// Node -> incident springs in spring order (compressed rows): the springs touching node `i` are
 /// `list[start[i]..start[i + 1]]`. The parallel gather reads it.
 #[derive(Debug, Clone, Copy)]
@@ -189,43 +214,36 @@ impl SpringSet {
     /// Write into `forces_n` each node's `base_n(i)` plus every spring's force (end `a` gets `+f`, end `b`
     /// gets `-f`); with `velocities_mm_s` the dampers too, without them springs only (a static solve). On a
     /// runner with more than one thread the passes are spread over it through `incidence` (the same bits).
-    #[allow(clippy::too_many_arguments)] // the kernel's inputs, its output, its scratch and its threads
-    pub fn forces_into(
+    pub fn forces_into<B: Fn(usize) -> Vec3 + Sync>(
         &self,
-        law: SpringLaw,
-        positions_mm: &[Vec3],
-        velocities_mm_s: Option<&[Vec3]>,
-        base_n: impl Fn(usize) -> Vec3 + Sync,
+        pass: ForcePass<'_, B>,
         forces_n: &mut [Vec3],
         scratch: &mut KernelScratch,
         runner: &dyn ChunkRunner,
         incidence: NodeSprings<'_>,
     ) {
-        if runner.threads() > 1 && incidence.start.len() > positions_mm.len().min(forces_n.len()) {
-            self.forces_into_parallel(
-                law,
-                positions_mm,
-                velocities_mm_s,
-                base_n,
-                forces_n,
-                scratch,
-                runner,
-                incidence,
-            );
-            return;
+        let n = pass.positions_mm.len().min(forces_n.len());
+        if runner.threads() > 1 && incidence.start.len() > n {
+            self.gather_forces(pass, forces_n, scratch, runner, incidence);
+        } else {
+            self.scatter_forces(pass, forces_n, scratch);
         }
-        let n = positions_mm.len().min(forces_n.len());
-        for buffer in [&mut scratch.x, &mut scratch.v, &mut scratch.f] {
-            if buffer.len() != n {
-                buffer.resize(n, Padded::default());
-            }
-        }
+    }
+
+    /// The one-thread kernel: each spring scatters its force into both ends.
+    fn scatter_forces<B: Fn(usize) -> Vec3>(
+        &self,
+        pass: ForcePass<'_, B>,
+        forces_n: &mut [Vec3],
+        scratch: &mut KernelScratch,
+    ) {
+        scratch.fit_nodes(pass.positions_mm.len().min(forces_n.len()));
         for (i, (px, pf)) in scratch.x.iter_mut().zip(scratch.f.iter_mut()).enumerate() {
-            *px = Padded::from_vec3(&positions_mm[i]);
-            *pf = Padded::from_vec3(&base_n(i));
+            *px = Padded::from_vec3(&pass.positions_mm[i]);
+            *pf = Padded::from_vec3(&(pass.base_n)(i));
         }
         // One monomorphised kernel per law and per damping: the branches leave the inner loop.
-        match (law, velocities_mm_s) {
+        match (pass.law, pass.velocities_mm_s) {
             (SpringLaw::Linear, None) => self.kernel::<false>(|s, _rest, k| k * s, scratch),
             (other, None) => {
                 self.kernel::<false>(|s, rest, k| other.tension_n(s, rest, k), scratch)
@@ -245,20 +263,24 @@ impl SpringSet {
         }
     }
 
-    #[allow(clippy::too_many_arguments)] // as forces_into
-    fn forces_into_parallel(
+    /// The passes over `runner`: padded copies by node, each spring's force into its slot, each node's gather.
+    fn gather_forces<B: Fn(usize) -> Vec3 + Sync>(
         &self,
-        law: SpringLaw,
-        positions_mm: &[Vec3],
-        velocities_mm_s: Option<&[Vec3]>,
-        base_n: impl Fn(usize) -> Vec3 + Sync,
+        pass: ForcePass<'_, B>,
         forces_n: &mut [Vec3],
         scratch: &mut KernelScratch,
         runner: &dyn ChunkRunner,
         incidence: NodeSprings<'_>,
     ) {
+        let ForcePass {
+            law,
+            positions_mm,
+            velocities_mm_s,
+            base_n,
+        } = pass;
         let n = positions_mm.len().min(forces_n.len());
         let m = self.len();
+        scratch.fit_nodes(n);
         let KernelScratch {
             x,
             v,
@@ -266,11 +288,6 @@ impl SpringSet {
             per_spring,
             ..
         } = scratch;
-        for buffer in [&mut *x, &mut *v, &mut *f] {
-            if buffer.len() != n {
-                buffer.resize(n, Padded::default());
-            }
-        }
         if per_spring.len() != m {
             per_spring.resize(m, Padded::default());
         }
@@ -291,22 +308,13 @@ impl SpringSet {
         // Pass 2, by spring: each spring's force on its end a, into its own slot.
         let (x, v) = (&*x, &*v);
         for_chunks_mut(runner, per_spring, SPRING_CHUNK, |c, out| {
-            let springs = chunk_range(c, m, SPRING_CHUNK);
-            match (law, velocities_mm_s.is_some()) {
-                (SpringLaw::Linear, false) => {
-                    self.spring_forces::<false>(|s, _rest, k| k * s, x, v, springs, out)
+            let (springs, damped) = (chunk_range(c, m, SPRING_CHUNK), velocities_mm_s.is_some());
+            match law {
+                SpringLaw::Linear => {
+                    self.spring_slots(damped, |s, _rest, k| k * s, x, v, springs, out)
                 }
-                (other, false) => self.spring_forces::<false>(
-                    |s, rest, k| other.tension_n(s, rest, k),
-                    x,
-                    v,
-                    springs,
-                    out,
-                ),
-                (SpringLaw::Linear, true) => {
-                    self.spring_forces::<true>(|s, _rest, k| k * s, x, v, springs, out)
-                }
-                (other, true) => self.spring_forces::<true>(
+                other => self.spring_slots(
+                    damped,
                     |s, rest, k| other.tension_n(s, rest, k),
                     x,
                     v,
@@ -338,6 +346,24 @@ impl SpringSet {
                 *force = Vec3::new(sum[0], sum[1], sum[2]);
             }
         });
+    }
+
+    /// [`Self::spring_forces`], monomorphised with and without dampers (the branch leaves the inner loop).
+    #[inline(always)]
+    fn spring_slots(
+        &self,
+        damped: bool,
+        tension: impl Fn(f32, f32, f32) -> f32,
+        x: &[Padded],
+        v: &[Padded],
+        springs: std::ops::Range<usize>,
+        out: &mut [Padded],
+    ) {
+        if damped {
+            self.spring_forces::<true>(tension, x, v, springs, out);
+        } else {
+            self.spring_forces::<false>(tension, x, v, springs, out);
+        }
     }
 
     /// Each spring of `springs`' force on its end a (the scatter kernel's `d * scale`, to the bit) into `out`.
