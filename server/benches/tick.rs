@@ -13,13 +13,13 @@
 
 use std::time::Instant;
 
+use sinew_parallel::ChunkRunner;
+use sinew_parallel::WorkerPool;
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_protocol::rt::Pacer;
 use sinew_server::collision::SurfaceCollider;
 use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::node::tick_cost::press_and_stroke_commands;
-use sinew_server::node::worker_pool::WorkerPool;
-use sinew_server::parallel::ChunkRunner;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, SymplecticEuler};
 use sinew_server::world::load_world;
@@ -209,7 +209,7 @@ fn thread_scaling(
     for &threads in &counts {
         let mut sim = Sim::new(world)?;
         let pool = (threads > 1)
-            .then(|| WorkerPool::new(threads, true))
+            .then(|| WorkerPool::new(threads, Some(sinew_protocol::rt::realtime::pin_this_thread)))
             .transpose()?;
         if let Some(pool) = &pool {
             println!("  {}", pool.report());

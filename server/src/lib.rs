@@ -12,7 +12,6 @@ mod incidence;
 pub mod interaction;
 pub mod multirate;
 pub mod node;
-pub mod parallel;
 pub mod recording;
 pub mod replication;
 pub mod server_tick;

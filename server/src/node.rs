@@ -19,7 +19,6 @@ mod session;
 mod sim_loop;
 pub mod step_threads;
 pub mod tick_cost;
-pub mod worker_pool;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -197,8 +196,11 @@ impl ServerNode {
             .tissue_threads
             .unwrap_or_else(crate::world::default_tissue_threads);
         let tissue = if threads > 1 {
-            let pool = worker_pool::WorkerPool::new(threads, true)
-                .map_err(|e| ServerError::Thread(e.to_string()))?;
+            let pool = sinew_parallel::WorkerPool::new(
+                threads,
+                Some(sinew_protocol::rt::realtime::pin_this_thread),
+            )
+            .map_err(|e| ServerError::Thread(e.to_string()))?;
             let report = pool.report().to_string();
             sim.set_chunk_runner(Some(std::sync::Arc::new(pool)));
             report

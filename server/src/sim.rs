@@ -19,13 +19,13 @@ use crate::interaction::{
     swept_seams, torn_seams,
 };
 use crate::multirate::{StepLane, StepRunner, ToolSeed};
-use crate::parallel::{ChunkRunner, for_chunks_mut};
 use crate::tissue::seams::{Facet, Opening, open_model_into, shared_by_two};
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TieSet, TissueState,
     Vec3, Verdict, guard, integrator_for,
 };
 use crate::world::{InstrumentSpec, IntegratorName, ToolShapeSpec, World};
+use sinew_parallel::{ChunkRunner, for_chunks_mut};
 
 /// Why a world could not become a simulation.
 #[derive(Debug, Error)]

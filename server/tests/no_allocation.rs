@@ -127,7 +127,7 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     assert_eq!(allocations_while_stepping(&mut sim, 600, 1000), 0);
     // ... and with its tissue passes on a pool of workers (the counter sees every thread's allocations).
     let mut sim = Sim::new(&load_world(&path).unwrap()).unwrap();
-    let pool = sinew_server::node::worker_pool::WorkerPool::new(3, false).unwrap();
+    let pool = sinew_parallel::WorkerPool::new(3, None).unwrap();
     sim.set_chunk_runner(Some(std::sync::Arc::new(pool)));
     let allocations = allocations_while_stepping(&mut sim, 600, 1000);
     assert_eq!(allocations, 0, "a tick on worker threads allocated");

@@ -9,9 +9,9 @@ mod common;
 use std::sync::Arc;
 
 use common::{sheet_world_text, write_sheet_world};
+use sinew_parallel::ChunkRunner;
+use sinew_parallel::WorkerPool;
 use sinew_server::node::tick_cost::press_and_stroke_commands;
-use sinew_server::node::worker_pool::WorkerPool;
-use sinew_server::parallel::ChunkRunner;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{World, load_world};
 
@@ -19,7 +19,7 @@ use sinew_server::world::{World, load_world};
 fn sim_on(world: &World, threads: usize) -> Sim {
     let mut sim = Sim::new(world).unwrap();
     if threads > 1 {
-        let pool = WorkerPool::new(threads, false).unwrap();
+        let pool = WorkerPool::new(threads, None).unwrap();
         assert_eq!(pool.threads(), threads);
         sim.set_chunk_runner(Some(Arc::new(pool)));
     }

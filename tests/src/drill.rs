@@ -138,6 +138,17 @@ pub fn run_drill(
     devices: &[DrillDevice],
     duration_s: f64,
 ) -> anyhow::Result<DrillResult> {
+    run_drill_observed(world, devices, duration_s, |_, _| {})
+}
+
+/// [`run_drill`], showing `observe` the server after each tick with the force commands that tick produced
+/// (before the link delays them): the golden traces hash what it sees.
+pub fn run_drill_observed(
+    world: &World,
+    devices: &[DrillDevice],
+    duration_s: f64,
+    mut observe: impl FnMut(&ServerTick, &[Option<ForceCommand>]),
+) -> anyhow::Result<DrillResult> {
     let sim = Sim::new(world).context("building the drill's simulation")?;
     let tools: Vec<String> = sim.tools.iter().map(|t| t.device_id.clone()).collect();
     let dt_s = (1.0 / world.tick_hz) as f32;
@@ -233,6 +244,7 @@ pub fn run_drill(
             });
         }
         server.step(&inputs, &limits, &mut commands);
+        observe(&server, &commands);
         for (r, rig) in rigs.iter_mut().enumerate() {
             if let Some(command) = &mut commands[rig.tool] {
                 rig.sent += 1;

@@ -18,8 +18,8 @@ use parry3d::shape::Triangle;
 use thiserror::Error;
 
 use super::glam_boundary::to_parry;
-use crate::parallel::{ChunkRunner, chunk_range, for_chunks_mut};
 use crate::tissue::Vec3;
+use sinew_parallel::{ChunkRunner, chunk_range, for_chunks_mut};
 
 /// Per-index stamps (nodes, or triangles) that deduplicate without clearing or allocating.
 #[derive(Debug, Clone)]

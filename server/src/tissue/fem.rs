@@ -27,7 +27,7 @@
 
 #![allow(clippy::needless_range_loop)] // loops walk several parallel per-node arrays by index
 
-use crate::parallel::ScratchCell;
+use sinew_parallel::ScratchCell;
 
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 

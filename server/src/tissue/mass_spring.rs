@@ -13,8 +13,8 @@ use super::springs::{ForcePass, KernelScratch, NodeSprings, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
 use crate::incidence::incidence_into;
-use crate::parallel::{ChunkRunner, Inline, ScratchCell};
 use crate::world::{MassSpec, ObjectSpec};
+use sinew_parallel::{ChunkRunner, Inline, ScratchCell};
 
 /// Everything a model is built from. Public so tests and the region tracker can build models that are not
 /// loaded from a world file (a hanging chain, a sub-model of the moving region).

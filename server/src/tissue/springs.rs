@@ -10,7 +10,7 @@
 //! function here: no allocation once the scratch is sized, never blocks, never panics on non-finite input (a
 //! zero-length edge contributes nothing).
 //!
-//! With more than one thread ([`crate::parallel::ChunkRunner`]) the same forces come from three passes over
+//! With more than one thread ([`sinew_parallel::ChunkRunner`]) the same forces come from three passes over
 //! fixed chunks: the padded copies by node chunk, each spring's force into its own slot by spring chunk, then
 //! each node gathers its springs' slots in spring order by node chunk. Each node adds the very same products
 //! in the very same order as the one-thread scatter, so every thread count, one included, gives the same
@@ -19,7 +19,7 @@
 
 use super::Vec3;
 use super::spring_law::SpringLaw;
-use crate::parallel::{ChunkRunner, chunk_count, chunk_range, for_chunks_mut, for_chunks_mut2};
+use sinew_parallel::{ChunkRunner, chunk_count, chunk_range, for_chunks_mut, for_chunks_mut2};
 
 /// Springs per chunk of the parallel passes (a multiple of the energy kernel's block of 8). Fixed: the energy's
 /// partial sums, and so its bits, depend on it, never on the thread count.

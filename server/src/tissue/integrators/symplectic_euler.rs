@@ -1,9 +1,9 @@
 //! Semi-implicit (symplectic) Euler, the default.
 
 use super::{Integrator, flush_subnormal};
-use crate::parallel::{chunk_range, for_chunks_mut2};
 use crate::tissue::springs::NODE_CHUNK;
 use crate::tissue::{MassSpringModel, TissueState};
+use sinew_parallel::{chunk_range, for_chunks_mut2};
 
 /// `v += h a(x, v)`, then `x += h v` with the new velocity. Drag is applied implicitly (`v /= 1 + h drag`).
 /// Conditionally stable (see [`crate::tissue::stability`]); energy stays bounded on undamped oscillators,

@@ -1,11 +1,10 @@
 //! The tissue step's worker threads: a small pool of pinned, briefly spinning workers that run the chunks of
-//! a [`crate::parallel`] pass beside the thread that asked for it.
+//! a pass beside the thread that asked for it.
 //!
-//! Owns: [`WorkerPool`] (`sinew-work-<k>` threads) and its hand-off. A pass is published as an epoch: the
-//! caller stores a pointer to the job and the chunk count, then bumps the epoch; workers (and the caller,
-//! which works too) claim chunk indices with one compare-and-swap on a word holding the epoch and the next
-//! index, so a claim can only succeed for the pass that is current, and each index is claimed once. The caller
-//! returns when every chunk has reported done, so the job (on its stack) outlives every use.
+//! Owns: [`WorkerPool`] (`sinew-work-<k>` threads). A pass is handed over on a [`Board`]: the caller stores a
+//! pointer to the job, then opens the pass (a new epoch with its chunk count); workers (and the caller, which
+//! works too) claim chunk indices from the board, which gives each index of the current pass out once. The
+//! caller returns when every chunk has reported done, so the job (on its stack) outlives every use.
 //!
 //! Idle workers spin for [`SPIN_AFTER_WORK`] after their last chunk (the passes of one step follow each other
 //! within microseconds), then park; a pass wakes parked workers, and the caller starts on the chunks at once,
@@ -13,16 +12,17 @@
 //! (a multi-rate object's thread and the tick at once) runs the second one inline. Nothing here allocates,
 //! locks or logs once the pool is built.
 //!
-//! Must not: decide anything about the results (the [`crate::parallel`] passes make them thread-count-proof).
+//! Must not: decide anything about the results (the passes in [`crate`] make them thread-count-proof).
 #![allow(unsafe_code)] // one lifetime erasure (the job pointer); its block says why it is sound
 
 use std::panic::{AssertUnwindSafe, catch_unwind, resume_unwind};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 use std::thread::{JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
-use crate::parallel::{ChunkRunner, Inline};
+use crate::board::{Board, MAX_CHUNKS};
+use crate::{ChunkRunner, Inline};
 
 /// How long an idle worker spins for the next pass before it parks.
 pub const SPIN_AFTER_WORK: Duration = Duration::from_micros(100);
@@ -33,50 +33,22 @@ type Job<'a> = &'a (dyn Fn(usize) + Sync);
 /// What the caller and the workers share.
 #[derive(Debug, Default)]
 struct Hand {
-    /// Epoch in the high 32 bits, the next unclaimed chunk in the low 32.
-    state: AtomicU64,
-    /// Chunks in the current pass.
-    chunks: AtomicUsize,
+    /// The current pass's epoch, claims and completions.
+    board: Board,
     /// Points at the current pass's [`Job`] (valid while the pass is running).
     job: AtomicPtr<()>,
-    /// Chunks finished in the current pass.
-    done: AtomicUsize,
     /// A worker's chunk panicked in the current pass.
     panicked: AtomicBool,
     shutdown: AtomicBool,
 }
 
-const INDEX_MASK: u64 = 0xffff_ffff;
-
 impl Hand {
-    /// Claim the next chunk of pass `epoch`, if it is still current and has one left.
-    fn claim(&self, epoch: u64) -> Option<usize> {
-        loop {
-            let state = self.state.load(Ordering::Acquire);
-            if state >> 32 != epoch {
-                return None;
-            }
-            let next = (state & INDEX_MASK) as usize;
-            // Read after the state: if it belongs to a later pass, the exchange below fails anyway.
-            if next >= self.chunks.load(Ordering::Acquire) {
-                return None;
-            }
-            if self
-                .state
-                .compare_exchange_weak(state, state + 1, Ordering::AcqRel, Ordering::Acquire)
-                .is_ok()
-            {
-                return Some(next);
-            }
-        }
-    }
-
     /// Run `job` on chunk `c` and count it done; a panic is caught, flagged, and counted done too.
     fn run_chunk(&self, job: Job<'_>, c: usize) {
         if catch_unwind(AssertUnwindSafe(|| job(c))).is_err() {
             self.panicked.store(true, Ordering::Release);
         }
-        self.done.fetch_add(1, Ordering::AcqRel);
+        self.board.finish_chunk();
     }
 }
 
@@ -120,10 +92,14 @@ pub struct WorkerPool {
     report: PoolReport,
 }
 
+/// Pins the calling thread to a CPU, or says why it could not (`sinew_protocol::rt::realtime::pin_this_thread`
+/// in the server).
+pub type PinFn = fn(usize) -> Result<(), String>;
+
 impl WorkerPool {
     /// A pool where `threads` threads run chunks: the caller and `threads - 1` workers, worker `k` pinned to
-    /// CPU `(first_cpu + k) % cpus` when `pin` (a refused pin is reported and the worker runs unpinned).
-    pub fn new(threads: usize, pin: bool) -> std::io::Result<Self> {
+    /// CPU `(1 + k) % cpus` by `pin` when given (a refused pin is reported and the worker runs unpinned).
+    pub fn new(threads: usize, pin: Option<PinFn>) -> std::io::Result<Self> {
         let hand = Arc::new(Hand::default());
         let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
         let mut workers = Vec::new();
@@ -136,10 +112,9 @@ impl WorkerPool {
             let handle = std::thread::Builder::new()
                 .name(format!("sinew-work-{k}"))
                 .spawn(move || {
-                    let outcome = if pin {
-                        sinew_protocol::rt::realtime::pin_this_thread(cpu).map(|()| cpu)
-                    } else {
-                        Err("not asked".to_owned())
+                    let outcome = match pin {
+                        Some(pin) => pin(cpu).map(|()| cpu),
+                        None => Err("not asked".to_owned()),
                     };
                     let _ = pin_tx.send(outcome);
                     work(&theirs, &flag);
@@ -181,17 +156,18 @@ fn work(hand: &Hand, sleeping: &AtomicBool) {
         if hand.shutdown.load(Ordering::Acquire) {
             return;
         }
-        let epoch = hand.state.load(Ordering::Acquire) >> 32;
+        let epoch = hand.board.epoch();
         if epoch != seen {
             seen = epoch;
             // Read after the epoch: the caller stores the job before it publishes the epoch.
             let job_ptr = hand.job.load(Ordering::Acquire);
-            while let Some(c) = hand.claim(epoch) {
+            while let Some(c) = hand.board.claim(epoch) {
                 // SAFETY: the claim succeeded for pass `epoch`, so that pass is still running: its caller
                 // is inside `run`, which does not return (nor let its stack-held job go) until this chunk has
-                // counted done. `job_ptr` was read after the epoch was seen, and the caller publishes a new
-                // job only after the previous pass's chunks are all done (so not while this claim could
-                // succeed): it points at this pass's job.
+                // counted done. `job_ptr` was read after the epoch was seen, and the caller stores a new job
+                // only after the previous pass's chunks are all claimed and done (so not while this claim
+                // could succeed: the board checks epoch, count and index in one word): it points at this
+                // pass's job.
                 let job: Job<'_> = unsafe { *(job_ptr as *const Job<'_>) };
                 hand.run_chunk(job, c);
             }
@@ -207,8 +183,7 @@ fn work(hand: &Hand, sleeping: &AtomicBool) {
         sleeping.store(true, Ordering::SeqCst);
         // Re-check after saying so: the caller bumps the epoch, then looks for sleepers (both SeqCst), so
         // either it sees this flag and unparks, or this sees the new epoch.
-        if hand.state.load(Ordering::SeqCst) >> 32 == seen && !hand.shutdown.load(Ordering::SeqCst)
-        {
+        if hand.board.epoch() == seen && !hand.shutdown.load(Ordering::SeqCst) {
             std::thread::park();
         }
         sleeping.store(false, Ordering::SeqCst);
@@ -216,8 +191,8 @@ fn work(hand: &Hand, sleeping: &AtomicBool) {
     }
 }
 
-// SAFETY: `claim` hands each index of a pass out once (one compare-and-swap per index, on a word that also
-// holds the pass's epoch), and `run` returns only after `done` has counted every chunk.
+// SAFETY: the board hands each index of a pass out once (one compare-and-swap per index, on a word that also
+// holds the pass's epoch and chunk count), and `run` returns only after the board has counted every chunk done.
 unsafe impl ChunkRunner for WorkerPool {
     fn run(&self, chunks: usize, job: &(dyn Fn(usize) + Sync)) {
         if chunks == 0 {
@@ -225,7 +200,7 @@ unsafe impl ChunkRunner for WorkerPool {
         }
         if self.workers.is_empty()
             || chunks == 1
-            || chunks > INDEX_MASK as usize
+            || chunks > MAX_CHUNKS
             || self.busy.swap(true, Ordering::Acquire)
         {
             Inline.run(chunks, job);
@@ -235,10 +210,7 @@ unsafe impl ChunkRunner for WorkerPool {
         let job_ref: Job<'_> = job;
         hand.job
             .store(&job_ref as *const Job<'_> as *mut (), Ordering::Release);
-        hand.chunks.store(chunks, Ordering::Release);
-        hand.done.store(0, Ordering::Release);
-        let epoch = (hand.state.load(Ordering::Acquire) >> 32).wrapping_add(1) & INDEX_MASK;
-        hand.state.store(epoch << 32, Ordering::SeqCst);
+        let epoch = hand.board.open(chunks);
         for worker in &self.workers {
             if worker.sleeping.load(Ordering::SeqCst) {
                 worker.thread.unpark();
@@ -246,14 +218,14 @@ unsafe impl ChunkRunner for WorkerPool {
         }
         // Work too; a panic in our own chunk waits for the workers before it unwinds (they hold the job).
         let mut own_panic = None;
-        while let Some(c) = hand.claim(epoch) {
+        while let Some(c) = hand.board.claim(epoch) {
             if let Err(payload) = catch_unwind(AssertUnwindSafe(|| job(c))) {
                 own_panic.get_or_insert(payload);
             }
-            hand.done.fetch_add(1, Ordering::AcqRel);
+            hand.board.finish_chunk();
         }
         let mut waits = 0u32;
-        while hand.done.load(Ordering::Acquire) < chunks {
+        while !hand.board.finished(chunks) {
             waits = waits.wrapping_add(1);
             if waits.is_multiple_of(1024) {
                 // A worker was preempted mid-chunk: let the scheduler run it.
@@ -299,17 +271,17 @@ impl Drop for WorkerPool {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, not(loom)))]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
     use super::*;
-    use crate::parallel::for_chunks_mut;
+    use crate::for_chunks_mut;
 
     #[test]
     fn every_chunk_runs_once_per_pass_whatever_the_thread_count() {
         for threads in [1, 2, 3, 5] {
-            let pool = WorkerPool::new(threads, false).unwrap();
+            let pool = WorkerPool::new(threads, None).unwrap();
             assert_eq!(pool.threads(), threads);
             let mut out = vec![0u32; 1000];
             for pass in 0..200u32 {
@@ -332,7 +304,7 @@ mod tests {
 
     #[test]
     fn the_workers_really_take_chunks() {
-        let pool = WorkerPool::new(2, false).unwrap();
+        let pool = WorkerPool::new(2, None).unwrap();
         let here = std::thread::current().id();
         let mut elsewhere = false;
         for _ in 0..200 {
@@ -353,7 +325,7 @@ mod tests {
 
     #[test]
     fn a_panicking_chunk_panics_the_caller_after_the_pass_and_the_pool_goes_on() {
-        let pool = WorkerPool::new(2, false).unwrap();
+        let pool = WorkerPool::new(2, None).unwrap();
         let outcome = catch_unwind(AssertUnwindSafe(|| {
             pool.run(32, &|c| {
                 assert!(c != 17, "chunk 17 fails");
@@ -367,10 +339,10 @@ mod tests {
 
     #[test]
     fn pinned_workers_say_where_they_run() {
-        let pool = WorkerPool::new(2, true).unwrap();
+        let pool = WorkerPool::new(2, Some(|_cpu| Ok(()))).unwrap();
         assert_eq!(pool.report().pinned.len(), 1);
         assert!(pool.report().to_string().starts_with("2 tissue thread(s)"));
-        let unpinned = WorkerPool::new(2, false).unwrap();
+        let unpinned = WorkerPool::new(2, None).unwrap();
         assert!(
             unpinned
                 .report()

@@ -1,14 +1,5 @@
-//! Data-parallel passes over fixed chunks, with results that do not depend on how many threads ran them.
-//!
-//! Owns: the [`ChunkRunner`] seam the tissue passes are written against, its sequential implementation
-//! [`Inline`], and the helpers that hand each chunk its own disjoint slice of an output buffer
-//! ([`for_chunks_mut`], [`for_chunks_mut2`]). The threads themselves live in [`crate::node::worker_pool`]: the
-//! simulation core stays free of them, as it stays free of zenoh.
-//!
-//! The determinism rule every pass here keeps: a chunk is a fixed range of items (springs, nodes), cut by a
-//! fixed chunk length that depends on nothing but the data; each chunk's result is written to its own slot;
-//! anything combined across chunks is combined afterwards, in chunk order, by one thread. So 1 thread and N
-//! threads produce the same bits, and who ran which chunk, or when, never shows.
+//! Chunked passes: the [`ChunkRunner`] seam, its sequential implementation [`Inline`], and the helpers that hand
+//! each chunk its own disjoint slice of an output buffer ([`for_chunks_mut`], [`for_chunks_mut2`]).
 //!
 //! Must not: allocate, lock, or block inside a pass (a runner that is already busy runs the pass inline).
 #![allow(unsafe_code)] // the slice helpers split a buffer between threads; each block says why it is sound
@@ -146,7 +137,7 @@ pub fn for_chunks_mut2<A: Send, B: Send>(
     runner.run(chunk_count(len, chunk_len), &each);
 }
 
-#[cfg(test)]
+#[cfg(all(test, not(loom)))]
 mod tests {
     use super::*;
 
