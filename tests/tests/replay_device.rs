@@ -26,11 +26,20 @@ fn two_recorded_hands_played_into_a_fresh_scene_dent_it_and_feel_it_as_recorded(
     let (recording, world) = read_with_world(&file).unwrap();
     let left_samples = recorded_hand(&recording, &world, "left").unwrap();
     let right_samples = recorded_hand(&recording, &world, "right").unwrap();
-    assert!(
-        left_samples.len() > 2000,
-        "{} left poses",
-        left_samples.len()
-    );
+    // The hand's stream over the whole session, in order (how many poses a loaded machine's 1 kHz loop got
+    // out in 3 s is not asserted: 1911 of a nominal 3000 once failed a bound of 2000).
+    for samples in [&left_samples, &right_samples] {
+        let span_s = samples.last().unwrap().t_s - samples[0].t_s;
+        assert!(
+            span_s > 2.0 && samples.len() > 100,
+            "{} poses over {span_s:.2} s of a 3 s session",
+            samples.len()
+        );
+        assert!(
+            samples.windows(2).all(|w| w[1].t_s > w[0].t_s),
+            "poses out of order"
+        );
+    }
     let err = recorded_hand(&recording, &world, "nobody")
         .unwrap_err()
         .to_string();
