@@ -27,8 +27,9 @@ use nalgebra::{Matrix3, UnitQuaternion};
 use crate::collision::ToolCollider;
 use crate::haptics::ContactStiffness;
 use crate::interaction::{ProbeContacts, ToolBody};
-use crate::sim::MAX_HALVINGS;
-use crate::tissue::{DivergenceGuard, Integrator, MassSpringModel, TissueState, Vec3, guard};
+use crate::tissue::{
+    DivergenceGuard, Integrator, MassSpringModel, Stepped, TissueState, Vec3, Verdict, step_guarded,
+};
 
 /// Most ticks' worth of the contact-stiffness solve (`ContactStiffness::ITERATIONS_PER_TICK` CG iterations each)
 /// one step advances it by. With one tick's budget per tick of the step, the solve cost as much as the step's
@@ -142,6 +143,43 @@ pub struct StepJob {
     report: JobReport,
 }
 
+impl Stepped for StepJob {
+    /// Each substep pushes the tissue out of each tool, then solves with the nodes it holds pinned where it
+    /// holds them: the rest of the tissue answers the tool's new place within this substep.
+    fn integrate(&mut self, h_s: f32, substeps: u32) {
+        for _ in 0..substeps {
+            self.state.pinned.clear();
+            for tool in self.tools.iter_mut().filter(|t| t.active) {
+                let body = ToolBody::posed(
+                    &tool.seed.tip,
+                    tool.seed
+                        .shaft
+                        .as_ref()
+                        .map(|(shaft, half_mm)| (shaft, *half_mm)),
+                    tool.position_mm,
+                    tool.rotation,
+                );
+                tool.contacts
+                    .project(&body, &self.model, &mut self.state, &[], self.friction);
+                self.state.pinned.extend_from_slice(&tool.contacts.held);
+            }
+            self.state.pinned.sort_unstable();
+            self.state.pinned.dedup();
+            self.report.solver_iterations +=
+                self.integrator.step(&self.model, &mut self.state, h_s);
+        }
+    }
+
+    fn judge(&mut self) -> (bool, f64) {
+        let assessment = self.guard.assess(&self.model, &self.state);
+        (assessment.broken, assessment.energy_n_mm)
+    }
+
+    fn restore(&mut self) {
+        self.guard.restore(&mut self.state);
+    }
+}
+
 impl StepJob {
     /// Run the step: integrate `step_dt_s` in substeps of at most `max_dt_s`, pushing the tissue out of each
     /// active tool after every substep; rerun with halved substeps while the guard finds it broken or gaining
@@ -168,56 +206,18 @@ impl StepJob {
             })
             .sum();
         self.guard.save(&self.state);
-        let mut halvings = 0;
-        loop {
-            let substeps = planned << halvings;
-            let h = self.step_dt_s / substeps as f32;
-            for _ in 0..substeps {
-                // Push the tissue out of each tool, then solve with the nodes it holds pinned where it holds
-                // them: the rest of the tissue answers the tool's new place within this substep.
-                self.state.pinned.clear();
-                for tool in self.tools.iter_mut().filter(|t| t.active) {
-                    let body = ToolBody::posed(
-                        &tool.seed.tip,
-                        tool.seed
-                            .shaft
-                            .as_ref()
-                            .map(|(shaft, half_mm)| (shaft, *half_mm)),
-                        tool.position_mm,
-                        tool.rotation,
-                    );
-                    tool.contacts
-                        .project(&body, &self.model, &mut self.state, &[], self.friction);
-                    self.state.pinned.extend_from_slice(&tool.contacts.held);
-                }
-                self.state.pinned.sort_unstable();
-                self.state.pinned.dedup();
-                self.report.solver_iterations +=
-                    self.integrator.step(&self.model, &mut self.state, h);
+        let step = step_guarded(self, self.step_dt_s, planned, energy_before, allowance_n_mm);
+        self.report.substeps += step.substeps;
+        self.report.retries += step.retries;
+        self.energy_n_mm = Some(step.energy_n_mm);
+        if step.gave_up() && step.verdict == Verdict::Broken {
+            self.state.reset_to_rest(&self.model);
+            self.energy_n_mm = None;
+            self.report.faults += 1;
+            for tool in &mut self.tools {
+                tool.contacts.forget();
+                tool.stiffness.forget();
             }
-            self.report.substeps += substeps;
-            let assessment = self.guard.assess(&self.model, &self.state);
-            self.energy_n_mm = Some(assessment.energy_n_mm);
-            let fine = !assessment.broken
-                && !guard::energy_grew(energy_before, assessment.energy_n_mm, allowance_n_mm);
-            if fine {
-                break;
-            }
-            if halvings == MAX_HALVINGS {
-                if assessment.broken {
-                    self.state.reset_to_rest(&self.model);
-                    self.energy_n_mm = None;
-                    self.report.faults += 1;
-                    for tool in &mut self.tools {
-                        tool.contacts.forget();
-                        tool.stiffness.forget();
-                    }
-                }
-                break;
-            }
-            self.guard.restore(&mut self.state);
-            halvings += 1;
-            self.report.retries += 1;
         }
         for tool in &mut self.tools {
             tool.contact = if tool.active {

@@ -12,7 +12,6 @@
 
 pub mod access_refusals;
 mod device_slots;
-mod frame_exchange;
 mod inbound;
 mod publish_loop;
 mod session;
@@ -30,9 +29,9 @@ use sinew_protocol::{InstanceId, Role, ServerStats, keys::SceneKeys};
 use thiserror::Error;
 use zenoh::Wait;
 
+pub use crate::replication::{FrameExchange, ReplicationState};
 pub use device_slots::{DeviceSlot, DeviceSlots};
-pub use frame_exchange::FrameExchange;
-pub use publish_loop::{ReplicationState, exercise_stats, training_stats};
+pub use publish_loop::{exercise_stats, training_stats};
 pub use session::open_session;
 pub use sim_loop::{DeviceReport, LiveTraining, ReplayProgress, SimReport};
 

@@ -11,10 +11,12 @@
 //! - [`reader`]: reads a recording back, with its world, tolerating a truncated or damaged end;
 //! - [`replay`]: re-runs it and compares; [`debrief`]: the replayed scene as a viewer would hold it;
 //! - [`tick_record`], [`json_view`], [`world_files`]: what is recorded, its Foxglove view, the world's files;
-//! - [`wire_tap`]: what the scene publishes, heard on zenoh, into the same file (and `sinew-recorder`'s).
+//! - [`wire_tap`]: what the scene publishes, heard on zenoh, into the same file (and `sinew-recorder`'s);
+//! - [`queue`]: what travels to the writer thread, from the tick and from the tap.
 
 pub mod debrief;
 pub mod json_view;
+pub mod queue;
 pub mod reader;
 pub mod replay;
 pub mod tick_record;
@@ -23,12 +25,13 @@ pub mod world_files;
 pub mod writer;
 
 pub use debrief::DebriefFrames;
+pub use queue::{WireItem, WireSink};
 pub use reader::{ReadError, Recording, read_recording, survey};
 pub use replay::{ReplayOutcome, replay, replay_inspected, replay_observed};
 pub use tick_record::{
     DeviceTick, FinalState, MAX_RECORDED_TOOLS, MAX_TICK_EVENTS, TickMessage, TickRecord,
 };
-pub use wire_tap::{TapScope, WireItem, WireSink, WireTap};
+pub use wire_tap::{TapScope, WireTap};
 pub use writer::{KIND_SESSION, KIND_WIRE, RecordError, RecordSummary, Recorder, RecorderTap};
 
 /// Version of the recording layout (channels and their payloads). A reader refuses other versions.

@@ -7,6 +7,12 @@
 //! position at that frame (the snapshot's `error_bound_mm`); with a tolerance of 0 it holds exactly the
 //! server's quantized state. Pure data; must not touch zenoh.
 
+pub mod frame_exchange;
+pub mod scene_state;
+
+pub use frame_exchange::{FrameData, FrameExchange};
+pub use scene_state::{ReplicationState, instrument_info};
+
 use sinew_protocol::quantize::QuantBounds;
 use sinew_protocol::{MeshDelta, ObjectSnapshot, TopologyDelta};
 

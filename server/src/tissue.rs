@@ -13,6 +13,7 @@ pub mod calibration;
 pub mod fem;
 pub mod fem_assembly;
 pub mod guard;
+pub mod guarded_step;
 pub mod integrators;
 mod mass_spring;
 pub mod region;
@@ -25,6 +26,7 @@ pub mod ties;
 pub mod volume;
 
 pub use guard::{DivergenceGuard, Verdict};
+pub use guarded_step::{GuardedStep, MAX_HALVINGS, Stepped, step_guarded};
 pub use integrators::{
     ExplicitEuler, ImplicitEuler, Integrator, QuasiStatic, Rk2, Rk4, SymplecticEuler, Xpbd,
     integrator_for,

@@ -6,7 +6,7 @@
 
 use sinew_protocol::{MeshDelta, SceneSnapshot};
 
-use crate::node::{FrameExchange, ReplicationState};
+use crate::replication::{FrameExchange, ReplicationState};
 use crate::sim::{Sim, ToolOutput};
 use crate::tissue::Vec3;
 use crate::world::World;

@@ -3,82 +3,18 @@
 //! the recorder is not the server (the server records those exactly in its tick records already).
 //!
 //! Owns: one zenoh subscriber on `sinew/<scene>/**`, one liveliness subscriber (with history, so participants
-//! already present are recorded as joining), and the bounded hand-off to the writer ([`WireSink`]), which drops
-//! and counts when full. Runs on zenoh's threads, never on the sim thread, so it may allocate.
+//! already present are recorded as joining), and its hand-off to the writer's queue
+//! ([`WireSink`], which drops and counts when full). Runs on zenoh's threads, never on the sim thread, so it may allocate.
 //!
 //! Must not: publish, declare anything but subscribers, or block a zenoh callback.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::mpsc::SyncSender;
 
 use sinew_protocol::keys::SceneKeys;
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
-use super::writer::Item;
-
-/// Wire items in the writer's queue at most; more are dropped and counted.
-pub const WIRE_QUEUE: usize = 512;
-
-/// One thing heard on the wire.
-#[derive(Debug, Clone, PartialEq)]
-pub enum WireItem {
-    /// A message, as published (envelope and postcard body), on its key.
-    Sample {
-        /// The zenoh key it was published on.
-        key: String,
-        /// When it was heard, on the recording's clock, ns.
-        log_time_ns: u64,
-        /// The bytes.
-        payload: Vec<u8>,
-    },
-    /// A participant's presence token appeared or went away.
-    Presence {
-        /// The token's key (`sinew/<scene>/presence/<role>/<id>`).
-        key: String,
-        /// Appeared (true) or went away.
-        joined: bool,
-        /// When, on the recording's clock, ns.
-        log_time_ns: u64,
-    },
-}
-
-/// The tap's end of the recorder's queue: never blocks; drops and counts past [`WIRE_QUEUE`] items in flight.
-#[derive(Debug, Clone)]
-pub struct WireSink {
-    queue: SyncSender<Item>,
-    in_flight: Arc<AtomicUsize>,
-    dropped: Arc<AtomicU64>,
-}
-
-impl WireSink {
-    pub(super) fn new(queue: SyncSender<Item>, in_flight: Arc<AtomicUsize>) -> Self {
-        Self {
-            queue,
-            in_flight,
-            dropped: Arc::new(AtomicU64::new(0)),
-        }
-    }
-
-    /// Hand an item over, or count it as dropped.
-    pub fn offer(&self, item: WireItem) {
-        if self.in_flight.fetch_add(1, Ordering::AcqRel) >= WIRE_QUEUE {
-            self.in_flight.fetch_sub(1, Ordering::AcqRel);
-            self.dropped.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-        if self.queue.try_send(Item::Wire(item)).is_err() {
-            self.in_flight.fetch_sub(1, Ordering::AcqRel);
-            self.dropped.fetch_add(1, Ordering::Relaxed);
-        }
-    }
-
-    /// Items dropped so far.
-    pub fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
-    }
-}
+use super::queue::{WireItem, WireSink};
 
 /// Which of the scene's messages a tap keeps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

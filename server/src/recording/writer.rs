@@ -28,8 +28,8 @@ use std::thread::JoinHandle;
 
 use thiserror::Error;
 
+use super::queue::{Item, WIRE_QUEUE, WireItem, WireSink};
 use super::tick_record::{FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
-use super::wire_tap::{WIRE_QUEUE, WireItem, WireSink};
 use super::world_files::world_files;
 use super::{
     FORMAT_VERSION, TICKS_ENCODING, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_PRESENCE, TOPIC_STATS,
@@ -75,16 +75,6 @@ pub enum RecordError {
         /// The MCAP writer's reason.
         message: String,
     },
-}
-
-/// What goes through the queue.
-#[derive(Debug)]
-pub(super) enum Item {
-    Tick(Box<TickRecord>),
-    Final(FinalState),
-    Wire(WireItem),
-    /// The session is over: finish the file, whatever still holds a sender.
-    End,
 }
 
 /// The sim thread's end of the recorder.

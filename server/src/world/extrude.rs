@@ -9,7 +9,8 @@
 //! the world format.
 
 use super::mesh_file::{MeshError, SurfaceMesh};
-use super::tet_mesh::{TetMesh, VolumeMeshError, signed_volume_mm3, too_flat};
+use super::tet_mesh::{TetMesh, signed_volume_mm3, too_flat};
+use super::volume_mesh_error::VolumeMeshError;
 
 /// Most layers an extrusion may have.
 pub const MAX_EXTRUDE_LAYERS: u32 = 16;

@@ -49,7 +49,7 @@ pub enum MeshError {
     },
     /// A tetrahedral volume mesh (a `.msh` file or an extrusion) that is not valid.
     #[error(transparent)]
-    Volume(#[from] super::tet_mesh::VolumeMeshError),
+    Volume(#[from] super::volume_mesh_error::VolumeMeshError),
 }
 
 /// Load an OBJ file (all its models merged), scaled by `scale_to_mm`, and validate it as a surface.

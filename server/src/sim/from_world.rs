@@ -1,0 +1,270 @@
+//! Building the simulation from a validated world: objects (model, collider, region, lane), tools
+//! (colliders, coupling, instruments, entry points) and ties.
+//!
+//! Owns: [`Sim::new`] and where a tool enters the scene. This is the one place the engine reads the world-file
+//! layer's types; must not step anything.
+
+use nalgebra::{Matrix3, UnitQuaternion};
+
+use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
+use crate::haptics::{ContactStiffness, EnergyBudget, NormalStiffnessEstimate, VirtualCoupling};
+use crate::interaction::{CutScratch, Grasp, JawInput, Jaws, ProbeContacts};
+use crate::multirate::{StepLane, ToolSeed};
+use crate::tissue::{
+    DivergenceGuard, MassSpringModel, ModelParts, RegionTracker, TissueState, Vec3, integrator_for,
+};
+use crate::world::{IntegratorName, World};
+
+use super::*;
+
+impl Sim {
+    /// Build the simulation of a validated world.
+    pub fn new(world: &World) -> Result<Self, SimBuildError> {
+        let mut objects = Vec::with_capacity(world.objects.len());
+        for spec in &world.objects {
+            let model = MassSpringModel::build(spec, Vec3::from(world.gravity_mm_per_s2));
+            let state = TissueState::at_rest(&model);
+            let collider = SurfaceCollider::new(model.rest_positions_mm(), model.triangles())
+                .map_err(|e| SimBuildError::Collider {
+                    object: spec.name.clone(),
+                    message: e.to_string(),
+                })?
+                .with_refit_margin(REFIT_MARGIN_MM);
+            let region = match spec.region {
+                None => None,
+                Some(params) => {
+                    let o = objects.len();
+                    let refuse = |message: &str| SimBuildError::Region {
+                        object: spec.name.clone(),
+                        message: message.to_owned(),
+                    };
+                    if model.global_volume().is_some() {
+                        return Err(refuse(
+                            "the global volume term couples every surface node: turn one of them off",
+                        ));
+                    }
+                    if world.gravity_mm_per_s2 != [0.0; 3] {
+                        return Err(refuse(
+                            "gravity moves the whole object, not a region: it needs sim.gravity_mm_per_s2 = 0",
+                        ));
+                    }
+                    if world
+                        .ties
+                        .iter()
+                        .any(|t| t.object_a == o || t.object_b == o)
+                    {
+                        return Err(refuse("tied objects move where ties pull them: untie it"));
+                    }
+                    if !(params.threshold_mm.is_finite() && params.threshold_mm > 0.0) {
+                        return Err(refuse("threshold_mm must be a positive number"));
+                    }
+                    Some(RegionTracker::new(&model, params))
+                }
+            };
+            objects.push(SimObject {
+                region,
+                burn: vec![0; model.node_count()],
+                severed: Vec::new(),
+                topology_version: 0,
+                first_split_vertex: model.node_count() as u32,
+                split_parents: Vec::new(),
+                tear_strain: spec.material.tear_strain,
+                cut_resistance_n: spec.material.cut_resistance_n,
+                burn_shrink: spec.material.burn_shrink,
+                friction: spec.material.friction_coefficient,
+                torn: Vec::new(),
+                lane: None,
+                pins_held: spec.integrator == IntegratorName::ImplicitEuler,
+                parts: ModelParts::default(),
+                name: spec.name.clone(),
+                marks: NodeMarks::new(model.node_count()),
+                refit_due: false,
+                integrator: integrator_for(spec.integrator, spec.solver_iterations),
+                integrator_spec: (spec.integrator, spec.solver_iterations),
+                guard: DivergenceGuard::new(&model),
+                collider,
+                state,
+                model,
+                max_dt_s: spec.dt_s,
+            });
+        }
+        let mut tools = Vec::with_capacity(world.tools.len());
+        for spec in &world.tools {
+            let collider =
+                ToolCollider::from_spec(&spec.shape).map_err(|e| SimBuildError::Collider {
+                    object: spec.name.clone(),
+                    message: format!("{e:?}"),
+                })?;
+            let reach_mm = {
+                let aabb = collider.aabb(&Vec3::zeros(), &UnitQuaternion::identity(), 0.0);
+                let (lo, hi) = (aabb.mins, aabb.maxs);
+                (0..3)
+                    .map(|a| lo[a].abs().max(hi[a].abs()).powi(2))
+                    .sum::<f32>()
+                    .sqrt()
+            };
+            // A scalpel's edge and scissors' blades reach beyond the body: they enter clear of the tissue too.
+            let reach_mm = spec.instrument.scalpel().map_or(reach_mm, |s| {
+                s.edge_mm
+                    .iter()
+                    .map(|p| Vec3::from(*p).norm())
+                    .fold(reach_mm, f32::max)
+            });
+            let reach_mm = spec.instrument.scissors().map_or(reach_mm, |s| {
+                s.blades_mm(s.open_angle_rad)
+                    .iter()
+                    .flatten()
+                    .map(|p| Vec3::from(*p).norm())
+                    .fold(reach_mm, f32::max)
+            });
+            let origin = Vec3::from(spec.device_origin_in_world_mm);
+            let entry_mm = entry_point_mm(&origin, reach_mm, &objects);
+            tools.push(SimTool {
+                coupling: VirtualCoupling::new(spec.coupling, origin),
+                device_mm: origin,
+                device_velocity_mm_s: Vec3::zeros(),
+                stiffness: objects
+                    .iter()
+                    .map(|o| ContactStiffness::new(o.model.node_count()))
+                    .collect(),
+                stiffness_due: vec![None; objects.len()],
+                last_force_n: Vec3::zeros(),
+                contact_k: Matrix3::zeros(),
+                plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,
+                plane_damping_n_s_per_mm: 0.0,
+                plane_candidates: Vec::with_capacity(8192),
+                estimate: NormalStiffnessEstimate::default(),
+                instrument: spec.instrument,
+                jaw_input: JawInput::default(),
+                jaws: spec
+                    .instrument
+                    .jaws()
+                    .map(|(activation, open_rad)| Jaws::new(activation, open_rad)),
+                grasp: spec
+                    .instrument
+                    .grasp()
+                    .map(|g| Grasp::new(*g, objects.len())),
+                grasp_force_n: Vec3::zeros(),
+                edge_world_mm: None,
+                shaft: spec.shaft.map(|s| {
+                    ToolCollider::Capsule(parry3d::shape::Capsule::new_z(
+                        0.5 * s.length_mm,
+                        s.radius_mm,
+                    ))
+                }),
+                shaft_spec: spec.shaft,
+                blade_angle_rad: None,
+                cut_resistance_n: 0.0,
+                cut_scratch: CutScratch::default(),
+                cut_force_n: Vec3::zeros(),
+                cut_level: 0.0,
+                edge_moving: false,
+                joined: false,
+                name: spec.name.clone(),
+                device_id: spec.device_id.clone(),
+                shape_spec: spec.shape.clone(),
+                collider,
+                device_origin_in_world_mm: Vec3::from(spec.device_origin_in_world_mm),
+                max_force_n: spec.max_force_n,
+                position_mm: Vec3::from(spec.device_origin_in_world_mm),
+                rotation: UnitQuaternion::identity(),
+                active: false,
+                was_active: false,
+                last_position_mm: Vec3::from(spec.device_origin_in_world_mm),
+                reach_mm,
+                entry_mm,
+                contacts: objects
+                    .iter()
+                    .map(|o| {
+                        let contacts = ProbeContacts::with_capacity(4096);
+                        if o.pins_held {
+                            contacts.sticky()
+                        } else {
+                            contacts
+                        }
+                    })
+                    .collect(),
+            });
+        }
+        // Multi-rate objects step as jobs that see each tool's body at its pose when the step leaves.
+        let seeds: Vec<ToolSeed> = tools
+            .iter()
+            .map(|tool| ToolSeed {
+                tip: tool.collider.clone(),
+                shaft: tool
+                    .shaft
+                    .clone()
+                    .zip(tool.shaft_spec.map(|s| 0.5 * s.length_mm)),
+                max_force_n: tool.max_force_n,
+                reach_mm: tool.reach_mm,
+            })
+            .collect();
+        for object in objects.iter_mut().filter(|o| o.pins_held) {
+            object.state.pinned = Vec::with_capacity(
+                (4096 + usize::from(crate::interaction::MAX_ATTACHMENTS)) * tools.len(),
+            );
+        }
+        for (object, spec) in objects.iter_mut().zip(&world.objects) {
+            if spec.ticks_per_step > 1 {
+                object.lane = Some(StepLane::new(
+                    &object.model,
+                    &object.state,
+                    integrator_for(spec.integrator, spec.solver_iterations),
+                    spec.dt_s,
+                    object.friction,
+                    spec.ticks_per_step,
+                    &seeds,
+                ));
+            }
+        }
+        Ok(Self {
+            budget: EnergyBudget::new(tools.len()),
+            objects,
+            tools,
+            ties: world.ties.clone(),
+            last_energy_n_mm: None,
+            tail_due: false,
+            collision_margin_mm: world.collision_margin_mm,
+            time_s: 0.0,
+            steps: 0,
+        })
+    }
+}
+
+/// Where a tool with origin `origin` and reach `reach_mm` enters the scene: `origin` if no rest node lies within
+/// its reach plus a 2 mm margin, else `origin` moved along the mean outward rest normal of those nodes, 1 mm at a
+/// time (at most 200 mm), until none does. Pure; runs once per tool when the simulation is built.
+pub(super) fn entry_point_mm(origin: &Vec3, reach_mm: f32, objects: &[SimObject]) -> Vec3 {
+    let clearance = reach_mm + 2.0;
+    let near = |p: &Vec3| {
+        objects.iter().any(|o| {
+            o.model
+                .rest_positions_mm()
+                .iter()
+                .any(|x| (x - p).norm() < clearance)
+        })
+    };
+    if !near(origin) {
+        return *origin;
+    }
+    let mut outward = Vec3::zeros();
+    for o in objects {
+        for (x, n) in o
+            .model
+            .rest_positions_mm()
+            .iter()
+            .zip(o.model.rest_normals())
+        {
+            if (x - origin).norm() < clearance {
+                outward += n;
+            }
+        }
+    }
+    let Some(up) = outward.try_normalize(1e-6) else {
+        return *origin;
+    };
+    (1..=200)
+        .map(|mm| origin + up * mm as f32)
+        .find(|p| !near(p))
+        .unwrap_or(*origin)
+}

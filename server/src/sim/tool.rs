@@ -1,0 +1,198 @@
+//! One tool in the simulation and what crosses the step's boundary for it: its command in, its output out.
+//!
+//! Owns: [`SimTool`] (body, coupling, contacts, haptic state and its instrument's state), [`ToolCommand`] and
+//! [`ToolOutput`]. Must not: step anything.
+
+use nalgebra::{Matrix3, UnitQuaternion};
+
+use crate::collision::ToolCollider;
+use crate::haptics::{
+    ContactStiffness, CouplingParams, MAX_PLANES, NormalStiffnessEstimate, VirtualCoupling,
+    WorldPlane,
+};
+use crate::interaction::{CutScratch, Grasp, JawInput, Jaws, ProbeContacts};
+use crate::tissue::Vec3;
+use crate::world::{InstrumentSpec, ToolShapeSpec};
+
+/// One tool in the simulation.
+#[derive(Debug)]
+pub struct SimTool {
+    /// Name from the world file.
+    pub name: String,
+    /// Bound device id.
+    pub device_id: String,
+    /// Shape as specified.
+    pub shape_spec: ToolShapeSpec,
+    pub(super) collider: ToolCollider,
+    /// Device frame origin in the world, mm.
+    pub device_origin_in_world_mm: Vec3,
+    /// Server-side force limit, N.
+    pub max_force_n: f32,
+    /// Tool origin in the world, mm.
+    pub position_mm: Vec3,
+    /// Tool orientation in the world.
+    pub rotation: UnitQuaternion<f32>,
+    /// A device drives it (released tools do not touch the tissue).
+    pub active: bool,
+    /// Active on the previous tick.
+    pub(super) was_active: bool,
+    /// Origin on the previous tick, mm.
+    pub(super) last_position_mm: Vec3,
+    /// Largest distance from the tool origin to its surface, mm.
+    pub(super) reach_mm: f32,
+    /// Where the tool enters the scene each time a device (re)takes it, world, mm: the device origin lifted
+    /// along the nearby tissue's outward rest normal until the tool clears every node ([`entry_point_mm`]).
+    /// From there the coupling brings it to the device pose at its speed limit, so it meets every surface
+    /// from outside: a device that (re)joins pressing into a thin sheet never finds its tool under it.
+    pub(super) entry_mm: Vec3,
+    /// One contact set per object.
+    pub(super) contacts: Vec<ProbeContacts>,
+    /// How the tool follows its device pose.
+    pub(super) coupling: VirtualCoupling,
+    /// Device pose (target of the coupling) this tick, world, mm and mm/s.
+    pub(super) device_mm: Vec3,
+    pub(super) device_velocity_mm_s: Vec3,
+    /// One contact-stiffness solver per object.
+    pub(super) stiffness: Vec<ContactStiffness>,
+    /// Per object: the contact normal of a solver iteration due after this tick's forces went out (the tick's
+    /// tail, [`Sim::finish_tick`]), if one is.
+    pub(super) stiffness_due: Vec<Option<Vec3>>,
+    /// Tissue force on the tool and contact stiffness at the end of the last tick (the coupling's input).
+    pub(super) last_force_n: Vec3,
+    pub(super) contact_k: Matrix3<f32>,
+    /// Normal stiffness and damping of this tool's last measured contact (the planes' stiffness).
+    pub(super) plane_stiffness_n_per_mm: f32,
+    pub(super) plane_damping_n_s_per_mm: f32,
+    /// Broad-phase scratch of the plane search.
+    pub(super) plane_candidates: Vec<u32>,
+    /// The contact's normal stiffness fitted to the tissue's answer.
+    pub(super) estimate: NormalStiffnessEstimate,
+    /// What the tool is beyond its body (a probe, a grasper).
+    pub instrument: InstrumentSpec,
+    /// The device's jaw input this tick.
+    pub(super) jaw_input: JawInput,
+    /// A grasper's jaws, and what they hold.
+    pub(super) jaws: Option<Jaws>,
+    pub(super) grasp: Option<Grasp>,
+    /// The tissue's pull on the tool through the grasp at the end of the last tick, N.
+    pub(super) grasp_force_n: Vec3,
+    /// A scalpel's edge in the world at the end of the last tick (None while inactive: a tool that comes back
+    /// does not sweep from where it left).
+    pub(super) edge_world_mm: Option<[Vec3; 2]>,
+    /// The shaft as the world gives it.
+    pub shaft_spec: Option<crate::world::ShaftSpec>,
+    /// The shaft (a capsule along the tool's z, from the origin up), which pushes tissue as the tip does.
+    pub(super) shaft: Option<ToolCollider>,
+    /// Scissors' jaw opening at the end of the last tick, rad (None while inactive or not yet joined).
+    pub(super) blade_angle_rad: Option<f32>,
+    /// The drag of the tissue this tool's edge cut last, N (its material's `cut_resistance_n`).
+    pub(super) cut_resistance_n: f32,
+    /// The blade sweep's scratch.
+    pub(super) cut_scratch: CutScratch,
+    /// The drag of cutting this tick, N (world frame, against the edge's motion).
+    pub(super) cut_force_n: Vec3,
+    /// The edge is cutting: how recently it cut, 1 on a tick that cut, decaying with [`super::blade::CUT_DRAG_TAU_S`]
+    /// (the edge crosses the mesh's facets one at a time; the drag of cutting is felt in between).
+    pub(super) cut_level: f32,
+    /// The edge moved this tick.
+    pub(super) edge_moving: bool,
+    /// The tool has reached its hand since it was (re)taken: until then it is being dragged from its entry
+    /// point, and a scalpel's edge does not cut along that path (the surgeon did not make it).
+    pub(super) joined: bool,
+}
+
+impl SimTool {
+    /// The shaft's centre in the world, mm (the tool origin when it has none).
+    pub(super) fn shaft_centre_mm(&self) -> Vec3 {
+        let half_mm = self.shaft_spec.map_or(0.0, |s| 0.5 * s.length_mm);
+        self.position_mm + self.rotation * Vec3::new(0.0, 0.0, half_mm)
+    }
+
+    /// The latest finished contact-stiffness solve of this tool on object `object`.
+    pub fn contact_response(&self, object: usize) -> Option<&crate::haptics::ContactResponse> {
+        self.stiffness.get(object).and_then(|s| s.response())
+    }
+
+    /// The coupling parameters.
+    pub fn coupling(&self) -> &CouplingParams {
+        self.coupling.params()
+    }
+
+    /// A grasper's jaws (None for a probe).
+    pub fn jaws(&self) -> Option<&Jaws> {
+        self.jaws.as_ref()
+    }
+
+    /// What a grasper holds (None for a probe).
+    pub fn grasp(&self) -> Option<&Grasp> {
+        self.grasp.as_ref()
+    }
+}
+
+/// What drives a tool this tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToolCommand {
+    /// False releases the tool: it stops touching the tissue.
+    pub active: bool,
+    /// Device position in the device frame, mm.
+    pub position_device_mm: [f32; 3],
+    /// Device velocity in the device frame, mm/s.
+    pub velocity_device_mm_s: [f32; 3],
+    /// Device orientation, unit quaternion (x, y, z, w).
+    pub orientation_xyzw: [f32; 4],
+    /// The device's buttons and gripper angle (they open and close an instrument's jaws).
+    pub jaws: JawInput,
+}
+
+impl Default for ToolCommand {
+    fn default() -> Self {
+        Self {
+            active: false,
+            position_device_mm: [0.0; 3],
+            velocity_device_mm_s: [0.0; 3],
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            jaws: JawInput::default(),
+        }
+    }
+}
+
+/// What a tool felt this tick, and the local model of the tissue around it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ToolOutput {
+    /// Force the tissue exerts on the tool, world frame, N; finite, clamped to the tool's limit.
+    pub force_world_n: Vec3,
+    /// Tissue nodes held by the tool.
+    pub held_nodes: u32,
+    /// Touches tissue.
+    pub in_contact: bool,
+    /// The raw force exceeded the limit and was scaled down.
+    pub clamped: bool,
+    /// Tool origin after the coupling, world, mm (the model's `x0`).
+    pub position_world_mm: Vec3,
+    /// Tool velocity, world, mm/s.
+    pub velocity_world_mm_s: Vec3,
+    /// Where the device pose put the coupling's target, world, mm.
+    pub device_world_mm: Vec3,
+    /// The device's velocity, world, mm/s.
+    pub device_velocity_world_mm_s: Vec3,
+    /// Contact stiffness `K`, N/mm (symmetric positive semi-definite; zero out of contact).
+    pub stiffness_n_per_mm: Matrix3<f32>,
+    /// Contact damping `D`, N s/mm (symmetric positive semi-definite).
+    pub damping_n_s_per_mm: Matrix3<f32>,
+    /// Surfaces near the tool that it does not touch, world frame (the first `plane_count`).
+    pub planes: [WorldPlane; MAX_PLANES],
+    /// Planes in use.
+    pub plane_count: u8,
+    /// Energy this tool's device may output beyond its own input, mJ ([`EnergyBudget`]).
+    pub energy_allowance_mj: f32,
+    /// A grasper's jaws are closed.
+    pub jaws_closed: bool,
+    /// A grasper's jaw opening, rad (0 for a probe).
+    pub jaw_angle_rad: f32,
+    /// Points of tissue the jaws hold.
+    pub attachments: u16,
+    /// A cautery tool burnt tissue this tick.
+    pub burning: bool,
+    /// A scalpel's edge cut tissue this tick.
+    pub cutting: bool,
+}

@@ -1,0 +1,215 @@
+//! Each tool's output for the tick: the tissue's reaction force (clamped, never non-finite), contact state and
+//! the local model a distant device renders (contact stiffness and damping, nearby planes, energy allowance).
+//!
+//! Owns: [`Sim::tool_output`], [`Sim::local_model`], `limit_force`. Must not: move tissue.
+
+use nalgebra::Matrix3;
+
+use crate::haptics::{MAX_PLANES, WorldPlane, nearest_surface_plane};
+use crate::tissue::Vec3;
+
+use super::*;
+
+impl Sim {
+    /// The tool's reaction force, clamped, and its contact state.
+    pub(super) fn tool_output(&self, t: usize) -> ToolOutput {
+        let tool = &self.tools[t];
+        let mut force = Vec3::zeros();
+        let mut held = 0;
+        for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
+            if let Some(lane) = &object.lane {
+                // A multi-rate object pushes through its latest step's local model, at the tool's position now.
+                let contact = lane.contact(t);
+                let push = contact.force_at(&tool.position_mm);
+                if tool.active && push != Vec3::zeros() {
+                    force += push;
+                    held += contact.held_nodes;
+                }
+                continue;
+            }
+            force += contacts.reaction_force_n(&object.model, &object.state, object.friction);
+            held += contacts.held.len() as u32;
+        }
+        let attachments = tool
+            .grasp
+            .as_ref()
+            .map_or(0, |g| g.attachments().len() as u16);
+        force += tool.grasp_force_n + tool.cut_force_n;
+        held += u32::from(attachments);
+        let mut out = limit_force(force, tool.max_force_n, held);
+        out.attachments = attachments;
+        if let Some(jaws) = &tool.jaws {
+            out.jaws_closed = jaws.closed();
+            out.jaw_angle_rad = jaws.angle_rad();
+        }
+        out.cutting = tool.edge_moving && tool.cut_level > 0.5;
+        out
+    }
+
+    /// Complete `out` with the local model around tool `t` (contact stiffness and damping, nearby surfaces,
+    /// the energy allowance) and remember what the coupling needs next tick. No allocation once warm.
+    pub(super) fn local_model(&mut self, t: usize, dt_s: f32, out: &mut ToolOutput) {
+        let tool = &mut self.tools[t];
+        let mut k = Matrix3::zeros();
+        let mut d = Matrix3::zeros();
+        let mut planes = [WorldPlane::default(); MAX_PLANES];
+        let mut plane_count = 0usize;
+        for (o, object) in self.objects.iter_mut().enumerate() {
+            let contacts = &tool.contacts[o];
+            let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+            let solver = &mut tool.stiffness[o];
+            if !tool.active {
+                solver.forget();
+                continue;
+            }
+            let lane_contact = object
+                .lane
+                .as_ref()
+                .map(|lane| lane.contact(t))
+                .filter(|c| c.force_at(&tool.position_mm) != Vec3::zeros());
+            if let Some(contact) = lane_contact {
+                // A multi-rate object's contact stiffness was solved on its own thread, with its step.
+                if contact.solved {
+                    k += contact.stiffness_matrix();
+                    d += contact.damping_matrix();
+                } else {
+                    let n = contact.normal;
+                    k += n * n.transpose() * tool.plane_stiffness_n_per_mm;
+                    d += n * n.transpose() * tool.plane_damping_n_s_per_mm;
+                }
+                continue;
+            }
+            if contacts.held.is_empty() && grasped.is_empty() {
+                solver.forget();
+                if plane_count < MAX_PLANES
+                    && let Some(plane) = nearest_surface_plane(
+                        &tool.collider,
+                        &tool.position_mm,
+                        &tool.rotation,
+                        PLANE_LOOK_AHEAD_MM,
+                        &object.model,
+                        &object.state,
+                        &object.collider,
+                        &mut object.marks,
+                        &mut tool.plane_candidates,
+                    )
+                {
+                    planes[plane_count] = WorldPlane {
+                        stiffness_n_per_mm: tool.plane_stiffness_n_per_mm,
+                        damping_n_s_per_mm: tool.plane_damping_n_s_per_mm,
+                        ..plane
+                    };
+                    plane_count += 1;
+                }
+                continue;
+            }
+            let first = contacts
+                .held
+                .first()
+                .or(grasped.first())
+                .copied()
+                .unwrap_or(0);
+            let normal = out.force_world_n.try_normalize(1e-9).unwrap_or_else(|| {
+                object
+                    .model
+                    .rest_normals()
+                    .get(first as usize)
+                    .copied()
+                    .unwrap_or_else(Vec3::z)
+            });
+            // The solver's next iterations belong to the tick's tail: they read this tick's final state and
+            // contacts and refine K for the next ticks, so they run after this tick's forces are published.
+            tool.stiffness_due[o] = Some(normal);
+            self.tail_due = true;
+            match solver.response() {
+                Some(response) => {
+                    k += response.stiffness_n_per_mm;
+                    d += response.damping_n_s_per_mm;
+                }
+                None => {
+                    // First ticks of a contact, before the solve finishes: the last measured normal
+                    // stiffness of this tool along the contact normal.
+                    if let Some(n) = out.force_world_n.try_normalize(1e-9) {
+                        k += n * n.transpose() * tool.plane_stiffness_n_per_mm;
+                        d += n * n.transpose() * tool.plane_damping_n_s_per_mm;
+                    }
+                }
+            }
+        }
+        if let Some(n) = out.force_world_n.try_normalize(1e-9)
+            && out.in_contact
+            && tool.active
+        {
+            // The normal stiffness the tissue actually shows, capped by the frozen-contact solve.
+            tool.estimate
+                .record(-n.dot(&tool.position_mm), n.dot(&out.force_world_n), dt_s);
+            // K is rank one along the CURRENT contact normal (the solve may have started on an older one).
+            let solved = (n.transpose() * k * n)[(0, 0)].max(0.0);
+            let kn = tool.estimate.stiffness_n_per_mm(solved).unwrap_or(solved);
+            k = n * n.transpose() * kn;
+            let dn = (n.transpose() * d * n)[(0, 0)].max(0.0);
+            d = n * n.transpose() * dn;
+            if kn.is_finite() && kn > 0.0 {
+                tool.plane_stiffness_n_per_mm = kn;
+                tool.plane_damping_n_s_per_mm = (n.transpose() * d * n)[(0, 0)].max(0.0);
+            }
+        }
+        if !out.in_contact || !tool.active {
+            tool.estimate.reset();
+        }
+        tool.contact_k = k;
+        tool.last_force_n = out.force_world_n;
+        if tool.active {
+            let step = tool.position_mm - tool.last_position_mm;
+            self.budget.record(t, &out.force_world_n, &step, dt_s);
+        } else {
+            self.budget.release(t);
+        }
+        let tool = &self.tools[t];
+        out.position_world_mm = tool.position_mm;
+        out.velocity_world_mm_s = tool.coupling.velocity_mm_s();
+        out.device_world_mm = tool.device_mm;
+        out.device_velocity_world_mm_s = tool.device_velocity_mm_s;
+        out.stiffness_n_per_mm = k;
+        out.damping_n_s_per_mm = d;
+        out.planes = planes;
+        out.plane_count = plane_count as u8;
+        out.energy_allowance_mj = self.budget.allowance_mj(t) as f32;
+    }
+}
+
+/// Clamp to `max_force_n`, and never pass a non-finite force. Pure.
+pub(super) fn limit_force(force: Vec3, max_force_n: f32, held: u32) -> ToolOutput {
+    let mut out = ToolOutput {
+        held_nodes: held,
+        in_contact: held > 0,
+        ..ToolOutput::default()
+    };
+    if !force.iter().all(|c| c.is_finite()) {
+        out.clamped = true;
+        return out;
+    }
+    let magnitude = force.norm();
+    if magnitude > max_force_n {
+        out.force_world_n = force * (max_force_n / magnitude);
+        out.clamped = true;
+    } else {
+        out.force_world_n = force;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn limit_force_clamps_and_drops_non_finite() {
+        let out = limit_force(Vec3::new(0.0, 0.0, 10.0), 3.0, 4);
+        assert!((out.force_world_n.norm() - 3.0).abs() < 1e-5 && out.clamped && out.in_contact);
+        let out = limit_force(Vec3::new(f32::NAN, 0.0, 1.0), 3.0, 1);
+        assert_eq!(out.force_world_n, Vec3::zeros());
+        let out = limit_force(Vec3::new(0.0, 1.0, 0.0), 3.0, 0);
+        assert!(!out.clamped && !out.in_contact && out.force_world_n.y == 1.0);
+    }
+}
