@@ -8,7 +8,9 @@
 //!
 //! Data flow: device --read--> [`haptic_loop::HapticLoop::tick`] --DevicePose, 1 kHz--> server;
 //! server --ForceCommand--> zenoh callback --> [`force_inbox::ForceInbox`] (latest-value mailbox) -->
-//! tick --> [`safety::ForceSafety`] --> [`passivity::Passivity`] --> device.
+//! tick --> render (streamed force, or the local model at the current position) --> [`passivity::Passivity`] -->
+//! [`safety::ForceSafety`] --> device (safety is last: nothing changes a force after its clamp, rate limit and
+//! silence ramp).
 //!
 //! Must not: depend on the server crate or run physics of the scene; the only force that reaches a motor is
 //! one that went through [`safety::ForceSafety`].

@@ -2,7 +2,10 @@
 //! volumes, surfaces extruded into volumes).
 //!
 //! Owns: turning `worlds/*.toml` plus its mesh files into a validated [`World`]. Every refusal names the
-//! file, the key and the line. Must not: build simulation state (that is [`crate::sim`]'s job).
+//! file, the key and the line. Must not: keep simulation state (that is [`crate::sim`]'s job): the loader builds a
+//! throwaway model of each explicitly integrated object only to check its `dt_s` against the stability bound, and
+//! drops it. (The engine still reads this layer's types, `ObjectSpec` and `IntegratorName` among them: the
+//! descriptors that should replace them are the next step of issue 30.)
 
 mod exercise_spec;
 mod extrude;
@@ -14,6 +17,7 @@ mod material_presets;
 mod mesh_file;
 pub(crate) mod tet_grid;
 mod tet_mesh;
+mod volume_mesh_error;
 
 pub use exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
@@ -30,4 +34,5 @@ pub use loader::{
 pub use material_presets::{MaterialPreset, PRESETS_TOML, material_presets};
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};
 pub use tet_grid::tet_grid;
-pub use tet_mesh::{TetMesh, VolumeMeshError, load_msh_mesh, parse_msh};
+pub use tet_mesh::{TetMesh, load_msh_mesh, parse_msh};
+pub use volume_mesh_error::VolumeMeshError;
