@@ -3,45 +3,13 @@
 //! scratch is sized), then counts allocations over a second of pressing and stroking ticks.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 // test code: a failed setup should panic loudly
-// A global allocator must implement the unsafe `GlobalAlloc` trait; this one only forwards to `System` and
-// counts, in this test binary alone.
-#![allow(unsafe_code)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+#[path = "common/counting_allocator.rs"]
+mod counting_allocator;
 
+use counting_allocator::{Counting, assert_counting_works, count_all_threads};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{IntegratorName, load_world, parse_world};
-
-struct Counting;
-
-static COUNTING: AtomicBool = AtomicBool::new(false);
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: every method forwards to `System` with the caller's own arguments, so `System`'s guarantees hold;
-// the counter is a relaxed atomic.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.load(Ordering::Relaxed) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: forwarded unchanged.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: forwarded unchanged.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.load(Ordering::Relaxed) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: forwarded unchanged.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -74,28 +42,15 @@ fn allocations_while_stepping(sim: &mut Sim, warm: usize, counted: usize) -> u64
     count_allocations(sim, warm..warm + counted)
 }
 
-/// Allocations while stepping `ticks`.
+/// Allocations (on any thread) while stepping `ticks`.
 fn count_allocations(sim: &mut Sim, ticks: std::ops::Range<usize>) -> u64 {
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    COUNTING.store(true, Ordering::Relaxed);
-    step_ticks(sim, ticks);
-    COUNTING.store(false, Ordering::Relaxed);
-    ALLOCATIONS.load(Ordering::Relaxed)
+    count_all_threads(|| step_ticks(sim, ticks))
 }
 
 /// One test function, so no other test thread allocates while counting.
 #[test]
 fn a_warm_tick_allocates_nothing_with_every_integrator() {
-    // The counter sees allocations at all (else this test could not fail).
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    COUNTING.store(true, Ordering::Relaxed);
-    let probe = std::hint::black_box(vec![1u8; 64]);
-    COUNTING.store(false, Ordering::Relaxed);
-    drop(probe);
-    assert!(
-        ALLOCATIONS.load(Ordering::Relaxed) > 0,
-        "the counting allocator is not in use"
-    );
+    assert_counting_works();
 
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let text = std::fs::read_to_string(&path).unwrap();
@@ -251,11 +206,9 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
             report
         };
         grasp_ticks(&mut sim, 0..2000);
-        ALLOCATIONS.store(0, Ordering::Relaxed);
-        COUNTING.store(true, Ordering::Relaxed);
-        let report = grasp_ticks(&mut sim, 2000..6000);
-        COUNTING.store(false, Ordering::Relaxed);
-        let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+        let mut counted = None;
+        let allocations = count_all_threads(|| counted = Some(grasp_ticks(&mut sim, 2000..6000)));
+        let report = counted.unwrap();
         println!(
             "grasp (slip at {slip_force_n} N): {allocations} allocations in 4000 warm ticks with {} takes, {} points released, {} slipped",
             report.grasps_taken, report.attachments_released, report.attachments_slipped
@@ -299,11 +252,9 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
         burnt
     };
     burn_ticks(&mut sim, 0..1000);
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    COUNTING.store(true, Ordering::Relaxed);
-    let burnt = burn_ticks(&mut sim, 1000..2000);
-    COUNTING.store(false, Ordering::Relaxed);
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    let mut counted = None;
+    let allocations = count_all_threads(|| counted = Some(burn_ticks(&mut sim, 1000..2000)));
+    let burnt = counted.unwrap();
     println!("cautery: {allocations} allocations in 1000 warm ticks burning {burnt} node-ticks");
     assert!(burnt > 0, "nothing burnt while counting");
     assert_eq!(allocations, 0, "a cautery tick allocated");
@@ -332,11 +283,9 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     };
     let (cut, split) = cut_ticks(&mut sim, 0..2500);
     assert!(cut > 0 && split > 0, "the first passes cut nothing");
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    COUNTING.store(true, Ordering::Relaxed);
-    let (cut, split) = cut_ticks(&mut sim, 2500..4500);
-    COUNTING.store(false, Ordering::Relaxed);
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    let mut counted = None;
+    let allocations = count_all_threads(|| counted = Some(cut_ticks(&mut sim, 2500..4500)));
+    let (cut, split) = counted.unwrap();
     println!(
         "scalpel along its own slit: {allocations} allocations in 2000 warm ticks ({cut} facets cut, {split} vertices split)"
     );
@@ -372,11 +321,9 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     };
     let (cut, split) = snip_ticks(&mut sim, 0..2500);
     assert!(cut > 0 && split > 0, "the first snips cut nothing");
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    COUNTING.store(true, Ordering::Relaxed);
-    let (cut, split) = snip_ticks(&mut sim, 2500..4500);
-    COUNTING.store(false, Ordering::Relaxed);
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    let mut counted = None;
+    let allocations = count_all_threads(|| counted = Some(snip_ticks(&mut sim, 2500..4500)));
+    let (cut, split) = counted.unwrap();
     println!(
         "scissors snipping their own slit: {allocations} allocations in 2000 warm ticks ({cut} facets found again, {split} vertices split)"
     );
