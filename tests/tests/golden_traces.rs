@@ -225,7 +225,7 @@ fn trace(world: &World, duration_s: f64) -> (Golden, Vec<u32>) {
                     None => commands.u64(0),
                 }
             }
-            if tick % 1000 == 0 {
+            if tick.is_multiple_of(1000) {
                 seconds.push(running.0);
             }
             if tick == ticks {
