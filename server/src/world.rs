@@ -18,6 +18,8 @@ mod mesh_file;
 pub(crate) mod tet_grid;
 mod tet_mesh;
 mod volume_mesh_error;
+mod world_error;
+mod world_spec;
 
 pub use exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 pub use extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
@@ -26,13 +28,14 @@ pub use grid_sheet::{grid_sheet, to_obj_text};
 pub use instrument::{
     CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
 };
-pub use loader::{
-    FixedSelection, MAX_TISSUE_THREADS, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec,
-    SpringCalibration, ToolShapeSpec, ToolSpec, World, WorldError, default_tissue_threads,
-    load_world, parse_world,
-};
+pub use loader::{MAX_TISSUE_THREADS, default_tissue_threads, load_world, parse_world};
 pub use material_presets::{MaterialPreset, PRESETS_TOML, material_presets};
 pub use mesh_file::{MeshError, SurfaceMesh, load_obj_mesh, validate_closed, validate_surface};
 pub use tet_grid::tet_grid;
 pub use tet_mesh::{TetMesh, load_msh_mesh, parse_msh};
 pub use volume_mesh_error::VolumeMeshError;
+pub use world_error::WorldError;
+pub use world_spec::{
+    FixedSelection, MassSpec, MaterialSpec, ObjectSpec, ShaftSpec, SpringCalibration,
+    ToolShapeSpec, ToolSpec, World,
+};

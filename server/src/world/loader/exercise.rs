@@ -1,0 +1,204 @@
+//! The world's exercise: targets, samples and their validation.
+
+use toml::Spanned;
+
+use crate::world::exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
+use crate::world::file_format::{ExerciseSection, TargetSection};
+
+use super::*;
+
+impl Context<'_> {
+    pub(super) fn exercise(
+        &self,
+        section: &Spanned<ExerciseSection>,
+        tools: &[ToolSpec],
+        objects: &[ObjectSpec],
+    ) -> Result<ExerciseSpec, WorldError> {
+        let e = section.get_ref();
+        let name = e.name.get_ref().clone();
+        self.check(&e.name, "exercise.name", !name.trim().is_empty(), "empty")?;
+        let limit = *e.time_limit_s.get_ref();
+        self.check(
+            &e.time_limit_s,
+            "exercise.time_limit_s",
+            limit.is_finite() && limit > 0.0 && limit <= 86_400.0,
+            &format!("must be a time in (0, 86400] s (got {limit})"),
+        )?;
+        let depth_limit_mm = match &e.depth_limit_mm {
+            Some(at) => Some(self.positive(at, "exercise.depth_limit_mm")?),
+            None => None,
+        };
+        if e.kind == ExerciseKind::AccurateTouch && depth_limit_mm.is_none() {
+            return Err(self.invalid(
+                section,
+                "exercise.depth_limit_mm",
+                "an accurate-touch exercise needs a depth limit",
+            ));
+        }
+        let samples = self.exercise_samples(section, objects)?;
+        let ranking = e.kind == ExerciseKind::StiffnessRanking;
+        let list: &[Spanned<TargetSection>] = match &e.targets {
+            Some(at) if ranking => {
+                return Err(self.invalid(
+                    at,
+                    "exercise.targets",
+                    "a stiffness-ranking exercise has samples, not targets",
+                ));
+            }
+            Some(at) => {
+                let list = at.get_ref();
+                self.check(
+                    at,
+                    "exercise.targets",
+                    !list.is_empty() && list.len() <= MAX_EXERCISE_TARGETS,
+                    &format!(
+                        "needs 1 to {MAX_EXERCISE_TARGETS} targets (got {})",
+                        list.len()
+                    ),
+                )?;
+                list
+            }
+            None if ranking => &[],
+            None => {
+                return Err(self.invalid(
+                    section,
+                    "exercise.targets",
+                    "missing: list the targets as [[exercise.targets]] tables",
+                ));
+            }
+        };
+        let mut targets = Vec::with_capacity(list.len());
+        for (i, target) in list.iter().enumerate() {
+            let key = |k: &str| format!("exercise.targets[{i}].{k}");
+            let t = target.get_ref();
+            self.check(
+                target,
+                &key("at_mm"),
+                t.at_mm.iter().all(|c| c.is_finite()),
+                "must be finite",
+            )?;
+            self.check(
+                target,
+                &key("radius_mm"),
+                t.radius_mm.is_finite() && t.radius_mm > 0.0,
+                &format!("must be a positive number (got {})", t.radius_mm),
+            )?;
+            let tool = match &t.tool {
+                Some(name) => {
+                    Some(tools.iter().position(|s| &s.name == name).ok_or_else(|| {
+                        self.invalid(
+                            target,
+                            &key("tool"),
+                            format!(
+                                "no tool named `{name}` (tools: {})",
+                                tools
+                                    .iter()
+                                    .map(|s| s.name.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ),
+                        )
+                    })?)
+                }
+                None if e.kind == ExerciseKind::Coordination => {
+                    return Err(self.invalid(
+                        target,
+                        &key("tool"),
+                        "a coordination target names the tool that must touch it",
+                    ));
+                }
+                None => None,
+            };
+            targets.push(TargetSpec {
+                at_mm: t.at_mm,
+                radius_mm: t.radius_mm,
+                tool,
+            });
+        }
+        Ok(ExerciseSpec {
+            name,
+            kind: e.kind,
+            time_limit_s: limit,
+            depth_limit_mm,
+            targets,
+            samples,
+        })
+    }
+
+    /// A ranking exercise's samples: at least two distinct objects of the world (none for other kinds).
+    pub(super) fn exercise_samples(
+        &self,
+        section: &Spanned<ExerciseSection>,
+        objects: &[ObjectSpec],
+    ) -> Result<Vec<SampleSpec>, WorldError> {
+        let e = section.get_ref();
+        let ranking = e.kind == ExerciseKind::StiffnessRanking;
+        let Some(at) = &e.samples else {
+            if ranking {
+                return Err(self.invalid(
+                    section,
+                    "exercise.samples",
+                    "missing: name the objects to rank, e.g. samples = [\"a\", \"b\"]",
+                ));
+            }
+            return Ok(Vec::new());
+        };
+        self.check(
+            at,
+            "exercise.samples",
+            ranking,
+            "only a stiffness-ranking exercise has samples",
+        )?;
+        let names = at.get_ref();
+        self.check(
+            at,
+            "exercise.samples",
+            names.len() >= 2 && names.len() <= MAX_EXERCISE_TARGETS,
+            &format!(
+                "needs 2 to {MAX_EXERCISE_TARGETS} samples (got {})",
+                names.len()
+            ),
+        )?;
+        let mut samples: Vec<SampleSpec> = Vec::with_capacity(names.len());
+        for name in names {
+            let Some(object) = objects.iter().position(|o| &o.name == name) else {
+                return Err(self.invalid(
+                    at,
+                    "exercise.samples",
+                    format!(
+                        "no object named `{name}` (objects: {})",
+                        objects
+                            .iter()
+                            .map(|o| o.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ));
+            };
+            if samples.iter().any(|s| s.object == object) {
+                return Err(self.invalid(
+                    at,
+                    "exercise.samples",
+                    format!("`{name}` is named twice"),
+                ));
+            }
+            let spec = &objects[object];
+            let mut min = [f32::MAX; 2];
+            let mut max = [f32::MIN; 2];
+            for p in &spec.mesh.positions_mm {
+                for k in 0..2 {
+                    min[k] = min[k].min(p[k]);
+                    max[k] = max[k].max(p[k]);
+                }
+            }
+            samples.push(SampleSpec {
+                object,
+                name: name.clone(),
+                stiffness_n_per_mm: spec.material.stiffness_n_per_mm,
+                min_xy_mm: min,
+                max_xy_mm: max,
+            });
+        }
+        Ok(samples)
+    }
+}
