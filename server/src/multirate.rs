@@ -28,7 +28,8 @@ use crate::collision::ToolCollider;
 use crate::haptics::ContactStiffness;
 use crate::interaction::{ProbeContacts, ToolBody};
 use crate::tissue::{
-    DivergenceGuard, Integrator, MassSpringModel, Stepped, TissueState, Vec3, Verdict, step_guarded,
+    DivergenceGuard, Integrator, MassSpringModel, Stepped, TissueState, Vec3, Verdict, guard,
+    step_guarded,
 };
 
 /// Most ticks' worth of the contact-stiffness solve (`ContactStiffness::ITERATIONS_PER_TICK` CG iterations each)
@@ -197,12 +198,13 @@ impl StepJob {
             .iter()
             .filter(|t| t.active)
             .map(|t| {
-                let travel_mm = if t.was_active {
-                    (t.position_mm - t.last_position_mm).norm()
-                } else {
-                    t.seed.reach_mm
-                };
-                crate::tissue::guard::tool_work_allowance_n_mm(t.seed.max_force_n, travel_mm)
+                let travel_mm = guard::tool_travel_mm(
+                    t.was_active,
+                    &t.position_mm,
+                    &t.last_position_mm,
+                    t.seed.reach_mm,
+                );
+                guard::tool_work_allowance_n_mm(t.seed.max_force_n, travel_mm)
             })
             .sum();
         self.guard.save(&self.state);

@@ -79,11 +79,12 @@ impl Sim {
             .iter()
             .filter(|t| t.active)
             .map(|t| {
-                let travel_mm = if t.was_active {
-                    (t.position_mm - t.last_position_mm).norm()
-                } else {
-                    t.reach_mm
-                };
+                let travel_mm = guard::tool_travel_mm(
+                    t.was_active,
+                    &t.position_mm,
+                    &t.last_position_mm,
+                    t.reach_mm,
+                );
                 guard::tool_work_allowance_n_mm(t.max_force_n, travel_mm)
             })
             .sum()

@@ -43,6 +43,21 @@ pub fn tool_work_allowance_n_mm(max_force_n: f32, travel_mm: f32) -> f64 {
     4.0 * f64::from(max_force_n) * f64::from(travel_mm)
 }
 
+/// How far a tool moved in a step for [`tool_work_allowance_n_mm`], mm: from its last position if it was active
+/// then, else its reach (it has just come in).
+pub fn tool_travel_mm(
+    was_active: bool,
+    position_mm: &Vec3,
+    last_position_mm: &Vec3,
+    reach_mm: f32,
+) -> f32 {
+    if was_active {
+        (position_mm - last_position_mm).norm()
+    } else {
+        reach_mm
+    }
+}
+
 /// What [`DivergenceGuard::assess`] measured on one object.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Assessment {
