@@ -121,7 +121,7 @@ impl Sim {
 
     /// Spread the tissue passes of every object the tick steps (not the multi-rate ones: they have threads of
     /// their own) over `runner`; `None` steps them on the calling thread. The results are the same bits either
-    /// way (see [`crate::parallel`]): a recording replays the same on any thread count.
+    /// way (see [`sinew_parallel`]): a recording replays the same on any thread count.
     pub fn set_chunk_runner(&mut self, runner: Option<Arc<dyn ChunkRunner>>) {
         for object in self.objects.iter_mut().filter(|o| o.lane.is_none()) {
             object.model.set_chunk_runner(runner.clone());

@@ -1,6 +1,6 @@
 //! The tissue step spread over worker threads gives the same bits as on one thread: positions, velocities and
 //! the forces sent to the tools, tick by tick, through the real `Sim`, the real world loader and the real
-//! worker pool (`sinew_server::node::worker_pool`): on the shipped pad, on a sheet with a stiffening law under
+//! worker pool (`sinew_parallel::WorkerPool`): on the shipped pad, on a sheet with a stiffening law under
 //! every integrator (with and without a region of deformation), and on the shipped volumetric blocks.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
