@@ -1,11 +1,21 @@
 //! The haptic device abstraction: what the 1 kHz loop needs from any backend.
 //!
 //! Owns: the [`Device`] trait, the device's static description ([`DeviceModel`]), one sample of its sensors
-//! ([`DeviceReading`]) and its errors ([`DeviceError`]). Backends (the simulated hand in [`crate::sim_device`];
-//! OpenHaptics behind a feature flag later) implement the trait.
+//! ([`DeviceReading`]) and its errors ([`DeviceError`]); and, in `device/`, the backends that implement it: the
+//! simulated hand ([`sim_device`], [`hand_model`], [`hand_script`]), a recorded hand ([`replay_device`]), the
+//! vendor's HD API behind feature `openhaptics` (`openhaptics`), and the mounting calibration that wraps any of
+//! them ([`calibration`]).
 //!
 //! Must not: know about zenoh, the wire format or force safety. A backend renders exactly the force it is given;
 //! [`crate::safety::ForceSafety`] is the only code that decides that force.
+
+pub mod calibration;
+pub mod hand_model;
+pub mod hand_script;
+#[cfg(feature = "openhaptics")]
+pub mod openhaptics;
+pub mod replay_device;
+pub mod sim_device;
 
 use thiserror::Error;
 

@@ -1,10 +1,10 @@
 //! hapticserver: serves one haptic device to a Sinew scene over zenoh.
 //!
-//! Owns: the device abstraction ([`device`]), its mounting calibration ([`calibration`]) and its backends (the simulated hand: [`sim_device`],
-//! [`hand_model`], [`hand_script`]), device-side force safety ([`safety`]), the 1 kHz loop body
-//! ([`haptic_loop`]) and the process around it ([`haptic_server`]: zenoh declarations, threads, handle,
-//! [`report`], with the last second's [`stillness`]), and the latency-moderated renderer of the server's
-//! local models ([`render`]), and the alignment of the loop's phase with the server's tick ([`phase_align`]).
+//! Owns, in three folders by idea: the device and its backends ([`device`]: the trait, the simulated and the
+//! recorded hand, OpenHaptics behind a feature, the mounting calibration); the force path ([`force`]: the inbox,
+//! the local-model renderer and the mode switch, passivity, safety, phase alignment); the process around the
+//! loop ([`process`]: configuration, zenoh session, threads and handle, the server watch, report, trace,
+//! stillness). The 1 kHz loop body that joins them is [`haptic_loop`].
 //!
 //! Data flow: device --read--> [`haptic_loop::HapticLoop::tick`] --DevicePose, 1 kHz--> server;
 //! server --ForceCommand--> zenoh callback --> [`force_inbox::ForceInbox`] (latest-value mailbox) -->
@@ -16,30 +16,21 @@
 //! one that went through [`safety::ForceSafety`].
 #![warn(missing_docs)]
 
-pub mod calibration;
 pub mod clock;
 pub mod device;
 pub mod error;
-pub mod force_inbox;
-pub mod hand_model;
-pub mod hand_script;
-pub mod haptic_config;
+pub mod force;
 pub mod haptic_loop;
-pub mod haptic_server;
+pub mod process;
+
+// The crate's flat module paths (`hapticserver::safety`, `hapticserver::sim_device`, ...), kept for its users.
 #[cfg(feature = "openhaptics")]
-pub mod openhaptics;
-pub mod passivity;
-pub mod phase_align;
-pub mod render;
-pub mod render_mode;
-pub mod replay_device;
-pub mod report;
-pub mod safety;
-pub mod server_watch;
-pub mod sim_device;
-pub mod stillness;
-pub mod trace;
-pub mod zenoh_session;
+pub use device::openhaptics;
+pub use device::{calibration, hand_model, hand_script, replay_device, sim_device};
+pub use force::{force_inbox, passivity, phase_align, render, render_mode, safety};
+pub use process::{
+    haptic_config, haptic_server, report, server_watch, stillness, trace, zenoh_session,
+};
 
 pub use calibration::{CalibratedDevice, CalibrationError, WorldFromDevice};
 pub use device::{Device, DeviceError, DeviceModel, DeviceReading};

@@ -1,6 +1,6 @@
 //! Phase alignment over real zenoh sessions on loopback: the server and two simulated hapticservers rendering
 //! directly, each aligning its loop. Each settles at its target wait (at most 150 us, less on a loaded server:
-//! `hapticserver/src/phase_align.rs`): the server's measured waits for its poses (`ForceCommand::pose_wait_us`)
+//! `hapticserver/src/force/phase_align.rs`): the server's measured waits for its poses (`ForceCommand::pose_wait_us`)
 //! end within 100 us of it, in steps of at most 10 us a tick. Two loops at independent random phases both land
 //! within 100 us of a target by chance only about one time in 25, and at least one of them must have moved. A
 //! device with alignment off still measures its waits and never shifts its loop. Wall-clock
