@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_protocol::{DevicePose, RenderMode};
-use sinew_server::haptics::DeadbandParams;
+use sinew_server::server_tick::DeadbandParams;
 use sinew_server::recording::{FinalState, Recorder, TickRecord};
 use sinew_server::server_tick::{PoseInput, ServerTick};
 use sinew_server::sim::Sim;

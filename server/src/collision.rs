@@ -8,6 +8,8 @@
 pub mod glam_boundary;
 mod surface_collider;
 mod tool_collider;
+mod tool_shape;
 
 pub use surface_collider::{NodeMarks, SurfaceCollider, SurfaceColliderError};
 pub use tool_collider::{ContactSide, ToolCollider};
+pub use tool_shape::{ShaftSpec, ToolShapeSpec};

@@ -8,10 +8,14 @@
 
 mod cut;
 mod grasp;
+mod instrument;
 mod jaws;
 mod probe;
 
 pub use cut::{BladeSweep, CutScratch, swept_seams, torn_seams};
 pub use grasp::{Attachment, Grasp, GraspEvent, MAX_ATTACHMENTS};
+pub use instrument::{
+    CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
+};
 pub use jaws::{JawInput, Jaws};
 pub use probe::{ProbeContacts, ToolBody};

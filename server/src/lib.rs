@@ -14,6 +14,7 @@ pub mod multirate;
 pub mod node;
 pub mod recording;
 pub mod replication;
+pub mod scene;
 pub mod server_tick;
 pub mod sim;
 pub mod tissue;

@@ -35,8 +35,8 @@ pub use publish_loop::{exercise_stats, training_stats};
 pub use session::open_session;
 pub use sim_loop::{DeviceReport, LiveTraining, ReplayProgress, SimReport};
 
+use crate::scene::World;
 use crate::sim::Sim;
-use crate::world::World;
 
 /// Why the server could not start.
 #[derive(Debug, Error)]

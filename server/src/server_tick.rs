@@ -10,9 +10,11 @@
 
 use sinew_protocol::{DevicePose, ForceCommand};
 
-use crate::haptics::{DeadbandParams, ModelStream, StreamCounters};
+pub mod model_stream;
+
 use crate::sim::{Sim, StepReport, ToolCommand, ToolOutput};
 use crate::tissue::Vec3;
+pub use model_stream::{DeadbandParams, ModelStream, StreamCounters};
 
 /// A device's newest pose as the tick sees it.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -18,12 +18,12 @@
 //! 6. the tail, after the forces are out: colliders refit, contact-stiffness iterations ([`Sim::finish_tick`]).
 //!
 //! The parts: `object.rs` ([`SimObject`]), `tool.rs` ([`SimTool`], [`ToolCommand`], [`ToolOutput`]),
-//! `step_report.rs` ([`StepReport`]); built from a world in `from_world.rs`.
+//! `step_report.rs` ([`StepReport`]); built from a scene descriptor in `from_scene.rs`.
 
 mod blade;
 mod cautery;
 mod drive;
-mod from_world;
+mod from_scene;
 mod grasping;
 mod guarded;
 mod object;

@@ -14,27 +14,35 @@ pub mod fem;
 pub mod fem_assembly;
 pub mod guard;
 pub mod guarded_step;
+mod integrator_name;
 pub mod integrators;
+mod kuhn;
 mod mass_spring;
+mod object_desc;
 pub mod region;
 pub mod seams;
 pub mod spring_law;
 pub mod springs;
 pub mod stability;
 mod state;
+mod surface_mesh;
 pub mod ties;
 pub mod volume;
 
 pub use guard::{DivergenceGuard, Verdict};
 pub use guarded_step::{GuardedStep, MAX_HALVINGS, Stepped, step_guarded};
+pub use integrator_name::IntegratorName;
 pub use integrators::{
     ExplicitEuler, ImplicitEuler, Integrator, QuasiStatic, Rk2, Rk4, SymplecticEuler, Xpbd,
     integrator_for,
 };
+pub use kuhn::KUHN;
 pub use mass_spring::{MassSpringModel, ModelParts};
+pub use object_desc::{FixedSelection, MassSpec, MaterialSpec, ObjectSpec, SpringCalibration};
 pub use region::{RegionParams, RegionTracker, RegionUpdate};
 pub use spring_law::SpringLaw;
 pub use state::TissueState;
+pub use surface_mesh::SurfaceMesh;
 pub use ties::TieSet;
 
 /// Millimetres per metre: converts N/kg (m/s^2) to mm/s^2.

@@ -27,7 +27,7 @@ use sinew_protocol::{DevicePose, ForceCommand, InstanceId, decode, encode};
 
 /// The instance id of the drill's in-process server.
 const DRILL_SERVER: InstanceId = InstanceId(0x5e);
-use sinew_server::haptics::DeadbandParams;
+use sinew_server::server_tick::DeadbandParams;
 use sinew_server::server_tick::{PoseInput, ServerTick};
 use sinew_server::sim::Sim;
 use sinew_server::world::World;

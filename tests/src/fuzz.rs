@@ -15,7 +15,7 @@ use std::path::Path;
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::quantize::QuantBounds;
 use sinew_protocol::*;
-use sinew_server::haptics::DeadbandParams;
+use sinew_server::server_tick::DeadbandParams;
 use sinew_server::recording::{
     FinalState, Recorder, TickRecord, read_recording, replay as replay_recording,
 };

@@ -6,8 +6,8 @@ use parry3d::math::Vector;
 use parry3d::query::{Ray, RayCast};
 use parry3d::shape::{Ball, Capsule, Shape, TriMesh, TriMeshBuilderError, TriMeshFlags};
 
+use super::ToolShapeSpec;
 use super::glam_boundary::{from_parry, pose, to_parry};
-use crate::world::ToolShapeSpec;
 
 /// A tool's parry shape.
 #[derive(Debug, Clone)]

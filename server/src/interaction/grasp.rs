@@ -25,8 +25,8 @@
 
 use nalgebra::UnitQuaternion;
 
+use super::GraspSpec;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
-use crate::world::GraspSpec;
 
 /// The most attachments one grasp may hold (`max_attachments` is checked against it).
 pub const MAX_ATTACHMENTS: u16 = 256;

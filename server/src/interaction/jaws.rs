@@ -4,7 +4,7 @@
 //! hysteresis and a drawn opening angle. Pure and allocation-free: it runs on the sim tick and replays bit for
 //! bit from the recorded poses.
 
-use crate::world::JawActivation;
+use super::JawActivation;
 
 /// What the device says about the jaws this tick (`DevicePose.buttons`, `DevicePose.jaw_angle_rad`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -90,7 +90,7 @@ impl Jaws {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::GraspSpec;
+    use crate::interaction::GraspSpec;
 
     fn jaws_of(spec: &GraspSpec) -> Jaws {
         Jaws::new(spec.activation, spec.open_angle_rad)

@@ -15,9 +15,9 @@ use zenoh::qos::CongestionControl;
 
 use super::{ServerError, Shared};
 use crate::replication::ObjectReplication;
+use crate::scene::ExerciseKind;
 use crate::tissue::Vec3;
 use crate::training::LiveScore;
-use crate::world::ExerciseKind;
 
 /// Stats as published: sim report, replication counters, device slots, rejects.
 pub(crate) fn build_stats(shared: &Shared) -> ServerStats {

@@ -19,8 +19,8 @@ use zenoh::qos::{CongestionControl, Reliability};
 
 use super::device_slots::PoseArrival;
 use super::{ServerError, Shared};
-use crate::haptics::DeadbandParams;
 use crate::recording::{FinalState, RecorderTap, TickRecord};
+use crate::server_tick::DeadbandParams;
 use crate::server_tick::{PoseInput, ServerTick};
 use crate::sim::Sim;
 use crate::tissue::Vec3;

@@ -11,8 +11,8 @@
 
 use std::time::{Duration, Instant};
 
+use crate::scene::World;
 use crate::sim::{Sim, SimBuildError, ToolCommand, ToolOutput};
-use crate::world::World;
 
 /// How long the estimate may step the copy (at least [`MIN_STEPS`] steps are timed whatever it costs).
 pub const ESTIMATE_BUDGET: Duration = Duration::from_millis(300);

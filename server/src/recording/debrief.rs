@@ -7,9 +7,9 @@
 use sinew_protocol::{MeshDelta, SceneSnapshot};
 
 use crate::replication::{FrameExchange, ReplicationState};
+use crate::scene::World;
 use crate::sim::{Sim, ToolOutput};
 use crate::tissue::Vec3;
-use crate::world::World;
 
 /// Snapshots of one replay, frame after frame.
 #[derive(Debug)]

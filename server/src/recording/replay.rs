@@ -1,11 +1,11 @@
 //! Replay: the recorded ticks re-run through [`ServerTick`] on virtual time, every force command and the final
 //! tissue compared with the recording bit for bit.
 
-use crate::haptics::DeadbandParams;
+use crate::scene::World;
+use crate::server_tick::DeadbandParams;
 use crate::server_tick::{PoseInput, ServerTick};
 use crate::sim::{Sim, SimBuildError};
 use crate::training::TickView;
-use crate::world::World;
 
 use super::reader::Recording;
 use super::tick_record::DeviceTick;

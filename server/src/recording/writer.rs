@@ -35,7 +35,7 @@ use super::{
     FORMAT_VERSION, TICKS_ENCODING, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_PRESENCE, TOPIC_STATS,
     TOPIC_TICKS, TOPIC_TOOLS, WIRE_ENCODING,
 };
-use crate::world::World;
+use crate::scene::World;
 
 /// Ticks the queue holds (a quarter second at 1 kHz) before it drops.
 pub const QUEUE_TICKS: usize = 256;

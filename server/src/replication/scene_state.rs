@@ -9,8 +9,9 @@
 use sinew_protocol::{SceneSnapshot, ToolInfo, ToolShape, ToolStates};
 
 use super::ObjectReplication;
+use crate::collision::ToolShapeSpec;
+use crate::scene::World;
 use crate::sim::Sim;
-use crate::world::{ToolShapeSpec, World};
 
 /// What has been replicated: per-object quantized state, tool states, counters. Guarded by a mutex shared
 /// by the publish thread and the snapshot queryable (never by the sim thread).
@@ -109,20 +110,24 @@ impl ReplicationState {
 }
 
 /// What viewers need to draw an instrument.
-pub fn instrument_info(spec: &crate::world::InstrumentSpec) -> sinew_protocol::InstrumentInfo {
+pub fn instrument_info(
+    spec: &crate::interaction::InstrumentSpec,
+) -> sinew_protocol::InstrumentInfo {
     match spec {
-        crate::world::InstrumentSpec::Probe => sinew_protocol::InstrumentInfo::Probe,
-        crate::world::InstrumentSpec::Grasper(g) => sinew_protocol::InstrumentInfo::Grasper {
+        crate::interaction::InstrumentSpec::Probe => sinew_protocol::InstrumentInfo::Probe,
+        crate::interaction::InstrumentSpec::Grasper(g) => sinew_protocol::InstrumentInfo::Grasper {
             jaw_length_mm: g.jaw_length_mm,
             open_angle_rad: g.open_angle_rad,
         },
-        crate::world::InstrumentSpec::Cautery(_) => sinew_protocol::InstrumentInfo::Cautery,
-        crate::world::InstrumentSpec::Scissors(s) => sinew_protocol::InstrumentInfo::Scissors {
-            hinge_mm: s.hinge_mm,
-            blade_length_mm: s.blade_length_mm,
-            open_angle_rad: s.open_angle_rad,
-        },
-        crate::world::InstrumentSpec::Scalpel(s) => sinew_protocol::InstrumentInfo::Scalpel {
+        crate::interaction::InstrumentSpec::Cautery(_) => sinew_protocol::InstrumentInfo::Cautery,
+        crate::interaction::InstrumentSpec::Scissors(s) => {
+            sinew_protocol::InstrumentInfo::Scissors {
+                hinge_mm: s.hinge_mm,
+                blade_length_mm: s.blade_length_mm,
+                open_angle_rad: s.open_angle_rad,
+            }
+        }
+        crate::interaction::InstrumentSpec::Scalpel(s) => sinew_protocol::InstrumentInfo::Scalpel {
             edge_from_mm: s.edge_mm[0],
             edge_to_mm: s.edge_mm[1],
         },

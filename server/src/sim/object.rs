@@ -5,11 +5,11 @@
 
 use crate::collision::{NodeMarks, SurfaceCollider};
 use crate::multirate::StepLane;
+use crate::tissue::IntegratorName;
 use crate::tissue::seams::Facet;
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TissueState,
 };
-use crate::world::IntegratorName;
 
 /// One deformable object in the simulation.
 #[derive(Debug)]

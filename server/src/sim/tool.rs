@@ -6,13 +6,14 @@
 use nalgebra::{Matrix3, UnitQuaternion};
 
 use crate::collision::ToolCollider;
+use crate::collision::ToolShapeSpec;
 use crate::haptics::{
     ContactStiffness, CouplingParams, MAX_PLANES, NormalStiffnessEstimate, VirtualCoupling,
     WorldPlane,
 };
+use crate::interaction::InstrumentSpec;
 use crate::interaction::{CutScratch, Grasp, JawInput, Jaws, ProbeContacts};
 use crate::tissue::Vec3;
-use crate::world::{InstrumentSpec, ToolShapeSpec};
 
 /// One tool in the simulation.
 #[derive(Debug)]
@@ -80,7 +81,7 @@ pub struct SimTool {
     /// does not sweep from where it left).
     pub(super) edge_world_mm: Option<[Vec3; 2]>,
     /// The shaft as the world gives it.
-    pub shaft_spec: Option<crate::world::ShaftSpec>,
+    pub shaft_spec: Option<crate::collision::ShaftSpec>,
     /// The shaft (a capsule along the tool's z, from the origin up), which pushes tissue as the tip does.
     pub(super) shaft: Option<ToolCollider>,
     /// Scissors' jaw opening at the end of the last tick, rad (None while inactive or not yet joined).

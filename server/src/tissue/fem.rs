@@ -661,7 +661,7 @@ mod tests {
         let x: Vec<Vec3> = (0..8)
             .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * size)
             .collect();
-        let tets = crate::world::tet_grid::KUHN.map(|t| t.map(|i| i as u32));
+        let tets = crate::tissue::KUHN.map(|t| t.map(|i| i as u32));
         let (volumes, dropped) = TetVolumes::new(&tets, &x, 0.0);
         assert_eq!(dropped, 0);
         (x, volumes)

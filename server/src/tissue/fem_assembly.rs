@@ -193,7 +193,7 @@ mod tests {
         let mut tets = Vec::new();
         for cx in 0..2 {
             let corner = |c: usize| node(cx + (c & 1), (c >> 1) & 1, (c >> 2) & 1);
-            for t in crate::world::tet_grid::KUHN {
+            for t in crate::tissue::KUHN {
                 tets.push(t.map(corner));
             }
         }

@@ -28,8 +28,8 @@ pub use runge_kutta::{Rk2, Rk4};
 pub use symplectic_euler::SymplecticEuler;
 pub use xpbd::Xpbd;
 
+use super::IntegratorName;
 use super::{MassSpringModel, TissueState, Vec3};
-use crate::world::IntegratorName;
 
 /// Advances a tissue by one step.
 pub trait Integrator: Send + std::fmt::Debug {

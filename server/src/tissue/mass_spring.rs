@@ -12,8 +12,8 @@ use super::fem::{FemElements, FemLinearization, FemMaterial, NodeTets};
 use super::springs::{ForcePass, KernelScratch, NodeSprings, SpringSet};
 use super::volume::{GlobalVolume, TetVolumes};
 use super::{MM_PER_M, SpringLaw, Vec3};
+use super::{MassSpec, ObjectSpec};
 use crate::incidence::incidence_into;
-use crate::world::{MassSpec, ObjectSpec};
 use sinew_parallel::{ChunkRunner, Inline, ScratchCell};
 
 /// Everything a model is built from. Public so tests and the region tracker can build models that are not

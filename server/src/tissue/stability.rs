@@ -6,8 +6,8 @@
 //! has spectral radius <= 1 for every one of them. Implicit Euler, quasi-static relaxation and XPBD have no
 //! bound. Pure functions; used by the world loader, never in a tick.
 
+use super::IntegratorName;
 use super::MassSpringModel;
-use crate::world::IntegratorName;
 
 /// Strain up to which a stiffening law's tangent is assumed when bounding the step (beyond it, the
 /// anti-divergence guard halves the step at run time).

@@ -1,4 +1,4 @@
-//! Running and scoring a training exercise ([`crate::world::ExerciseSpec`]) from the session's events.
+//! Running and scoring a training exercise ([`crate::scene::ExerciseSpec`]) from the session's events.
 //!
 //! Owns: [`ExerciseRun`] (the live state: which target is next, the clock, the errors) and [`ExerciseScore`].
 //!
@@ -25,7 +25,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::events::{EventKind, SessionEvent, ToolActivity};
-use crate::world::{ExerciseKind, ExerciseSpec};
+use crate::scene::{ExerciseKind, ExerciseSpec};
 
 /// Points lost per error.
 pub const POINTS_PER_ERROR: f64 = 10.0;
@@ -455,7 +455,7 @@ mod tests {
     #![allow(clippy::unwrap_used)]
 
     use super::*;
-    use crate::world::TargetSpec;
+    use crate::scene::TargetSpec;
 
     fn spec(limit_s: f64) -> ExerciseSpec {
         let target = |x: f32| TargetSpec {

@@ -8,9 +8,10 @@
 //! top, the inner surface, and side walls along open borders), so it is closed. Must not: read files or know
 //! the world format.
 
-use super::mesh_file::{MeshError, SurfaceMesh};
+use super::mesh_file::MeshError;
 use super::tet_mesh::{TetMesh, signed_volume_mm3, too_flat};
 use super::volume_mesh_error::VolumeMeshError;
+use crate::tissue::SurfaceMesh;
 
 /// Most layers an extrusion may have.
 pub const MAX_EXTRUDE_LAYERS: u32 = 16;

@@ -3,7 +3,8 @@
 //! Here: the whole file (`[sim]`, the order of sections, the cross-checks) and the checking context. Each
 //! section has its own file: `object.rs` (mesh, integrator, step rate, region), `material.rs` (presets, laws,
 //! springs or elements, calibration), `fixed_and_ties.rs`, `tool.rs` (shape, shaft, coupling, instrument),
-//! `exercise.rs`. The types it produces are in [`super::world_spec`], its error in [`super::world_error`].
+//! `exercise.rs`. The types it produces are the engine's descriptors ([`crate::scene`] and the layers it names); its error is
+//! in [`super::world_error`].
 
 mod exercise;
 mod fixed_and_ties;
@@ -18,7 +19,9 @@ use toml::Spanned;
 
 use super::file_format::WorldFile;
 use super::world_error::WorldError;
-use super::world_spec::*;
+use crate::collision::{ShaftSpec, ToolShapeSpec};
+use crate::scene::{ToolSpec, World};
+use crate::tissue::{FixedSelection, MassSpec, MaterialSpec, ObjectSpec, SpringCalibration};
 
 /// Read, parse and validate a world file (mesh paths are relative to it).
 pub fn load_world(path: &Path) -> Result<World, WorldError> {

@@ -5,14 +5,7 @@ use std::path::Path;
 
 use thiserror::Error;
 
-/// A triangle surface in millimetres.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SurfaceMesh {
-    /// Vertex positions, mm.
-    pub positions_mm: Vec<[f32; 3]>,
-    /// Triangles (vertex indices), counter-clockwise seen from outside.
-    pub triangles: Vec<[u32; 3]>,
-}
+use crate::tissue::SurfaceMesh;
 
 /// Why a mesh was refused.
 #[derive(Debug, Clone, PartialEq, Error)]

@@ -4,17 +4,7 @@
 
 use super::mesh_file::MeshError;
 use super::tet_mesh::TetMesh;
-
-/// The six tetrahedra of a cube whose corners are numbered by their bits (x = 1, y = 2, z = 4), all around
-/// the diagonal from corner 0 to corner 7.
-pub(crate) const KUHN: [[usize; 4]; 6] = [
-    [0, 1, 3, 7],
-    [0, 3, 2, 7],
-    [0, 2, 6, 7],
-    [0, 6, 4, 7],
-    [0, 4, 5, 7],
-    [0, 5, 1, 7],
-];
+use crate::tissue::KUHN;
 
 /// A block of `cells[0] x cells[1] x cells[2]` cubes of `spacing_mm`, from the origin along +x, +y, +z. Node
 /// order and surface as [`TetMesh::from_tets`] makes them (surface nodes first).

@@ -18,8 +18,9 @@ use std::path::Path;
 
 use mshio::{ElementType, MshParserError};
 
-use super::mesh_file::{MeshError, SurfaceMesh, validate_surface};
+use super::mesh_file::{MeshError, validate_surface};
 use super::volume_mesh_error::VolumeMeshError;
+use crate::tissue::SurfaceMesh;
 
 /// A tetrahedral volume mesh in millimetres.
 #[derive(Debug, Clone, PartialEq)]

@@ -92,7 +92,7 @@ pub fn server_tick(world: &sinew_server::world::World) -> sinew_server::server_t
         sinew_server::sim::Sim::new(world).expect("the world builds"),
         (1.0 / world.tick_hz) as f32,
         world.pose_timeout_s,
-        sinew_server::haptics::DeadbandParams::default(),
+        sinew_server::server_tick::DeadbandParams::default(),
     )
 }
 

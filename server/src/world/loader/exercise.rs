@@ -2,7 +2,7 @@
 
 use toml::Spanned;
 
-use crate::world::exercise_spec::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
+use crate::scene::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
 use crate::world::file_format::{ExerciseSection, TargetSection};
 
 use super::*;

@@ -3,10 +3,12 @@
 
 use std::path::Path;
 
+use crate::tissue::IntegratorName;
+use crate::tissue::SurfaceMesh;
 use crate::tissue::{RegionParams, Vec3};
 use crate::world::extrude::{MAX_EXTRUDE_LAYERS, extrude_surface};
-use crate::world::file_format::{ElasticModel, IntegratorName, ObjectSection};
-use crate::world::mesh_file::{SurfaceMesh, load_obj_mesh, validate_closed};
+use crate::world::file_format::{ElasticModel, ObjectSection};
+use crate::world::mesh_file::{load_obj_mesh, validate_closed};
 use crate::world::tet_mesh::load_msh_mesh;
 
 use super::*;

@@ -1,4 +1,5 @@
-//! Instruments: what a tool does to tissue beyond pushing it, as the world file describes it.
+//! Instruments: what a tool does to tissue beyond pushing it, as the engine takes it (a world file's
+//! `instrument = { kind = ... }` is one front end that fills these).
 //!
 //! Owns: [`InstrumentSpec`] (the kind of instrument a tool is, with its parameters), [`JawActivation`] (which
 //! part of a device pose opens and closes the jaws, with thresholds and hysteresis) and the defaults of each

@@ -1,8 +1,8 @@
-//! Building the simulation from a validated world: objects (model, collider, region, lane), tools
-//! (colliders, coupling, instruments, entry points) and ties.
+//! Building the simulation from a scene descriptor ([`crate::scene::World`], from a world file or built in
+//! code): objects (model, collider, region, lane), tools (colliders, coupling, instruments, entry points) and
+//! ties.
 //!
-//! Owns: [`Sim::new`] and where a tool enters the scene. This is the one place the engine reads the world-file
-//! layer's types; must not step anything.
+//! Owns: [`Sim::new`] and where a tool enters the scene. Must not: step anything.
 
 use nalgebra::{Matrix3, UnitQuaternion};
 
@@ -10,10 +10,11 @@ use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
 use crate::haptics::{ContactStiffness, EnergyBudget, NormalStiffnessEstimate, VirtualCoupling};
 use crate::interaction::{CutScratch, Grasp, JawInput, Jaws, ProbeContacts};
 use crate::multirate::{StepLane, ToolSeed};
+use crate::scene::World;
+use crate::tissue::IntegratorName;
 use crate::tissue::{
     DivergenceGuard, MassSpringModel, ModelParts, RegionTracker, TissueState, Vec3, integrator_for,
 };
-use crate::world::{IntegratorName, World};
 
 use super::*;
 

@@ -1,43 +1,10 @@
-//! The validated world: what the loader produces and the simulation is built from.
+//! What a deformable object is made of, as the engine takes it: its mesh, integrator, material and fixed nodes.
+//! A world file's `[[objects]]` table is one front end that produces these; a test or a tool builds them in code.
 //!
-//! Owns: [`World`] and its object, material, fixed-node and tool specifications. Must not: read files.
+//! Owns: [`ObjectSpec`], [`MaterialSpec`], [`MassSpec`], [`SpringCalibration`], [`FixedSelection`]. Must not:
+//! read files or know TOML (the world-file layer validates the file and fills these).
 
-use std::path::PathBuf;
-
-use super::exercise_spec::ExerciseSpec;
-use super::file_format::IntegratorName;
-use super::mesh_file::SurfaceMesh;
-use crate::tissue::{RegionParams, SpringLaw, TieSet};
-
-/// A validated world: everything the server needs to build the scene.
-#[derive(Debug, Clone)]
-pub struct World {
-    /// The file it came from.
-    pub source: PathBuf,
-    /// Scene name (key segment).
-    pub scene: String,
-    /// Sim tick rate, Hz.
-    pub tick_hz: f64,
-    /// Mesh-delta / tool-state publish rate, Hz.
-    pub publish_hz: f64,
-    /// A device with no pose for this long has its tool released, seconds.
-    pub pose_timeout_s: f64,
-    /// Broad-phase loosening around each tool, mm.
-    pub collision_margin_mm: f32,
-    /// Uniform acceleration of every free node, mm/s^2 (default none: the tissue's anchors hold it).
-    pub gravity_mm_per_s2: [f32; 3],
-    /// `[sim] threads`: threads the tissue passes spread over, the tick's own included (`None`: what the
-    /// machine can spare, [`default_tissue_threads`]). Never changes a result, only the time.
-    pub tissue_threads: Option<usize>,
-    /// Tie-nodes between objects.
-    pub ties: Vec<TieSet>,
-    /// Deformable objects.
-    pub objects: Vec<ObjectSpec>,
-    /// Tools.
-    pub tools: Vec<ToolSpec>,
-    /// The training exercise (`[exercise]`), if the world is one.
-    pub exercise: Option<ExerciseSpec>,
-}
+use super::{IntegratorName, RegionParams, SpringLaw, SurfaceMesh};
 
 /// One deformable object.
 #[derive(Debug, Clone)]
@@ -68,6 +35,16 @@ pub struct ObjectSpec {
     /// Ticks per step of the object (1: it steps every tick; `N > 1`: a multi-rate object, stepped every `N`
     /// ticks with `N` ticks' time, on its own thread: see [`crate::multirate`]).
     pub ticks_per_step: u32,
+}
+
+impl ObjectSpec {
+    /// The largest step (s) at which this object's explicit integrator is stable at its stiffness, damping
+    /// and mass, under `gravity_mm_per_s2`; `None` for a method without a bound (implicit, quasi-static,
+    /// XPBD). A world file's `dt_s` above it is refused; a scene built in code checks it here.
+    pub fn max_stable_dt_s(&self, gravity_mm_per_s2: [f32; 3]) -> Option<f32> {
+        let model = super::MassSpringModel::build(self, super::Vec3::from(gravity_mm_per_s2));
+        super::stability::max_stable_dt_s(self.integrator, &model)
+    }
 }
 
 /// How node masses are given.
@@ -113,7 +90,7 @@ pub struct MaterialSpec {
     /// Coulomb friction coefficient between a tool and this tissue (0: frictionless).
     pub friction_coefficient: f32,
     /// Corotational finite elements (`model = "fem-corotational"`); the springs then carry no stiffness.
-    pub fem: Option<crate::tissue::fem::FemMaterial>,
+    pub fem: Option<super::fem::FemMaterial>,
     /// Springs calibrated from Young's modulus and Poisson's ratio (a mass-spring object given
     /// `youngs_modulus_kpa`); `stiffness_n_per_mm` is then unused.
     pub calibrated: Option<SpringCalibration>,
@@ -175,54 +152,4 @@ impl FixedSelection {
             }
         }
     }
-}
-
-/// A tool's collision shape, mm.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ToolShapeSpec {
-    /// Ball.
-    Sphere {
-        /// Radius, mm.
-        radius_mm: f32,
-    },
-    /// Capsule along the tool's local z.
-    Capsule {
-        /// Half segment length, mm.
-        half_length_mm: f32,
-        /// Radius, mm.
-        radius_mm: f32,
-    },
-    /// A closed, rigid triangle mesh in the tool frame.
-    Mesh(SurfaceMesh),
-}
-
-/// A tool and the device that drives it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ToolSpec {
-    /// Name.
-    pub name: String,
-    /// Device id bound to it (key segment).
-    pub device_id: String,
-    /// Collision shape.
-    pub shape: ToolShapeSpec,
-    /// Where the device frame's origin sits in the world, mm (device axes are world axes).
-    pub device_origin_in_world_mm: [f32; 3],
-    /// Largest force the server will ever send for this tool, N (the device's own maximum also applies).
-    pub max_force_n: f32,
-    /// How the tool follows its device pose (`coupling = { ... }`).
-    pub coupling: crate::haptics::CouplingParams,
-    /// What the tool does beyond pushing (`instrument = { kind = ... }`; default a probe).
-    pub instrument: crate::world::InstrumentSpec,
-    /// The instrument's shaft (`shaft = { radius_mm, length_mm }`), which pushes tissue as the tip does.
-    pub shaft: Option<ShaftSpec>,
-}
-
-/// An instrument's shaft: a capsule from the tool origin `length_mm` up the tool's local +z (toward the hand),
-/// `radius_mm` thick. It is blunt: it pushes the tissue it touches.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ShaftSpec {
-    /// Radius, mm.
-    pub radius_mm: f32,
-    /// Length from the tool origin, mm.
-    pub length_mm: f32,
 }
