@@ -20,6 +20,10 @@ pub mod render;
 pub mod replica;
 pub mod scene_view;
 mod sync_state;
+// The unit tests build snapshots and deltas with the integration tests' builders: one file for both.
+#[cfg(test)]
+#[path = "../tests/common/fixtures.rs"]
+mod test_fixtures;
 pub mod viewer_stats;
 pub mod window;
 

@@ -272,42 +272,8 @@ impl SyncState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sinew_protocol::ObjectSnapshot;
-    use sinew_protocol::quantize::QuantBounds;
-
-    fn snapshot(frame: u64, object_frame: u64) -> SceneSnapshot {
-        SceneSnapshot {
-            scene: "pad".to_owned(),
-            frame,
-            objects: vec![ObjectSnapshot {
-                object: 0,
-                name: "pad".to_owned(),
-                bounds: QuantBounds {
-                    min_mm: [-1.0; 3],
-                    max_mm: [1.0; 3],
-                },
-                triangles: vec![[0, 1, 2]],
-                positions_q: vec![[0; 3]; 3],
-                frame: object_frame,
-                burn: Vec::new(),
-                topology_epoch: 0,
-                error_bound_mm: 0.0,
-            }],
-            tools: Vec::new(),
-            tool_states: ToolStates::default(),
-        }
-    }
-
-    fn delta(prev_frame: u64, frame: u64, index: u32, value: u16) -> MeshDelta {
-        MeshDelta {
-            object: 0,
-            frame,
-            prev_frame,
-            indices: vec![index],
-            positions_q: vec![[value; 3]],
-            ..MeshDelta::default()
-        }
-    }
+    // The shared builders, under the short names these tests use.
+    use crate::test_fixtures::{triangle_snapshot as snapshot, vertex_delta as delta};
 
     #[test]
     fn deltas_before_the_snapshot_are_buffered_then_replayed() {
