@@ -5,44 +5,61 @@
 //! scissors cut only as they close, between their blades, and a line of snips parts a sheet or opens a block.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
+mod common;
+
+use common::scene_edits::with_integrator;
+use common::world_toml::{SIM_DEFAULTS, SheetWorldToml, fixed_plane, sphere_tool};
 use nalgebra::Vector3;
 use sinew_server::interaction::{BladeSweep, CutScratch, JawInput};
 use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
 use sinew_server::tissue::seams::Opening;
-use sinew_server::world::{IntegratorName, parse_world};
+use sinew_server::world::{
+    GraspSpec, InstrumentSpec, IntegratorName, ScissorsSpec, ToolShapeSpec, World, load_world,
+};
 
 type Vec3 = Vector3<f32>;
 
-fn world_text(name: &str) -> (std::path::PathBuf, String) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../worlds")
-        .join(name);
-    let text = std::fs::read_to_string(&path).unwrap();
-    (path, text)
+/// A shipped world, loaded as it is.
+fn shipped(name: &str) -> World {
+    load_world(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../worlds")
+            .join(name),
+    )
+    .unwrap()
 }
 
-/// The pad with `method`, at the largest step of 1, 0.25 and 0.1 ms the loader accepts for it.
-fn pad_with(method: IntegratorName, instrument: &str) -> Sim {
-    pad_edited(method, instrument, |t| t)
+/// The pad with `method`, at the largest step of 1, 0.25 and 0.1 ms the loader accepts for it, and both its
+/// probes `instrument` (`None`: probes).
+fn pad_with(method: IntegratorName, instrument: Option<InstrumentSpec>) -> Sim {
+    pad_edited(method, instrument, |_| {})
 }
 
-/// [`pad_with`], its text edited first by `edit`.
-fn pad_edited(method: IntegratorName, instrument: &str, edit: impl Fn(String) -> String) -> Sim {
-    let (path, text) = world_text("pad.toml");
-    let text = edit(text);
-    let mut text = text.replace(
-        "integrator = \"symplectic-euler\"",
-        &format!("integrator = \"{}\"", method.as_str()),
-    );
-    if !instrument.is_empty() {
-        let shape = "shape = { kind = \"sphere\", radius_mm = 4.0 }";
-        text = text.replace(shape, &format!("{shape}\ninstrument = {instrument}"));
+/// [`pad_with`], its world edited first by `edit` (before the step is chosen: the edit may move the bound).
+fn pad_edited(
+    method: IntegratorName,
+    instrument: Option<InstrumentSpec>,
+    edit: impl Fn(&mut World),
+) -> Sim {
+    let mut world = shipped("pad.toml");
+    edit(&mut world);
+    let mut world = with_integrator(world, 0, method, &[0.001, 0.00025, 0.0001]);
+    if let Some(instrument) = instrument {
+        let sphere = ToolShapeSpec::Sphere { radius_mm: 4.0 };
+        for tool in world.tools.iter_mut().filter(|t| t.shape == sphere) {
+            tool.instrument = instrument;
+        }
     }
-    let world = ["dt_s = 0.001", "dt_s = 0.00025", "dt_s = 0.0001"]
-        .iter()
-        .find_map(|dt| parse_world(&path, &text.replace("dt_s = 0.001", dt)).ok())
-        .unwrap_or_else(|| panic!("the pad loads with {}", method.as_str()));
     Sim::new(&world).unwrap()
+}
+
+/// The pad's probes as graspers that hold up to 20 N a point (`instrument = { kind = "grasper",
+/// slip_force_n = 20.0 }`).
+fn strong_grasper() -> Option<InstrumentSpec> {
+    Some(InstrumentSpec::Grasper(GraspSpec {
+        slip_force_n: 20.0,
+        ..GraspSpec::DEFAULT
+    }))
 }
 
 /// One tick with tool 0 at `command` (tool 1 absent); the report, with no fault and a finite force.
@@ -178,7 +195,7 @@ fn opened_mm(sim: &Sim, openings: &[Opening]) -> f32 {
 
 #[test]
 fn a_blade_drawn_across_the_pad_parts_it_in_two_and_every_id_made_before_stays_valid() {
-    let mut sim = pad_with(IntegratorName::SymplecticEuler, "");
+    let mut sim = pad_with(IntegratorName::SymplecticEuler, None);
     let before = sim.objects[0].model.clone();
     let mass_before = total_mass(&sim, 0);
     assert_eq!(
@@ -241,13 +258,12 @@ fn a_blade_drawn_across_the_pad_parts_it_in_two_and_every_id_made_before_stays_v
 
 #[test]
 fn a_grasp_made_before_a_cut_holds_through_it_and_the_cut_opens_and_pulls_back_less() {
-    let grasper = "{ kind = \"grasper\", slip_force_n = 20.0 }";
     let pull = |cut: bool| -> (f32, f32, usize, StepReport) {
         // No anchors to the tissue underneath: the pull is held by the sheet alone, as a membrane.
-        let mut sim = pad_edited(IntegratorName::SymplecticEuler, grasper, |t| {
-            let anchor = "anchor_stiffness_n_per_mm = 0.008";
-            assert!(t.contains(anchor));
-            t.replace(anchor, "anchor_stiffness_n_per_mm = 0.0")
+        let mut sim = pad_edited(IntegratorName::SymplecticEuler, strong_grasper(), |w| {
+            let material = &mut w.objects[0].material;
+            assert_eq!(material.anchor_stiffness_n_per_mm, 0.008);
+            material.anchor_stiffness_n_per_mm = 0.0;
         });
         for k in 0..400 {
             let depth = -6.0 + 8.0 * (k + 1) as f32 / 400.0;
@@ -308,7 +324,7 @@ fn a_grasp_made_before_a_cut_holds_through_it_and_the_cut_opens_and_pulls_back_l
 #[test]
 fn every_integrator_steps_a_cut_pad_pressed_beside_the_cut() {
     for method in IntegratorName::ALL {
-        let mut sim = pad_with(method, "");
+        let mut sim = pad_with(method, None);
         let openings = draw_blade(
             &mut sim,
             0,
@@ -350,8 +366,7 @@ fn every_integrator_steps_a_cut_pad_pressed_beside_the_cut() {
 
 #[test]
 fn a_blade_through_the_tet_block_parts_it_into_two_closed_surfaces() {
-    let (path, text) = world_text("tet_block.toml");
-    let mut sim = Sim::new(&parse_world(&path, &text).unwrap()).unwrap();
+    let mut sim = Sim::new(&shipped("tet_block.toml")).unwrap();
     let rest = sim.objects[0].model.rest_positions_mm().to_vec();
     let (lo, hi) = rest.iter().fold(
         (Vec3::repeat(f32::MAX), Vec3::repeat(f32::MIN)),
@@ -407,7 +422,7 @@ fn a_blade_through_the_tet_block_parts_it_into_two_closed_surfaces() {
 
 #[test]
 fn a_sheet_stretched_past_its_strain_limit_tears_and_one_within_it_does_not() {
-    let mut sim = pad_with(IntegratorName::SymplecticEuler, "");
+    let mut sim = pad_with(IntegratorName::SymplecticEuler, None);
     // Pull a strip of nodes near x = 0 up by 8 mm from outside (as a tie would), 0.4 s.
     let near: Vec<usize> = sim.objects[0]
         .model
@@ -447,8 +462,7 @@ fn a_sheet_stretched_past_its_strain_limit_tears_and_one_within_it_does_not() {
 /// `worlds/cut.toml` (tool 0 a scalpel, edge from 2 mm above to 9 mm below its origin, device origin at world
 /// x = 0.5) as it ships.
 fn cut_world() -> Sim {
-    let (path, text) = world_text("cut.toml");
-    Sim::new(&parse_world(&path, &text).unwrap()).unwrap()
+    Sim::new(&shipped("cut.toml")).unwrap()
 }
 
 /// The scalpel's hand at device `y_mm`, its origin `height_mm` above the rest surface.
@@ -523,14 +537,12 @@ fn a_scalpel_that_joins_with_its_edge_in_the_tissue_cuts_nothing_on_its_way_to_t
 
 #[test]
 fn a_sheet_with_a_tear_strain_tears_under_a_hard_grasped_pull_and_one_without_does_not() {
-    let grasper = "{ kind = \"grasper\", slip_force_n = 20.0 }";
-    let pull = |tear: Option<&str>| -> (u32, u32, usize) {
-        let mut sim = pad_edited(IntegratorName::SymplecticEuler, grasper, |t| {
-            let key = "drag_per_s = 150.0";
-            assert!(t.contains(key));
-            match tear {
-                Some(strain) => t.replacen(key, &format!("{key}\ntear_strain = {strain}"), 1),
-                None => t,
+    let pull = |tear: Option<f32>| -> (u32, u32, usize) {
+        let mut sim = pad_edited(IntegratorName::SymplecticEuler, strong_grasper(), |w| {
+            let material = &mut w.objects[0].material;
+            assert_eq!(material.tear_strain, None);
+            if tear.is_some() {
+                material.tear_strain = tear;
             }
         });
         for k in 0..400 {
@@ -557,8 +569,8 @@ fn a_sheet_with_a_tear_strain_tears_under_a_hard_grasped_pull_and_one_without_do
         (torn, split, held)
     };
     let (_, whole_split, whole_held) = pull(None);
-    let (_, tough_split, _) = pull(Some("5.0"));
-    let (torn, split, held) = pull(Some("0.25"));
+    let (_, tough_split, _) = pull(Some(5.0));
+    let (torn, split, held) = pull(Some(0.25));
     println!(
         "12 mm grasped lift: no tear strain {whole_split} split; 5.0 -> {tough_split} split; 0.25 -> {torn} springs torn, {split} vertices split, {held} of {whole_held} points still held"
     );
@@ -613,7 +625,12 @@ fn scissors_cut_only_between_their_blades_as_they_close_and_a_line_of_snips_part
     // The pad's tool (device origin at world x = -18) as scissors: 12 mm blades opened 40 degrees.
     let mut sim = pad_with(
         IntegratorName::SymplecticEuler,
-        "{ kind = \"scissors\", blade_length_mm = 12.0, open_angle_deg = 40.0 }",
+        Some(InstrumentSpec::Scissors(ScissorsSpec {
+            blade_length_mm: 12.0,
+            // As the loader turns `open_angle_deg = 40.0` into radians.
+            open_angle_rad: 40.0f32.to_radians(),
+            ..ScissorsSpec::DEFAULT
+        })),
     );
     let height_mm = 6.0;
     // Open scissors lowered through the sheet and moved 10 mm along it cut nothing.
@@ -731,41 +748,24 @@ fn band_world() -> Sim {
         }
     }
     std::fs::write(dir.join("band.obj"), obj).unwrap();
-    let text = r#"
-scene = "band"
-[sim]
-tick_hz = 1000
-publish_hz = 60
-pose_timeout_s = 0.1
-[collision]
-margin_mm = 2.0
-[[objects]]
-name = "band"
-mesh = "band.obj"
-units = "mm"
-integrator = "symplectic-euler"
-dt_s = 0.001
-quant_margin_mm = 40.0
-[objects.material]
-mass_kg = 0.05
-stiffness_n_per_mm = 0.015
-damping_n_s_per_mm = 0.000003
-drag_per_s = 50.0
-tear_strain = 0.3
-[[objects.fixed]]
-kind = "plane"
-point_mm = [-20.0, 0.0, 0.0]
-normal = [-1.0, 0.0, 0.0]
-tolerance_mm = 0.01
-[[tools]]
-name = "probe"
-device = "left"
-shape = { kind = "sphere", radius_mm = 1.0 }
-device_origin_in_world_mm = [0.0, 0.0, 50.0]
-"#;
+    let text = SheetWorldToml {
+        scene: "band".into(),
+        sim: SIM_DEFAULTS.into(),
+        name: "band".into(),
+        mesh: "band.obj".into(),
+        integrator: "symplectic-euler".into(),
+        dt_s: "0.001".into(),
+        object_keys: "quant_margin_mm = 40.0\n".into(),
+        material: "mass_kg = 0.05\nstiffness_n_per_mm = 0.015\ndamping_n_s_per_mm = 0.000003\n\
+                   drag_per_s = 50.0\ntear_strain = 0.3\n"
+            .into(),
+        fixed: vec![fixed_plane([-20.0, 0.0, 0.0], [-1.0, 0.0, 0.0], 0.01)],
+        tool: sphere_tool("probe", "left", 1.0) + "device_origin_in_world_mm = [0.0, 0.0, 50.0]\n",
+    }
+    .text();
     let path = dir.join("band.toml");
-    std::fs::write(&path, text).unwrap();
-    let sim = Sim::new(&parse_world(&path, text).unwrap()).unwrap();
+    std::fs::write(&path, &text).unwrap();
+    let sim = Sim::new(&load_world(&path).unwrap()).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     sim
 }
@@ -848,11 +848,10 @@ fn a_band_pulled_past_its_tear_strain_parts_and_not_before() {
 
 #[test]
 fn a_tet_block_pulled_past_its_tear_strain_tears_and_its_surface_stays_closed() {
-    let (path, text) = world_text("tet_block.toml");
-    let key = "drag_per_s = 150.0";
-    assert!(text.contains(key));
-    let text = text.replacen(key, &format!("{key}\ntear_strain = 0.3"), 1);
-    let mut sim = Sim::new(&parse_world(&path, &text).unwrap()).unwrap();
+    let mut world = shipped("tet_block.toml");
+    assert_eq!(world.objects[0].material.tear_strain, None);
+    world.objects[0].material.tear_strain = Some(0.3);
+    let mut sim = Sim::new(&world).unwrap();
     let surface_before = sim.objects[0].model.triangles().len();
     // A patch of the top face (within 4 mm of its centre) is drawn 10 mm up over 1 s, as a grasp would.
     let patch: Vec<usize> = sim.objects[0]

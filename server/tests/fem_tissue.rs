@@ -77,12 +77,7 @@ fn a_region_tracked_fem_block_feels_like_the_whole_one() {
     // elastic dent's displacement decays like 1 / distance, so a 3 mm dent moves every node of a 40 mm block
     // by more than the 1 um threshold and the region grows to the whole block.)
     let whole_world = fem_block_world();
-    let path = worlds().join("fem_block.toml");
-    let text = std::fs::read_to_string(&path).unwrap().replace(
-        "quant_margin_mm = 40.0",
-        "quant_margin_mm = 40.0\nregion = { threshold_mm = 0.001 }",
-    );
-    let region_world = sinew_server::world::parse_world(&path, &text).unwrap();
+    let region_world = common::scene_edits::with_region(fem_block_world(), 0, 0.001);
     let mut whole = Sim::new(&whole_world).unwrap();
     let mut region = Sim::new(&region_world).unwrap();
     let (a, b) = (

@@ -6,19 +6,19 @@
 use nalgebra::UnitQuaternion;
 use sinew_server::interaction::JawInput;
 use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
-use sinew_server::world::parse_world;
+use sinew_server::world::{GraspSpec, InstrumentSpec, ToolShapeSpec, load_world};
 
-/// The pad world with both probes turned into graspers (`extra` goes into the instrument table).
-fn pad_with_graspers(extra: &str) -> Sim {
+/// The pad world with both probes (4 mm spheres) turned into graspers: `grasp` is what a world file's
+/// `instrument = { kind = "grasper", ... }` gives (`GraspSpec::DEFAULT` for no keys beyond the kind).
+fn pad_with_graspers(grasp: GraspSpec) -> Sim {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let shape = "shape = { kind = \"sphere\", radius_mm = 4.0 }";
-    assert_eq!(text.matches(shape).count(), 2);
-    let text = text.replace(
-        shape,
-        &format!("{shape}\ninstrument = {{ kind = \"grasper\"{extra} }}"),
-    );
-    Sim::new(&parse_world(&path, &text).expect("pad with graspers loads")).expect("builds")
+    let mut world = load_world(&path).expect("pad loads");
+    let sphere = ToolShapeSpec::Sphere { radius_mm: 4.0 };
+    assert_eq!(world.tools.iter().filter(|t| t.shape == sphere).count(), 2);
+    for tool in &mut world.tools {
+        tool.instrument = InstrumentSpec::Grasper(grasp);
+    }
+    Sim::new(&world).expect("builds")
 }
 
 /// Tool 0 (device origin at world x = -18) with its sphere's bottom `depth_mm` below the rest surface.
@@ -72,7 +72,7 @@ fn max_displacement_mm(sim: &Sim) -> f32 {
 
 #[test]
 fn grasp_then_pull_feels_like_a_pull_and_release_lets_the_tissue_relax() {
-    let mut sim = pad_with_graspers("");
+    let mut sim = pad_with_graspers(GraspSpec::DEFAULT);
     press(&mut sim, 1.5);
     let (pressed, _) = run(&mut sim, at(1.5, false), 1);
     assert!(pressed.force_world_n.z > 0.0, "pressing pushes the tool up");
@@ -127,7 +127,7 @@ fn grasp_then_pull_feels_like_a_pull_and_release_lets_the_tissue_relax() {
 
 #[test]
 fn jaws_touching_tissue_with_one_side_only_take_nothing() {
-    let mut sim = pad_with_graspers("");
+    let mut sim = pad_with_graspers(GraspSpec::DEFAULT);
     // Turn the tool a quarter about x: its jaw plane lies flat, so only the lower jaw meets the pad.
     let q =
         UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), std::f32::consts::FRAC_PI_2);
@@ -151,7 +151,7 @@ fn jaws_touching_tissue_with_one_side_only_take_nothing() {
 
 #[test]
 fn closed_jaws_pressed_onto_tissue_do_not_grasp_it() {
-    let mut sim = pad_with_graspers("");
+    let mut sim = pad_with_graspers(GraspSpec::DEFAULT);
     run(&mut sim, at(-10.0, true), 10);
     press_closed(&mut sim);
     let (out, report) = run(&mut sim, at(1.5, true), 200);
@@ -168,7 +168,10 @@ fn press_closed(sim: &mut Sim) {
 
 #[test]
 fn a_pull_past_the_slip_force_slips_the_tissue_out_of_the_jaws() {
-    let mut sim = pad_with_graspers(", slip_force_n = 0.03");
+    let mut sim = pad_with_graspers(GraspSpec {
+        slip_force_n: 0.03,
+        ..GraspSpec::DEFAULT
+    });
     press(&mut sim, 1.5);
     let (closed, _) = run(&mut sim, at(1.5, true), 50);
     let held = closed.attachments;

@@ -617,6 +617,8 @@ fn every_integrator_is_selectable_from_the_world_file_and_probes_the_pad() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains("integrator = \"symplectic-euler\""));
+    // Text, not a scene edit: this is the world file's `integrator` key under test (each method's name parses
+    // and selects it, and a step too large for it is refused naming `dt_s`), so the file is patched.
     for method in IntegratorName::ALL {
         let mut world_text = text.replace(
             "integrator = \"symplectic-euler\"",

@@ -7,6 +7,8 @@
 //! - Pure state (replication, training, scene and the engine below them) never reaches the thread and I/O
 //!   layers (`node`, `recording`).
 
+#![allow(clippy::unwrap_used)] // test code: an unreadable source tree should panic loudly
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 

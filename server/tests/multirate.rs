@@ -11,7 +11,7 @@ use common::{fem_block_move as move_to, fem_block_press as press, worlds};
 use sinew_server::multirate::{StepJob, StepRunner};
 use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
-use sinew_server::world::{World, load_world, parse_world};
+use sinew_server::world::{World, load_world};
 
 /// The shipped fem_block, stepped every tick.
 fn every_tick() -> World {
@@ -20,12 +20,12 @@ fn every_tick() -> World {
 
 /// The same block stepped at `step_hz` with one implicit step a period.
 fn multi_rate(step_hz: u32) -> World {
-    let path = worlds().join("fem_block.toml");
-    let text = std::fs::read_to_string(&path).unwrap().replace(
-        "dt_s = 0.001\n",
-        &format!("dt_s = {}\nstep_hz = {step_hz}\n", 1.0 / f64::from(step_hz)),
-    );
-    parse_world(&path, &text).expect("the multi-rate block loads")
+    common::scene_edits::with_step_hz(
+        every_tick(),
+        0,
+        f64::from(step_hz),
+        (1.0 / f64::from(step_hz)) as f32,
+    )
 }
 
 #[test]

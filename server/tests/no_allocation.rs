@@ -4,12 +4,14 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 // test code: a failed setup should panic loudly
 
+mod common;
 #[path = "common/counting_allocator.rs"]
 mod counting_allocator;
 
+use common::scene_edits::{with_integrator, with_region, with_step_hz};
 use counting_allocator::{Counting, assert_counting_works, count_all_threads};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
-use sinew_server::world::{IntegratorName, load_world, parse_world};
+use sinew_server::world::{InstrumentSpec, IntegratorName, load_world};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -53,17 +55,10 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     assert_counting_works();
 
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
+    let pad = load_world(&path).unwrap();
     for method in IntegratorName::ALL {
-        let with_method = text.replace(
-            "integrator = \"symplectic-euler\"",
-            &format!("integrator = \"{}\"", method.as_str()),
-        );
         // Explicit Euler and RK2 need a smaller step on the pad (the loader says so): take the first that passes.
-        let world = ["dt_s = 0.001", "dt_s = 0.00025", "dt_s = 0.0001"]
-            .iter()
-            .find_map(|dt| parse_world(&path, &with_method.replace("dt_s = 0.001", dt)).ok())
-            .unwrap();
+        let world = with_integrator(pad.clone(), 0, method, &[0.001, 0.00025, 0.0001]);
         let mut sim = Sim::new(&world).unwrap();
         let allocations = allocations_while_stepping(&mut sim, 400, 200);
         println!(
@@ -88,29 +83,22 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     assert_eq!(allocations, 0, "a tick on worker threads allocated");
     // With friction: the nodes stick to the probes and slip as they stroke (each substep's anchors reuse
     // their buffers).
-    let rough = text.replacen(
-        "drag_per_s = 150.0",
-        "drag_per_s = 150.0\nfriction_coefficient = 0.5",
-        1,
-    );
-    let mut sim = Sim::new(&parse_world(&path, &rough).unwrap()).unwrap();
+    let mut rough = pad.clone();
+    rough.objects[0].material.friction_coefficient = 0.5;
+    let mut sim = Sim::new(&rough).unwrap();
     let allocations = allocations_while_stepping(&mut sim, 600, 1000);
     println!("friction: {allocations} allocations in 1000 warm ticks");
     assert_eq!(allocations, 0, "a tick with friction allocated");
     // Finite elements (worlds/fem_block.toml: implicit Euler over corotational tetrahedra), the whole block
     // and region-tracked.
-    let fem_path = path.with_file_name("fem_block.toml");
-    let fem_text = std::fs::read_to_string(&fem_path).unwrap();
+    let fem_block = load_world(&path.with_file_name("fem_block.toml")).unwrap();
     for region in [false, true] {
-        let text = if region {
-            fem_text.replace(
-                "quant_margin_mm = 40.0",
-                "quant_margin_mm = 40.0\nregion = { threshold_mm = 0.001 }",
-            )
+        let world = if region {
+            with_region(fem_block.clone(), 0, 0.001)
         } else {
-            fem_text.clone()
+            fem_block.clone()
         };
-        let mut sim = Sim::new(&parse_world(&fem_path, &text).unwrap()).unwrap();
+        let mut sim = Sim::new(&world).unwrap();
         let allocations = allocations_while_stepping(&mut sim, 600, 400);
         println!("finite elements, region {region}: {allocations} allocations in 400 warm ticks");
         assert_eq!(
@@ -121,8 +109,8 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     // The same block as a multi-rate object (200 Hz, every fifth tick hands off), its steps inline and on
     // their own thread (the hand-off's channels allocate nothing once warm).
     for threaded in [false, true] {
-        let text = fem_text.replace("dt_s = 0.001\n", "dt_s = 0.005\nstep_hz = 200\n");
-        let mut sim = Sim::new(&parse_world(&fem_path, &text).unwrap()).unwrap();
+        let world = with_step_hz(fem_block.clone(), 0, 200.0, 0.005);
+        let mut sim = Sim::new(&world).unwrap();
         if threaded {
             sim.set_step_runners(|object| {
                 Box::new(sinew_server::node::step_threads::ThreadRunner::spawn(object).unwrap())
@@ -140,16 +128,9 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
     // Region tracking, which rebuilds its sub-model inside ticks as the dent moves: the rebuilds reuse their
     // buffers once a full stroke cycle (1 s) has grown them.
     for method in [IntegratorName::SymplecticEuler, IntegratorName::Xpbd] {
-        let region_text = text
-            .replace(
-                "integrator = \"symplectic-euler\"",
-                &format!("integrator = \"{}\"", method.as_str()),
-            )
-            .replace(
-                "quant_margin_mm = 40.0",
-                "quant_margin_mm = 40.0\nregion = { threshold_mm = 0.001 }",
-            );
-        let mut sim = Sim::new(&parse_world(&path, &region_text).unwrap()).unwrap();
+        // At the pad's own step, which the loader accepts for both methods.
+        let world = with_region(with_integrator(pad.clone(), 0, method, &[0.001]), 0, 0.001);
+        let mut sim = Sim::new(&world).unwrap();
         step_ticks(&mut sim, 0..1200);
         let before = sim.objects[0].region().unwrap().rebuilds();
         let allocations = count_allocations(&mut sim, 1200..2000);
@@ -170,13 +151,18 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
         );
     }
     // Graspers: closing on the sheet (taking hold), pulling, letting go, and slipping, cycle after cycle.
-    let grasp_path = path.with_file_name("grasp_pull.toml");
-    for slip_force_n in ["0.3", "0.02"] {
-        let grasp_text = std::fs::read_to_string(&grasp_path).unwrap().replace(
-            "slip_force_n = 0.3",
-            &format!("slip_force_n = {slip_force_n}"),
-        );
-        let mut sim = Sim::new(&parse_world(&grasp_path, &grasp_text).unwrap()).unwrap();
+    let grasp_pull = load_world(&path.with_file_name("grasp_pull.toml")).unwrap();
+    for slip_force_n in [0.3, 0.02] {
+        // Both graspers, as shipped (slipping at 0.3 N), at `slip_force_n`.
+        let mut world = grasp_pull.clone();
+        for tool in &mut world.tools {
+            let InstrumentSpec::Grasper(grasp) = &mut tool.instrument else {
+                panic!("grasp_pull's `{}` is not a grasper", tool.name);
+            };
+            assert_eq!(grasp.slip_force_n, 0.3);
+            grasp.slip_force_n = slip_force_n;
+        }
+        let mut sim = Sim::new(&world).unwrap();
         let grasp_ticks = |sim: &mut Sim, ticks: std::ops::Range<usize>| {
             let mut out = [ToolOutput::default(); 2];
             let mut report = sinew_server::sim::StepReport::default();
@@ -217,7 +203,7 @@ fn a_warm_tick_allocates_nothing_with_every_integrator() {
             report.grasps_taken >= 4,
             "the jaws never took hold while counting"
         );
-        if slip_force_n == "0.02" {
+        if slip_force_n == 0.02 {
             assert!(
                 report.attachments_slipped > 0,
                 "nothing slipped while counting"

@@ -13,6 +13,7 @@ use sinew_parallel::ChunkRunner;
 use sinew_parallel::WorkerPool;
 use sinew_server::node::tick_cost::press_and_stroke_commands;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::tissue::SpringLaw;
 use sinew_server::world::{World, load_world};
 
 /// A sim of `world` whose tissue passes run on `threads` threads (1: the tick's own thread, no pool).
@@ -117,13 +118,20 @@ fn every_integrator_with_a_stiffening_law_with_and_without_a_region_is_the_same_
             _ => 0.001,
         };
         for extra in ["", "region = { threshold_mm = 0.001 }"] {
-            let text = sheet_world_text(nx, ny, integrator, dt_s, extra).replace(
-                "[objects.material]\n",
-                "[objects.material]\nlaw = { kind = \"exponential\", stiffening = 5.0 }\n",
-            );
-            assert!(text.contains("exponential"), "the law was not set");
-            let world =
+            let text = sheet_world_text(nx, ny, integrator, dt_s, extra);
+            let mut world =
                 load_world(&write_sheet_world("sinew-parallel-step", &text, nx, ny)).unwrap();
+            assert_eq!(
+                world.objects[0].material.law,
+                SpringLaw::Linear,
+                "the sheet's law was set before the edit"
+            );
+            world.objects[0].material.law = SpringLaw::Exponential { stiffening: 5.0 };
+            // The world loader checks dt_s against the stability bound under the object's law; so does this.
+            assert!(
+                common::scene_edits::dt_accepted(&world, &world.objects[0], dt_s),
+                "{integrator} is unstable at {dt_s} s under the stiffening law"
+            );
             assert_eq!(world.objects[0].region.is_some(), !extra.is_empty());
             assert_same_bits(&world, &[1, 3], 150, |k, commands| {
                 let depth = 3.0 * (k as f32 / 100.0).min(1.0);

@@ -234,11 +234,8 @@ fn a_settling_tissue_never_holds_subnormal_floats() {
 const CUBE_OBJ: &str = "v -3 -3 -3\nv 3 -3 -3\nv 3 3 -3\nv -3 3 -3\nv -3 -3 3\nv 3 -3 3\nv 3 3 3\nv -3 3 3\n\
 f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 8 7\nf 4 7 3\nf 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n";
 
-/// The shipped pad with the left probe replaced by a mesh tool (`obj` written next to a copy of the world).
-fn pad_with_mesh_tool(
-    obj: &str,
-) -> Result<sinew_server::world::World, sinew_server::world::WorldError> {
-    let worlds = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
+/// `obj` written as `tool.obj` in a fresh directory; its path.
+fn write_tool_obj(obj: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!(
         "sinew-mesh-tool-{}-{}",
         std::process::id(),
@@ -247,6 +244,29 @@ fn pad_with_mesh_tool(
     std::fs::create_dir_all(&dir).unwrap();
     let tool_path = dir.join("tool.obj");
     std::fs::write(&tool_path, obj).unwrap();
+    tool_path
+}
+
+/// The shipped pad with the left probe replaced by a mesh tool (`obj`, in mm, loaded and checked closed as the
+/// world loader does a tool's `shape = { kind = "mesh", ... }`).
+fn pad_with_mesh_tool(obj: &str) -> sinew_server::world::World {
+    use sinew_server::world::{ToolShapeSpec, load_obj_mesh, validate_closed};
+    let mut world =
+        load_world(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml"))
+            .unwrap();
+    let mesh = load_obj_mesh(&write_tool_obj(obj), 1.0).unwrap();
+    validate_closed(&mesh).unwrap();
+    world.tools[0].shape = ToolShapeSpec::Mesh(mesh);
+    world
+}
+
+/// The shipped pad's text with the left probe's shape a mesh tool (`obj`, written to its own file), and
+/// what the world loader makes of it. Text, not a scene edit: the loader's refusal of the mesh is under test.
+fn pad_file_with_mesh_tool(
+    obj: &str,
+) -> Result<sinew_server::world::World, sinew_server::world::WorldError> {
+    let worlds = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
+    let tool_path = write_tool_obj(obj);
     let text = std::fs::read_to_string(worlds.join("pad.toml"))
         .unwrap()
         .replacen(
@@ -262,7 +282,7 @@ fn pad_with_mesh_tool(
 
 #[test]
 fn a_mesh_tool_presses_the_pad_and_feels_it_push_back_along_the_normal() {
-    let world = pad_with_mesh_tool(CUBE_OBJ).unwrap();
+    let world = pad_with_mesh_tool(CUBE_OBJ);
     let mut sim = Sim::new(&world).unwrap();
     let mut out = [ToolOutput::default(); 2];
     let mut last = 0.0;
@@ -309,7 +329,7 @@ fn an_open_tool_mesh_is_refused() {
         .filter(|l| *l != "f 5 7 8")
         .map(|l| format!("{l}\n"))
         .collect();
-    let error = pad_with_mesh_tool(&open).unwrap_err().to_string();
+    let error = pad_file_with_mesh_tool(&open).unwrap_err().to_string();
     assert!(
         error.contains("not closed") && error.contains("tools[0].shape.mesh"),
         "{error}"

@@ -8,7 +8,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::{sheet_world_text, write_sheet_world};
+use common::{sheet_world_text, sheet_world_toml, write_sheet_world};
 
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::{Integrator, MassSpringModel, ModelParts, TissueState, Vec3, Xpbd};
@@ -296,10 +296,15 @@ fn the_world_file_refuses_what_region_tracking_cannot_simulate() {
         "unknown field",
         "region =",
     );
-    let with_gravity = base("region = { threshold_mm = 0.001 }").replace(
-        "scene = \"sheet\"\n",
-        "scene = \"sheet\"\n[sim]\ngravity_mm_per_s2 = [0.0, 0.0, -9810.0]\n",
+    let mut with_gravity = sheet_world_toml(
+        10,
+        10,
+        "symplectic-euler",
+        0.001,
+        "region = { threshold_mm = 0.001 }",
     );
+    with_gravity.sim = "[sim]\ngravity_mm_per_s2 = [0.0, 0.0, -9810.0]\n".into();
+    let with_gravity = with_gravity.text();
     refused(&with_gravity, "objects[0].region", "gravity", "region =");
     let tied = base("region = { threshold_mm = 0.001 }")
         + r#"

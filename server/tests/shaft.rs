@@ -3,20 +3,27 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
-use sinew_server::world::parse_world;
+use sinew_server::world::{ShaftSpec, ToolShapeSpec, load_world};
 
 /// The pad with tool 0 a 1 mm tip, with or without a 40 mm shaft of radius 3 mm.
 fn pad(shaft: bool) -> Sim {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let tip = "shape = { kind = \"sphere\", radius_mm = 4.0 }\ndevice_origin_in_world_mm = [-18.0";
-    assert!(text.contains(tip));
-    let with = if shaft {
-        "shape = { kind = \"sphere\", radius_mm = 1.0 }\nshaft = { radius_mm = 3.0, length_mm = 40.0 }\ndevice_origin_in_world_mm = [-18.0"
-    } else {
-        "shape = { kind = \"sphere\", radius_mm = 1.0 }\ndevice_origin_in_world_mm = [-18.0"
-    };
-    Sim::new(&parse_world(&path, &text.replacen(tip, with, 1)).unwrap()).unwrap()
+    let mut world = load_world(&path).unwrap();
+    // Tool 0 is the left probe: a 4 mm sphere at world x = -18, with no shaft.
+    let tool = &mut world.tools[0];
+    assert!(
+        tool.shape == ToolShapeSpec::Sphere { radius_mm: 4.0 }
+            && tool.device_origin_in_world_mm[0] == -18.0
+            && tool.shaft.is_none()
+    );
+    tool.shape = ToolShapeSpec::Sphere { radius_mm: 1.0 };
+    if shaft {
+        tool.shaft = Some(ShaftSpec {
+            radius_mm: 3.0,
+            length_mm: 40.0,
+        });
+    }
+    Sim::new(&world).unwrap()
 }
 
 /// Tool 0 turned 90 degrees about y (its shaft along world +x from the tip), the tip at device x = -10 and its

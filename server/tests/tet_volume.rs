@@ -4,14 +4,16 @@
 //! and the per-tetrahedron volume term keeps a squeezed block's volume.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
+use common::scene_edits::with_region;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::Vec3;
 use sinew_server::tissue::volume::{enclosed_volume_mm3, tet_volume_mm3};
 use sinew_server::world::{
-    MeshError, TetMesh, VolumeMeshError, load_msh_mesh, load_world, parse_msh, parse_world,
-    validate_closed,
+    MeshError, TetMesh, VolumeMeshError, load_msh_mesh, load_world, parse_msh, validate_closed,
 };
 
 fn worlds() -> PathBuf {
@@ -425,14 +427,14 @@ fn the_tet_volume_term_keeps_a_squeezed_block_volume() {
 #[test]
 fn region_tracking_on_the_tet_block_gives_the_full_steps_force() {
     let path = worlds().join("tet_block.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let tracked = text.replace(
-        "quant_margin_mm = 40.0",
-        "quant_margin_mm = 40.0\nregion = { threshold_mm = 0.001 }",
+    let world = load_world(&path).unwrap();
+    let tracked = with_region(world.clone(), 0, 0.001);
+    assert_ne!(
+        tracked.objects[0].region, world.objects[0].region,
+        "the region was not set"
     );
-    assert_ne!(tracked, text, "the region key was not inserted");
-    let mut full = Sim::new(&load_world(&path).unwrap()).unwrap();
-    let mut region = Sim::new(&parse_world(&path, &tracked).unwrap()).unwrap();
+    let mut full = Sim::new(&world).unwrap();
+    let mut region = Sim::new(&tracked).unwrap();
     assert!(region.objects[0].region().is_some());
     let (mut out_full, mut out_region) = ([ToolOutput::default(); 2], [ToolOutput::default(); 2]);
     let (mut worst, mut largest_region) = (0.0f32, 0usize);

@@ -6,37 +6,31 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
+use common::world_toml::{SheetWorldToml, fixed_box, sphere_tool};
 use sinew_server::world::{WorldError, load_world};
 
 /// A 3 x 3 node sheet, 2 mm cells, on z = 0.
 const GRID_OBJ: &str = "v 0 0 0\nv 2 0 0\nv 4 0 0\nv 0 2 0\nv 2 2 0\nv 4 2 0\nv 0 4 0\nv 2 4 0\nv 4 4 0\n\
 f 1 2 5\nf 1 5 4\nf 2 3 6\nf 2 6 5\nf 4 5 8\nf 4 8 7\nf 5 6 9\nf 5 9 8\n";
 
-const GOOD_WORLD: &str = r#"scene = "test"
-
-[[objects]]
-name = "sheet"
-mesh = "sheet.obj"
-units = "mm"
-integrator = "symplectic-euler"
-dt_s = 0.001
-
-[objects.material]
-mass_kg = 0.01
-stiffness_n_per_mm = 0.01
-damping_n_s_per_mm = 0.0
-anchor_stiffness_n_per_mm = 0.001
-
-[[objects.fixed]]
-kind = "box"
-min_mm = [-1.0, -1.0, -1.0]
-max_mm = [0.5, 5.0, 1.0]
-
-[[tools]]
-name = "probe"
-device = "left"
-shape = { kind = "sphere", radius_mm = 1.0 }
-"#;
+/// The world every case edits: the 3 x 3 node sheet (`sheet.obj`), its x = 0 edge fixed, one 1 mm probe.
+fn good_world() -> String {
+    SheetWorldToml {
+        scene: "test".into(),
+        sim: String::new(),
+        name: "sheet".into(),
+        mesh: "sheet.obj".into(),
+        integrator: "symplectic-euler".into(),
+        dt_s: "0.001".into(),
+        object_keys: String::new(),
+        material: "mass_kg = 0.01\nstiffness_n_per_mm = 0.01\ndamping_n_s_per_mm = 0.0\n\
+                   anchor_stiffness_n_per_mm = 0.001\n"
+            .into(),
+        fixed: vec![fixed_box([-1.0, -1.0, -1.0], [0.5, 5.0, 1.0])],
+        tool: sphere_tool("probe", "left", 1.0),
+    }
+    .text()
+}
 
 /// Write `world` (and the sheet mesh, or `mesh` if given) into a fresh directory; return the world path.
 fn write_world(world: &str, mesh: Option<&str>) -> PathBuf {
@@ -64,7 +58,7 @@ fn refused(world: &str, mesh: Option<&str>) -> (WorldError, String, PathBuf) {
 
 #[test]
 fn the_test_world_and_the_shipped_pad_load() {
-    load_world(&write_world(GOOD_WORLD, None)).unwrap();
+    load_world(&write_world(&good_world(), None)).unwrap();
     let pad =
         load_world(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml")).unwrap();
     assert_eq!(pad.objects[0].mesh.positions_mm.len(), 4941);
@@ -73,7 +67,7 @@ fn the_test_world_and_the_shipped_pad_load() {
 
 #[test]
 fn a_missing_mesh_names_the_mesh_key_and_line() {
-    let world = GOOD_WORLD.replace("sheet.obj", "nowhere.obj");
+    let world = good_world().replace("sheet.obj", "nowhere.obj");
     let (error, message, _) = refused(&world, None);
     assert!(
         matches!(error, WorldError::Mesh { line, .. } if line == line_of(&world, "nowhere.obj"))
@@ -86,7 +80,7 @@ fn a_missing_mesh_names_the_mesh_key_and_line() {
 
 #[test]
 fn negative_stiffness_names_the_key_and_line() {
-    let world = GOOD_WORLD.replace("stiffness_n_per_mm = 0.01", "stiffness_n_per_mm = -0.5");
+    let world = good_world().replace("stiffness_n_per_mm = 0.01", "stiffness_n_per_mm = -0.5");
     let (error, message, _) = refused(&world, None);
     match error {
         WorldError::Invalid { line, key, .. } => {
@@ -100,7 +94,7 @@ fn negative_stiffness_names_the_key_and_line() {
 
 #[test]
 fn an_unknown_key_names_the_key_and_line() {
-    let world = GOOD_WORLD.replace(
+    let world = good_world().replace(
         "damping_n_s_per_mm = 0.0",
         "damping_n_s_per_mm = 0.0\nstifness = 2.0",
     );
@@ -116,9 +110,9 @@ fn an_unknown_key_names_the_key_and_line() {
 fn a_non_manifold_mesh_is_refused() {
     // A fourth triangle on the edge (1, 5) that two triangles already share.
     let mesh = format!("{GRID_OBJ}v 2 2 3\nf 1 5 10\n");
-    let (error, message, _) = refused(GOOD_WORLD, Some(&mesh));
+    let (error, message, _) = refused(&good_world(), Some(&mesh));
     assert!(
-        matches!(error, WorldError::Mesh { line, .. } if line == line_of(GOOD_WORLD, "sheet.obj"))
+        matches!(error, WorldError::Mesh { line, .. } if line == line_of(&good_world(), "sheet.obj"))
     );
     assert!(
         message.contains("non-manifold") && message.contains("objects[0].mesh"),
@@ -128,14 +122,14 @@ fn a_non_manifold_mesh_is_refused() {
 
 #[test]
 fn an_empty_mesh_is_refused() {
-    let (error, message, _) = refused(GOOD_WORLD, Some("# nothing here\nv 0 0 0\n"));
+    let (error, message, _) = refused(&good_world(), Some("# nothing here\nv 0 0 0\n"));
     assert!(matches!(error, WorldError::Mesh { .. }));
     assert!(message.contains("empty"), "{message}");
 }
 
 #[test]
 fn an_unstable_step_is_refused_with_the_bound() {
-    let world = GOOD_WORLD.replace("mass_kg = 0.01", "mass_kg = 0.0000001");
+    let world = good_world().replace("mass_kg = 0.01", "mass_kg = 0.0000001");
     let (error, message, _) = refused(&world, None);
     assert!(
         matches!(error, WorldError::Invalid { ref key, .. } if key == "objects[0].dt_s"),
@@ -147,7 +141,8 @@ fn an_unstable_step_is_refused_with_the_bound() {
 #[test]
 fn a_device_bound_to_two_tools_is_refused() {
     let world = format!(
-        "{GOOD_WORLD}\n[[tools]]\nname = \"probe2\"\ndevice = \"left\"\nshape = {{ kind = \"sphere\", radius_mm = 1.0 }}\n"
+        "{}\n[[tools]]\nname = \"probe2\"\ndevice = \"left\"\nshape = {{ kind = \"sphere\", radius_mm = 1.0 }}\n",
+        good_world()
     );
     let (error, _, _) = refused(&world, None);
     assert!(matches!(error, WorldError::Invalid { ref key, .. } if key == "tools[1].device"));
@@ -155,7 +150,7 @@ fn a_device_bound_to_two_tools_is_refused() {
 
 #[test]
 fn the_server_refuses_to_start_with_a_malformed_world() {
-    let world = GOOD_WORLD.replace("stiffness_n_per_mm = 0.01", "stiffness_n_per_mm = -0.5");
+    let world = good_world().replace("stiffness_n_per_mm = 0.01", "stiffness_n_per_mm = -0.5");
     let path = write_world(&world, None);
     let output = std::process::Command::new(env!("CARGO_BIN_EXE_sinew-server"))
         .arg("--world")
@@ -186,9 +181,9 @@ fn the_server_refuses_to_start_with_a_malformed_world() {
 const TWO_TETS_MSH: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 5 1 5\n3 1 0 5\n1\n2\n3\n4\n5\n\
 0 0 0\n4 0 0\n0 4 0\n0 0 {Z}\n4 4 4\n$EndNodes\n$Elements\n1 2 7 9\n3 1 4 2\n7 1 2 3 4\n9 2 3 4 5\n$EndElements\n";
 
-/// `GOOD_WORLD` on a `.msh` volume (written next to it) with density alone (32 mg: half the step).
+/// [`good_world`] on a `.msh` volume (written next to it) with density alone (32 mg: half the step).
 fn msh_world() -> String {
-    GOOD_WORLD
+    good_world()
         .replace("sheet.obj", "block.msh")
         .replace("mass_kg = 0.01", "density_kg_per_m3 = 1000.0")
         .replace("dt_s = 0.001", "dt_s = 0.0005")
@@ -234,7 +229,7 @@ fn a_msh_volume_and_an_extruded_sheet_load_with_their_tetrahedra() {
     ));
     // The sheet extruded 1.5 mm in 2 layers: 3 x 8 triangles x 2 layers, and the fixed box (x <= 0.5) now
     // also holds the extruded nodes under the fixed edge.
-    let extruded = GOOD_WORLD
+    let extruded = good_world()
         .replace(
             "units = \"mm\"",
             "units = \"mm\"\nextrude = { thickness_mm = 1.5, layers = 2 }",
@@ -295,7 +290,7 @@ fn thickness_with_a_volume_mesh_is_refused() {
 #[test]
 fn a_non_positive_extrusion_thickness_is_refused() {
     for thickness in ["0.0", "-1.0"] {
-        let world = GOOD_WORLD.replace(
+        let world = good_world().replace(
             "units = \"mm\"",
             &format!("units = \"mm\"\nextrude = {{ thickness_mm = {thickness}, layers = 2 }}"),
         );
@@ -314,7 +309,7 @@ fn a_non_positive_extrusion_thickness_is_refused() {
 #[test]
 fn extrusion_layers_outside_1_to_16_are_refused() {
     for layers in ["0", "17", "-3"] {
-        let world = GOOD_WORLD.replace(
+        let world = good_world().replace(
             "units = \"mm\"",
             &format!("units = \"mm\"\nextrude = {{ thickness_mm = 1.0, layers = {layers} }}"),
         );
@@ -329,7 +324,7 @@ fn extrusion_layers_outside_1_to_16_are_refused() {
 
 #[test]
 fn tet_volume_on_a_surface_mesh_is_refused() {
-    let world = GOOD_WORLD.replace(
+    let world = good_world().replace(
         "anchor_stiffness_n_per_mm = 0.001",
         "anchor_stiffness_n_per_mm = 0.001\ntet_bulk_modulus_kpa = 50.0",
     );
@@ -361,7 +356,7 @@ fn a_degenerate_tetrahedron_names_its_element_and_the_mesh_key() {
 #[test]
 fn durations_and_rates_out_of_their_real_range_name_the_key_and_line() {
     let with_sim = |sim: &str| {
-        GOOD_WORLD.replace(
+        good_world().replace(
             "scene = \"test\"\n",
             &format!("scene = \"test\"\n\n[sim]\n{sim}\n"),
         )
@@ -389,10 +384,10 @@ fn durations_and_rates_out_of_their_real_range_name_the_key_and_line() {
     // A thread count in range loads as given; left out, the machine's share is used when the server starts.
     let world = load_world(&write_world(&with_sim("threads = 3"), None)).unwrap();
     assert_eq!(world.tissue_threads, Some(3));
-    let world = load_world(&write_world(GOOD_WORLD, None)).unwrap();
+    let world = load_world(&write_world(&good_world(), None)).unwrap();
     assert_eq!(world.tissue_threads, None);
     // A step so small that one tick would take a billion substeps.
-    let world = GOOD_WORLD.replace("dt_s = 0.001", "dt_s = 1e-12");
+    let world = good_world().replace("dt_s = 0.001", "dt_s = 1e-12");
     let (error, message, _) = refused(&world, None);
     assert!(
         matches!(&error, WorldError::Invalid { key, .. } if key == "objects[0].dt_s"),
@@ -420,7 +415,7 @@ tool = "probe"
 
 #[test]
 fn the_shipped_exercises_and_a_test_exercise_load() {
-    let world = load_world(&write_world(&format!("{GOOD_WORLD}{EXERCISE}"), None)).unwrap();
+    let world = load_world(&write_world(&format!("{}{EXERCISE}", good_world()), None)).unwrap();
     let exercise = world.exercise.unwrap();
     assert_eq!(exercise.targets.len(), 2);
     assert_eq!(exercise.targets[1].tool, Some(0));
@@ -441,7 +436,8 @@ fn the_shipped_exercises_and_a_test_exercise_load() {
 fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
     // A target naming a tool the world does not have.
     let world = format!(
-        "{GOOD_WORLD}{}",
+        "{}{}",
+        good_world(),
         EXERCISE.replacen("tool = \"probe\"\n\n[[", "tool = \"grasper\"\n\n[[", 1)
     );
     let (error, message, _) = refused(&world, None);
@@ -459,7 +455,8 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
 
     // A coordination target that names no tool.
     let world = format!(
-        "{GOOD_WORLD}{}",
+        "{}{}",
+        good_world(),
         EXERCISE.replacen("tool = \"probe\"\n", "", 1)
     );
     let (error, _, _) = refused(&world, None);
@@ -467,7 +464,8 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
 
     // No time to do it in.
     let world = format!(
-        "{GOOD_WORLD}{}",
+        "{}{}",
+        good_world(),
         EXERCISE.replace("time_limit_s = 30.0", "time_limit_s = 0.0")
     );
     let (error, _, _) = refused(&world, None);
@@ -481,7 +479,8 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
 
     // Accurate touch without its depth limit.
     let world = format!(
-        "{GOOD_WORLD}{}",
+        "{}{}",
+        good_world(),
         EXERCISE.replace("kind = \"coordination\"", "kind = \"accurate-touch\"")
     );
     let (error, message, _) = refused(&world, None);
@@ -493,7 +492,8 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
 
     // A kind that does not exist: the parser names the variants.
     let world = format!(
-        "{GOOD_WORLD}{}",
+        "{}{}",
+        good_world(),
         EXERCISE.replace("\"coordination\"", "\"juggling\"")
     );
     let (error, message, _) = refused(&world, None);
@@ -505,7 +505,8 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
 
     // No targets at all.
     let world = format!(
-        "{GOOD_WORLD}\n[exercise]\nname = \"x\"\nkind = \"coordination\"\ntime_limit_s = 1.0\ntargets = []\n"
+        "{}\n[exercise]\nname = \"x\"\nkind = \"coordination\"\ntime_limit_s = 1.0\ntargets = []\n",
+        good_world()
     );
     let (error, _, _) = refused(&world, None);
     assert_eq!(invalid_key_and_line(&error).0, "exercise.targets");
@@ -514,7 +515,7 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
 #[test]
 fn a_bad_ranking_exercise_names_the_samples_key_and_the_objects() {
     let ranking = "\n[exercise]\nname = \"rank\"\nkind = \"stiffness-ranking\"\ntime_limit_s = 10.0\nsamples = [\"sheet\", \"liver\"]\n";
-    let world = format!("{GOOD_WORLD}{ranking}");
+    let world = format!("{}{ranking}", good_world());
     let (error, message, _) = refused(&world, None);
     assert_eq!(
         invalid_key_and_line(&error),
@@ -526,7 +527,7 @@ fn a_bad_ranking_exercise_names_the_samples_key_and_the_objects() {
     );
 
     // One sample is no ranking.
-    let world = format!("{GOOD_WORLD}{}", ranking.replace(", \"liver\"", ""));
+    let world = format!("{}{}", good_world(), ranking.replace(", \"liver\"", ""));
     let (error, message, _) = refused(&world, None);
     assert_eq!(
         invalid_key_and_line(&error).0,
@@ -536,7 +537,8 @@ fn a_bad_ranking_exercise_names_the_samples_key_and_the_objects() {
 
     // Samples on a target exercise, and a ranking without samples.
     let world = format!(
-        "{GOOD_WORLD}{}",
+        "{}{}",
+        good_world(),
         EXERCISE.replace(
             "time_limit_s = 30.0",
             "time_limit_s = 30.0\nsamples = [\"sheet\"]"
@@ -545,7 +547,8 @@ fn a_bad_ranking_exercise_names_the_samples_key_and_the_objects() {
     let (error, _, _) = refused(&world, None);
     assert_eq!(invalid_key_and_line(&error).0, "exercise.samples");
     let world = format!(
-        "{GOOD_WORLD}{}",
+        "{}{}",
+        good_world(),
         ranking.replace("samples = [\"sheet\", \"liver\"]\n", "")
     );
     let (error, _, _) = refused(&world, None);
@@ -557,7 +560,7 @@ fn a_bad_ranking_exercise_names_the_samples_key_and_the_objects() {
 fn bad_instrument_keys_name_the_key_and_line() {
     let tool_line = "shape = { kind = \"sphere\", radius_mm = 1.0 }";
     let with = |instrument: &str| {
-        GOOD_WORLD.replace(
+        good_world().replace(
             tool_line,
             &format!("{tool_line}\ninstrument = {instrument}"),
         )
@@ -689,7 +692,7 @@ fn bad_instrument_keys_name_the_key_and_line() {
     }
     // A shaft: loads with its values, refused out of range by key and line.
     let shaft_line = "shaft = { radius_mm = 2.5, length_mm = 40.0 }";
-    let shafted = GOOD_WORLD.replace(tool_line, &format!("{tool_line}\n{shaft_line}"));
+    let shafted = good_world().replace(tool_line, &format!("{tool_line}\n{shaft_line}"));
     let world = load_world(&write_world(&shafted, None)).unwrap();
     assert_eq!(
         world.tools[0].shaft,
@@ -729,7 +732,7 @@ fn bad_instrument_keys_name_the_key_and_line() {
 
 #[test]
 fn a_tear_strain_out_of_range_is_refused_and_a_volume_takes_one() {
-    let good = GOOD_WORLD.replace(
+    let good = good_world().replace(
         "anchor_stiffness_n_per_mm = 0.001",
         "anchor_stiffness_n_per_mm = 0.001\ntear_strain = 0.5",
     );
@@ -757,7 +760,7 @@ fn a_tear_strain_out_of_range_is_refused_and_a_volume_takes_one() {
 
 #[test]
 fn a_cut_resistance_burn_shrink_or_friction_out_of_range_is_refused_by_key_and_line() {
-    let good = GOOD_WORLD.replace(
+    let good = good_world().replace(
         "anchor_stiffness_n_per_mm = 0.001",
         "anchor_stiffness_n_per_mm = 0.001\ncut_resistance_n = 0.4\nburn_shrink = 0.2\nfriction_coefficient = 0.3",
     );
@@ -818,9 +821,9 @@ fn assert_refused_by_key_and_line(good: &str, cases: &[(&str, &str, &str, &str, 
     }
 }
 
-/// `GOOD_WORLD`'s sheet extruded into a 1 mm volume of corotational finite elements.
+/// [`good_world`]'s sheet extruded into a 1 mm volume of corotational finite elements.
 fn fem_world() -> String {
-    GOOD_WORLD
+    good_world()
         .replace(
             "units = \"mm\"",
             "units = \"mm\"\nextrude = { thickness_mm = 1.0, layers = 1 }\nmodel = \"fem-corotational\"",
@@ -894,7 +897,7 @@ fn finite_element_keys_are_checked_by_key_and_line() {
     ];
     assert_refused_by_key_and_line(&good, &cases);
     // A mass-spring object with neither a stiffness nor a modulus names the stiffness.
-    let bare = GOOD_WORLD.replace("stiffness_n_per_mm = 0.01\n", "");
+    let bare = good_world().replace("stiffness_n_per_mm = 0.01\n", "");
     let (error, message, _) = refused(&bare, None);
     assert_eq!(
         invalid_key_and_line(&error),
@@ -935,7 +938,7 @@ fn calibrated_springs_take_youngs_modulus_and_check_what_a_network_can_be() {
     assert!(message.contains("fem-corotational"), "{message}");
 
     // A sheet: its thickness sets the stiffness, and its ratio can only be 1/3.
-    let sheet = GOOD_WORLD.replace(
+    let sheet = good_world().replace(
         "stiffness_n_per_mm = 0.01",
         "youngs_modulus_kpa = 20.0\npoisson_ratio = 0.333\nthickness_mm = 2.0",
     );

@@ -20,7 +20,7 @@ use sinew::harness::{surgeon_scripts_for, worlds_dir};
 use sinew_protocol::{ForceCommand, InstanceId, encode};
 use sinew_server::server_tick::ServerTick;
 use sinew_server::sim::ToolOutput;
-use sinew_server::world::{World, parse_world};
+use sinew_server::world::{InstrumentSpec, World};
 
 /// Virtual time each world runs: long enough for every demo script's whole act (a grasp-pull releases at
 /// 4.3 s, ten snips end at 5 s).
@@ -334,17 +334,6 @@ fn shipped(file: &str) -> World {
     sinew::harness::load_shipped_world(file).unwrap()
 }
 
-/// A shipped world's text with each `(from, to)` replaced (every `from` must be there).
-fn shipped_edited(file: &str, edits: &[(&str, &str)]) -> World {
-    let path = worlds_dir().join(file);
-    let mut text = std::fs::read_to_string(&path).unwrap();
-    for (from, to) in edits {
-        assert!(text.contains(from), "{file} has no `{from}`");
-        text = text.replace(from, to);
-    }
-    parse_world(&path, &text).unwrap()
-}
-
 /// Every `.toml` under `worlds/` that is a world has a test below (the material presets are a library).
 #[test]
 fn every_shipped_world_has_a_golden_trace() {
@@ -413,16 +402,24 @@ golden_world!(liver, "liver.toml", DURATION_S);
 /// The grasp-pull with a tissue that tears at 25% strain and jaws that do not slip first: the pull tears it.
 #[test]
 fn grasp_pull_tearing() {
-    let world = shipped_edited(
-        "grasp_pull.toml",
-        &[
-            (
-                "drag_per_s = 150.0",
-                "drag_per_s = 150.0\ntear_strain = 0.25",
-            ),
-            ("slip_force_n = 0.3 }", "slip_force_n = 20.0 }"),
-        ],
+    let mut world = shipped("grasp_pull.toml");
+    let tissue = &mut world.objects[0].material;
+    assert_eq!(
+        tissue.tear_strain, None,
+        "grasp_pull's tissue already tears"
     );
+    tissue.tear_strain = Some(0.25);
+    for tool in &mut world.tools {
+        let InstrumentSpec::Grasper(grasp) = &mut tool.instrument else {
+            panic!("grasp_pull's `{}` is not a grasper", tool.name);
+        };
+        assert_eq!(
+            grasp.slip_force_n, 0.3,
+            "grasp_pull's `{}` slip force",
+            tool.name
+        );
+        grasp.slip_force_n = 20.0;
+    }
     let (_, topology_versions) = check("grasp_pull_tearing", &world, DURATION_S);
     assert!(
         topology_versions.iter().any(|&v| v > 0),
@@ -433,13 +430,13 @@ fn grasp_pull_tearing() {
 /// The pad stroked with Coulomb friction: its run differs from the frictionless pad's.
 #[test]
 fn pad_friction() {
-    let world = shipped_edited(
-        "pad.toml",
-        &[(
-            "drag_per_s = 150.0",
-            "drag_per_s = 150.0\nfriction_coefficient = 0.5",
-        )],
+    let mut world = shipped("pad.toml");
+    let tissue = &mut world.objects[0].material;
+    assert_eq!(
+        tissue.friction_coefficient, 0.0,
+        "the pad already has friction"
     );
+    tissue.friction_coefficient = 0.5;
     let (golden, _) = check("pad_friction", &world, DURATION_S);
     let (plain, _) = trace(&shipped("pad.toml"), DURATION_S);
     assert_ne!(golden.outputs, plain.outputs, "friction changed nothing");

@@ -1,14 +1,19 @@
 //! Fixtures shared by the server's integration tests and benches (the largest-tissue bench includes this file
-//! with `#[path]`): scratch directories, and a world around a flat sheet with the pad's material.
+//! with `#[path]`): scratch directories, and a world around a flat sheet with the pad's material. World files
+//! as text are built in [`world_toml`]; scenes changed in code (a loaded world's typed fields) in
+//! [`scene_edits`].
 #![allow(dead_code)] // each test binary uses its own subset
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::fmt::Write as _;
+pub mod scene_edits;
+pub mod world_toml;
+
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
 
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{grid_sheet, to_obj_text};
+use world_toml::{SheetWorldToml, fixed_plane, sphere_tool};
 
 /// A fresh directory under the system temp dir, unique per process and call.
 pub fn scratch_dir(prefix: &str) -> PathBuf {
@@ -26,50 +31,42 @@ pub fn scratch_dir(prefix: &str) -> PathBuf {
 /// worlds/pad.toml's material per cell (mass scaled by area: every node has the pad's mass), its rim fixed, and
 /// one 4 mm sphere probe (device `probe`) over the centre. `extra` is spliced into the object table.
 pub fn sheet_world_text(nx: usize, ny: usize, integrator: &str, dt_s: f32, extra: &str) -> String {
+    sheet_world_toml(nx, ny, integrator, dt_s, extra).text()
+}
+
+/// [`sheet_world_text`]'s world, its parts still apart (to add a `[sim]` section, say).
+pub fn sheet_world_toml(
+    nx: usize,
+    ny: usize,
+    integrator: &str,
+    dt_s: f32,
+    extra: &str,
+) -> SheetWorldToml {
     let mass_kg = 0.6 * (nx * ny) as f32 / (80.0 * 60.0);
     let (hx, hy) = (nx as f32 / 2.0, ny as f32 / 2.0);
-    let mut text = format!(
-        r#"scene = "sheet"
-
-[[objects]]
-name = "sheet"
-mesh = "sheet.obj"
-units = "mm"
-integrator = "{integrator}"
-dt_s = {dt_s}
-{extra}
-
-[objects.material]
-mass_kg = {mass_kg}
-stiffness_n_per_mm = 0.015
-damping_n_s_per_mm = 0.000003
-anchor_stiffness_n_per_mm = 0.008
-drag_per_s = 150.0
-"#
-    );
-    for (point, normal) in [
-        ([-hx, 0.0], [-1.0, 0.0]),
-        ([hx, 0.0], [1.0, 0.0]),
-        ([0.0, -hy], [0.0, -1.0]),
-        ([0.0, hy], [0.0, 1.0]),
-    ] {
-        write!(
-            text,
-            "\n[[objects.fixed]]\nkind = \"plane\"\npoint_mm = [{:.1}, {:.1}, 0.0]\nnormal = [{:.1}, {:.1}, 0.0]\ntolerance_mm = 0.01\n",
-            point[0], point[1], normal[0], normal[1]
-        )
-        .unwrap();
+    SheetWorldToml {
+        scene: "sheet".into(),
+        sim: String::new(),
+        name: "sheet".into(),
+        mesh: "sheet.obj".into(),
+        integrator: integrator.into(),
+        dt_s: dt_s.to_string(),
+        object_keys: format!("{extra}\n"),
+        material: format!(
+            "mass_kg = {mass_kg}\nstiffness_n_per_mm = 0.015\ndamping_n_s_per_mm = 0.000003\n\
+             anchor_stiffness_n_per_mm = 0.008\ndrag_per_s = 150.0\n"
+        ),
+        fixed: [
+            ([-hx, 0.0, 0.0], [-1.0, 0.0, 0.0]),
+            ([hx, 0.0, 0.0], [1.0, 0.0, 0.0]),
+            ([0.0, -hy, 0.0], [0.0, -1.0, 0.0]),
+            ([0.0, hy, 0.0], [0.0, 1.0, 0.0]),
+        ]
+        .into_iter()
+        .map(|(point, normal)| fixed_plane(point, normal, 0.01))
+        .collect(),
+        tool: sphere_tool("probe", "probe", 4.0) + "max_force_n = 3.3\n",
     }
-    text.push_str(
-        r#"
-[[tools]]
-name = "probe"
-device = "probe"
-shape = { kind = "sphere", radius_mm = 4.0 }
-max_force_n = 3.3
-"#,
-    );
-    text
 }
 
 /// Write `text` as `world.toml` beside an `nx` x `ny` sheet of 1 mm cells in a fresh directory; returns the
