@@ -4,35 +4,35 @@
 //!
 //! The tick's pipeline ([`Sim::step`], here), in order, with the file that runs each stage:
 //! 1. the last tick's tail if nobody ran it ([`Sim::finish_tick`], here); the tools follow their device poses
-//!    through their couplings (`drive.rs`); blades cut what they swept (`blade.rs`, opening seams through
-//!    `topology.rs`);
+//!    through their couplings (`drive.rs`); instruments act before contacts are found (blades cut what they
+//!    swept: `instruments/scalpel.rs`, `instruments/scissors.rs`, opening seams through `topology.rs`);
 //! 2. multi-rate objects hand back their finished step and launch the next ([`crate::multirate`]); the broad
 //!    phase; regions of deformation follow the contacts (here);
 //! 3. the guarded substeps: integrate every every-tick object, push the tissue out of the tools, hold what the
 //!    jaws hold, retry with halved substeps on the guard's verdict (`guarded.rs`, over
 //!    [`crate::tissue::guarded_step`]); a fault still there at the smallest substep is contained (here);
-//! 4. overstretched tissue tears (here, through `topology.rs`); grasps take hold, slip and let go
-//!    (`grasping.rs`);
-//! 5. per tool: the cautery burns (`cautery.rs`); the reaction force, clamped, and the local model a distant
-//!    device renders (`tool_output.rs`);
+//! 4. overstretched tissue tears (here, through `topology.rs`); instruments act on the step's result (grasps
+//!    take hold, slip and let go: `instruments/grasper.rs`);
+//! 5. per tool: its instrument acts on the surface it touches (the cautery burns: `instruments/cautery_tip.rs`);
+//!    the reaction force, clamped, and the local model a distant device renders (`tool_output.rs`);
 //! 6. the tail, after the forces are out: colliders refit, contact-stiffness iterations ([`Sim::finish_tick`]).
 //!
 //! The parts: `object.rs` ([`SimObject`]), `tool.rs` ([`SimTool`], [`ToolCommand`], [`ToolOutput`]),
-//! `step_report.rs` ([`StepReport`]); built from a scene descriptor in `from_scene.rs`.
+//! `step_report.rs` ([`StepReport`]); built from a scene descriptor in `from_scene.rs`. What a tool does beyond
+//! its body is its instrument: one trait with a hook per stage (`instrument.rs`), one file per instrument
+//! (`instruments/`).
 
-mod blade;
-mod cautery;
 mod drive;
 mod from_scene;
-mod grasping;
 mod guarded;
+mod instrument;
+mod instruments;
 mod object;
 mod step_report;
 mod tool;
 mod tool_output;
 mod topology;
 
-use grasping::grasp_released;
 use guarded::TickStepper;
 pub use object::SimObject;
 pub use step_report::StepReport;
@@ -106,6 +106,9 @@ pub struct Sim {
     steps: u64,
     /// The last step left work for its tail ([`Sim::finish_tick`]).
     tail_due: bool,
+    /// Topology changes so far (seams opened): how an instrument out of its tool during a hook learns it
+    /// missed one ([`Sim::with_instrument`]).
+    openings: u64,
 }
 
 impl Sim {
@@ -161,9 +164,10 @@ impl Sim {
         }
         let mut report = StepReport::default();
         self.apply_commands(dt_s, commands);
-        // Scalpels cut what their edges swept since the last tick, before anything reads the topology.
+        // Instruments act on the topology before anything reads it (blades cut what they swept since the
+        // last tick).
         for t in 0..self.tools.len() {
-            self.cut_with(t, dt_s, &mut report);
+            self.with_instrument(t, |i, sim| i.before_contacts(sim, t, dt_s, &mut report));
         }
 
         // Multi-rate objects due this tick take back their finished step (before the broad phase reads their
@@ -236,9 +240,7 @@ impl Sim {
             region.clear_contacts();
             for tool in self.tools.iter().filter(|t| t.active) {
                 region.add_contacts(&tool.contacts[o].candidates);
-                if let Some(grasp) = &tool.grasp {
-                    region.add_contacts(grasp.attached_nodes(o));
-                }
+                region.add_contacts(tool.attached_nodes(o));
             }
             let update = region.update(&object.model, &mut object.state, dt_s);
             report.region_nodes += update.active_nodes;
@@ -292,10 +294,8 @@ impl Sim {
                     }
                     for tool in &mut self.tools {
                         tool.contacts[o].forget();
-                        if let Some(grasp) = &mut tool.grasp
-                            && !grasp.attached_nodes(o).is_empty()
-                        {
-                            report.attachments_released += grasp_released(grasp.release());
+                        if let Some(instrument) = &mut tool.instrument_state {
+                            report.attachments_released += instrument.object_reset(o);
                         }
                     }
                     report.faults += 1;
@@ -329,17 +329,15 @@ impl Sim {
             self.objects[o].torn = torn;
         }
         for t in 0..self.tools.len() {
-            self.update_grasp(t, dt_s, &mut report);
+            self.with_instrument(t, |i, sim| i.after_substeps(sim, t, dt_s, &mut report));
         }
         for t in 0..self.tools.len() {
-            let burnt = self.cauterize(t, dt_s);
-            report.nodes_burnt += burnt;
-            let mut out = self.tool_output(t);
-            out.burning = burnt > 0;
+            self.with_instrument(t, |i, sim| i.before_output(sim, t, dt_s, &mut report));
+            let out = &mut self.tool_output(t);
             report.held_nodes += out.held_nodes;
-            self.local_model(t, dt_s, &mut out);
+            self.local_model(t, dt_s, out);
             if let Some(slot) = outputs.get_mut(t) {
-                *slot = out;
+                *slot = *out;
             }
         }
         self.time_s += f64::from(dt_s);
@@ -373,7 +371,10 @@ impl Sim {
                     else {
                         continue;
                     };
-                    let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+                    let grasped = tool
+                        .instrument_state
+                        .as_ref()
+                        .map_or(&[][..], |i| i.attached_nodes(o));
                     solver.advance(
                         model,
                         state,

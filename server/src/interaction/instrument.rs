@@ -54,6 +54,25 @@ impl InstrumentSpec {
         }
     }
 
+    /// How far the tool reaches from its origin, mm, given its body's reach `body_reach_mm`: a scalpel's
+    /// edge and scissors' open blades reach beyond the body (a tool enters the scene clear of the tissue by
+    /// this).
+    pub fn reach_mm(&self, body_reach_mm: f32) -> f32 {
+        let norm = |p: &[f32; 3]| crate::tissue::Vec3::from(*p).norm();
+        match self {
+            InstrumentSpec::Scalpel(s) => s.edge_mm.iter().map(norm).fold(body_reach_mm, f32::max),
+            InstrumentSpec::Scissors(s) => s
+                .blades_mm(s.open_angle_rad)
+                .iter()
+                .flatten()
+                .map(norm)
+                .fold(body_reach_mm, f32::max),
+            InstrumentSpec::Probe | InstrumentSpec::Grasper(_) | InstrumentSpec::Cautery(_) => {
+                body_reach_mm
+            }
+        }
+    }
+
     /// The grasp parameters, for a grasper.
     pub fn grasp(&self) -> Option<&GraspSpec> {
         match self {

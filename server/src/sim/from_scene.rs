@@ -8,7 +8,7 @@ use nalgebra::{Matrix3, UnitQuaternion};
 
 use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
 use crate::haptics::{ContactStiffness, EnergyBudget, NormalStiffnessEstimate, VirtualCoupling};
-use crate::interaction::{CutScratch, Grasp, JawInput, Jaws, ProbeContacts};
+use crate::interaction::{JawInput, ProbeContacts};
 use crate::multirate::{StepLane, ToolSeed};
 use crate::scene::World;
 use crate::tissue::IntegratorName;
@@ -105,19 +105,7 @@ impl Sim {
                     .sqrt()
             };
             // A scalpel's edge and scissors' blades reach beyond the body: they enter clear of the tissue too.
-            let reach_mm = spec.instrument.scalpel().map_or(reach_mm, |s| {
-                s.edge_mm
-                    .iter()
-                    .map(|p| Vec3::from(*p).norm())
-                    .fold(reach_mm, f32::max)
-            });
-            let reach_mm = spec.instrument.scissors().map_or(reach_mm, |s| {
-                s.blades_mm(s.open_angle_rad)
-                    .iter()
-                    .flatten()
-                    .map(|p| Vec3::from(*p).norm())
-                    .fold(reach_mm, f32::max)
-            });
+            let reach_mm = spec.instrument.reach_mm(reach_mm);
             let origin = Vec3::from(spec.device_origin_in_world_mm);
             let entry_mm = entry_point_mm(&origin, reach_mm, &objects);
             tools.push(SimTool {
@@ -137,16 +125,7 @@ impl Sim {
                 estimate: NormalStiffnessEstimate::default(),
                 instrument: spec.instrument,
                 jaw_input: JawInput::default(),
-                jaws: spec
-                    .instrument
-                    .jaws()
-                    .map(|(activation, open_rad)| Jaws::new(activation, open_rad)),
-                grasp: spec
-                    .instrument
-                    .grasp()
-                    .map(|g| Grasp::new(*g, objects.len())),
-                grasp_force_n: Vec3::zeros(),
-                edge_world_mm: None,
+                instrument_state: instrument::build_instrument(&spec.instrument, objects.len()),
                 shaft: spec.shaft.map(|s| {
                     ToolCollider::Capsule(parry3d::shape::Capsule::new_z(
                         0.5 * s.length_mm,
@@ -154,12 +133,6 @@ impl Sim {
                     ))
                 }),
                 shaft_spec: spec.shaft,
-                blade_angle_rad: None,
-                cut_resistance_n: 0.0,
-                cut_scratch: CutScratch::default(),
-                cut_force_n: Vec3::zeros(),
-                cut_level: 0.0,
-                edge_moving: false,
                 joined: false,
                 name: spec.name.clone(),
                 device_id: spec.device_id.clone(),
@@ -225,6 +198,7 @@ impl Sim {
             ties: world.ties.clone(),
             last_energy_n_mm: None,
             tail_due: false,
+            openings: 0,
             collision_margin_mm: world.collision_margin_mm,
             time_s: 0.0,
             steps: 0,

@@ -123,12 +123,10 @@ impl Sim {
                             .state
                             .pinned
                             .extend_from_slice(&tool.contacts[o].held);
-                        if let Some(grasp) = &tool.grasp {
-                            object
-                                .state
-                                .pinned
-                                .extend_from_slice(grasp.attached_nodes(o));
-                        }
+                        object
+                            .state
+                            .pinned
+                            .extend_from_slice(tool.attached_nodes(o));
                     }
                     object.state.pinned.sort_unstable();
                     object.state.pinned.dedup();
@@ -143,10 +141,13 @@ impl Sim {
     }
 }
 
-/// Push object `o`'s tissue out of every active tool and hold what each grasper holds on its jaws.
+/// Push object `o`'s tissue out of every active tool and hold what each instrument holds (a grasper's jaws).
 pub(super) fn hold_in_tools(tools: &mut [SimTool], o: usize, object: &mut SimObject) {
     for tool in tools.iter_mut().filter(|t| t.active) {
-        let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+        let grasped = tool
+            .instrument_state
+            .as_ref()
+            .map_or(&[][..], |i| i.attached_nodes(o));
         let half_mm = tool.shaft_spec.map_or(0.0, |s| 0.5 * s.length_mm);
         let body = ToolBody::posed(
             &tool.collider,
@@ -161,8 +162,8 @@ pub(super) fn hold_in_tools(tools: &mut [SimTool], o: usize, object: &mut SimObj
             grasped,
             object.friction,
         );
-        if let Some(grasp) = &tool.grasp {
-            grasp.hold(
+        if let Some(instrument) = &tool.instrument_state {
+            instrument.hold(
                 o,
                 &tool.position_mm,
                 &tool.rotation,

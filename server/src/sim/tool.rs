@@ -12,7 +12,7 @@ use crate::haptics::{
     WorldPlane,
 };
 use crate::interaction::InstrumentSpec;
-use crate::interaction::{CutScratch, Grasp, JawInput, Jaws, ProbeContacts};
+use crate::interaction::{Grasp, JawInput, Jaws, ProbeContacts};
 use crate::tissue::Vec3;
 
 /// One tool in the simulation.
@@ -72,33 +72,15 @@ pub struct SimTool {
     pub instrument: InstrumentSpec,
     /// The device's jaw input this tick.
     pub(super) jaw_input: JawInput,
-    /// A grasper's jaws, and what they hold.
-    pub(super) jaws: Option<Jaws>,
-    pub(super) grasp: Option<Grasp>,
-    /// The tissue's pull on the tool through the grasp at the end of the last tick, N.
-    pub(super) grasp_force_n: Vec3,
-    /// A scalpel's edge in the world at the end of the last tick (None while inactive: a tool that comes back
-    /// does not sweep from where it left).
-    pub(super) edge_world_mm: Option<[Vec3; 2]>,
+    /// The instrument's implementation and state (`None`: a probe, or the instrument is out running a hook,
+    /// [`Sim::with_instrument`]).
+    pub(super) instrument_state: Option<Box<dyn super::instrument::Instrument>>,
     /// The shaft as the world gives it.
     pub shaft_spec: Option<crate::collision::ShaftSpec>,
     /// The shaft (a capsule along the tool's z, from the origin up), which pushes tissue as the tip does.
     pub(super) shaft: Option<ToolCollider>,
-    /// Scissors' jaw opening at the end of the last tick, rad (None while inactive or not yet joined).
-    pub(super) blade_angle_rad: Option<f32>,
-    /// The drag of the tissue this tool's edge cut last, N (its material's `cut_resistance_n`).
-    pub(super) cut_resistance_n: f32,
-    /// The blade sweep's scratch.
-    pub(super) cut_scratch: CutScratch,
-    /// The drag of cutting this tick, N (world frame, against the edge's motion).
-    pub(super) cut_force_n: Vec3,
-    /// The edge is cutting: how recently it cut, 1 on a tick that cut, decaying with [`super::blade::CUT_DRAG_TAU_S`]
-    /// (the edge crosses the mesh's facets one at a time; the drag of cutting is felt in between).
-    pub(super) cut_level: f32,
-    /// The edge moved this tick.
-    pub(super) edge_moving: bool,
     /// The tool has reached its hand since it was (re)taken: until then it is being dragged from its entry
-    /// point, and a scalpel's edge does not cut along that path (the surgeon did not make it).
+    /// point, and a blade does not cut along that path (the surgeon did not make it).
     pub(super) joined: bool,
 }
 
@@ -119,14 +101,21 @@ impl SimTool {
         self.coupling.params()
     }
 
-    /// A grasper's jaws (None for a probe).
+    /// The instrument's jaws (a grasper's, scissors'; None for a probe).
     pub fn jaws(&self) -> Option<&Jaws> {
-        self.jaws.as_ref()
+        self.instrument_state.as_ref().and_then(|i| i.jaws())
     }
 
-    /// What a grasper holds (None for a probe).
+    /// What a grasper holds (None for another instrument).
     pub fn grasp(&self) -> Option<&Grasp> {
-        self.grasp.as_ref()
+        self.instrument_state.as_ref().and_then(|i| i.grasp())
+    }
+
+    /// The nodes of object `object` the tool's instrument holds (sorted; none for most instruments).
+    pub(super) fn attached_nodes(&self, object: usize) -> &[u32] {
+        self.instrument_state
+            .as_ref()
+            .map_or(&[], |i| i.attached_nodes(object))
     }
 }
 

@@ -30,19 +30,16 @@ impl Sim {
             force += contacts.reaction_force_n(&object.model, &object.state, object.friction);
             held += contacts.held.len() as u32;
         }
-        let attachments = tool
-            .grasp
-            .as_ref()
-            .map_or(0, |g| g.attachments().len() as u16);
-        force += tool.grasp_force_n + tool.cut_force_n;
+        let instrument = tool.instrument_state.as_deref();
+        let attachments = instrument.map_or(0, |i| i.held_points());
+        // Added to +0 first: a -0 pull then adds as +0, to the same bits whatever the instrument.
+        force += Vec3::zeros() + instrument.map_or(Vec3::zeros(), |i| i.force_on_tool_n());
         held += u32::from(attachments);
         let mut out = limit_force(force, tool.max_force_n, held);
         out.attachments = attachments;
-        if let Some(jaws) = &tool.jaws {
-            out.jaws_closed = jaws.closed();
-            out.jaw_angle_rad = jaws.angle_rad();
+        if let Some(instrument) = instrument {
+            instrument.mark_output(&mut out);
         }
-        out.cutting = tool.edge_moving && tool.cut_level > 0.5;
         out
     }
 
@@ -56,7 +53,10 @@ impl Sim {
         let mut plane_count = 0usize;
         for (o, object) in self.objects.iter_mut().enumerate() {
             let contacts = &tool.contacts[o];
-            let grasped = tool.grasp.as_ref().map_or(&[][..], |g| g.attached_nodes(o));
+            let grasped = tool
+                .instrument_state
+                .as_ref()
+                .map_or(&[][..], |i| i.attached_nodes(o));
             let solver = &mut tool.stiffness[o];
             if !tool.active {
                 solver.forget();

@@ -88,10 +88,11 @@ impl Sim {
             if let Some(stiffness) = tool.stiffness.get_mut(object) {
                 *stiffness = ContactStiffness::new(n);
             }
-            if let Some(grasp) = &mut tool.grasp {
-                grasp.topology_changed(object, &self.objects[object].model);
+            if let Some(instrument) = &mut tool.instrument_state {
+                instrument.topology_changed(object, &self.objects[object].model);
             }
         }
+        self.openings += 1;
         self.last_energy_n_mm = None;
         opening
     }

@@ -1,0 +1,15 @@
+//! The instruments, one file each, behind [`super::instrument::Instrument`].
+//!
+//! Owns: nothing but the list. Must not: share state between instruments (what two share, such as a blade's
+//! drag, is a plain helper in its own file).
+
+mod blade_drag;
+mod cautery_tip;
+mod grasper;
+mod scalpel;
+mod scissors;
+
+pub(super) use cautery_tip::CauteryTip;
+pub(super) use grasper::Grasper;
+pub(super) use scalpel::Scalpel;
+pub(super) use scissors::Scissors;

@@ -1,0 +1,105 @@
+//! What a sharp instrument keeps between ticks, and the steps a scalpel and scissors share: when a blade may
+//! cut (its tool has reached the hand), cutting every object along a sweep, and the drag of cutting.
+//!
+//! Owns: [`BladeDrag`], [`blade_tick`], [`cut_everything`] and the drag's constants. Must not: open seams
+//! itself ([`Sim::cut`] does, through `topology.rs`).
+
+use crate::interaction::{BladeSweep, CutScratch};
+use crate::tissue::Vec3;
+
+use super::super::*;
+
+/// How long the drag of cutting lasts after the edge last cut a facet, s (time constant of its decay): at a
+/// steady 10-20 mm/s the edge crosses a 1 mm mesh's facets every 50-100 ms, and the drag holds in between.
+pub(super) const CUT_DRAG_TAU_S: f32 = 0.1;
+
+/// An edge slower than this, mm/s, is held still: it feels no drag and is not cutting (the coupled tool still
+/// settles by micrometres after the hand stops).
+pub(super) const MIN_CUT_SPEED_MM_S: f32 = 1.0;
+
+/// A (re)taken tool has joined its hand once it is this close to the device pose, mm: the coupling's lag under a
+/// hard press is under 1 mm (3.3 N at 5 N/mm).
+pub(super) const JOINED_MM: f32 = 1.0;
+
+/// A blade's cutting state between ticks.
+#[derive(Debug, Default)]
+pub(super) struct BladeDrag {
+    /// The drag of the tissue the blade cut last, N (its material's `cut_resistance_n`).
+    pub(super) resistance_n: f32,
+    /// The sweep's scratch.
+    scratch: CutScratch,
+    /// The drag of cutting this tick, N (world frame, against the edge's motion).
+    pub(super) force_n: Vec3,
+    /// How recently it cut: 1 on a tick that cut, decaying with [`CUT_DRAG_TAU_S`] (the edge crosses the
+    /// mesh's facets one at a time; the drag of cutting is felt in between).
+    pub(super) level: f32,
+    /// The blade moved this tick.
+    pub(super) moving: bool,
+}
+
+impl BladeDrag {
+    /// A new tick: no drag yet, the level decays.
+    pub(super) fn begin_tick(&mut self, dt_s: f32) {
+        self.force_n = Vec3::zeros();
+        self.level *= (-dt_s / CUT_DRAG_TAU_S).exp();
+        self.moving = false;
+    }
+
+    /// The blade is cutting: moving, and cut recently.
+    pub(super) fn cutting(&self) -> bool {
+        self.moving && self.level > 0.5
+    }
+}
+
+/// Where a blade stands at the start of its tick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum BladeTick {
+    /// It cuts nothing and forgets where it was: its tool is inactive (its drag ends too), or has not yet
+    /// reached the hand since it was (re)taken (see `SimTool::joined`: until then it is dragged from its
+    /// entry point, a path the surgeon did not make). A tool that comes back does not sweep from where it
+    /// left.
+    Idle,
+    /// It reached the hand this tick: it forgets where it was and starts from here (sweeping nothing yet).
+    Joined,
+    /// It sweeps from where it was at the end of the last tick.
+    Sweeping,
+}
+
+/// Where tool `tool`'s blade stands this tick (see [`BladeTick`]); marks the tool joined when it reaches the
+/// hand.
+pub(super) fn blade_tick(tool: &mut SimTool, drag: &mut BladeDrag) -> BladeTick {
+    if !tool.active {
+        drag.level = 0.0;
+        return BladeTick::Idle;
+    }
+    if !tool.joined {
+        tool.joined = (tool.device_mm - tool.position_mm).norm() <= JOINED_MM;
+        return if tool.joined {
+            BladeTick::Joined
+        } else {
+            BladeTick::Idle
+        };
+    }
+    BladeTick::Sweeping
+}
+
+/// Cut every object along one sweep of tool `t`'s blade; returns the seams cut, and takes the drag of the
+/// tissue cut (the last object that was).
+pub(super) fn cut_everything(
+    sim: &mut Sim,
+    sweep: &BladeSweep,
+    drag: &mut BladeDrag,
+    report: &mut StepReport,
+) -> u32 {
+    let mut severed = 0;
+    for o in 0..sim.objects.len() {
+        let opening = sim.cut(o, sweep, &mut drag.scratch);
+        if !drag.scratch.seams.is_empty() {
+            severed += drag.scratch.seams.len() as u32;
+            drag.resistance_n = sim.objects[o].cut_resistance_n;
+        }
+        report.vertices_split += opening.new_vertices() as u32;
+    }
+    report.seams_cut += severed;
+    severed
+}
