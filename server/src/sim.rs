@@ -11,7 +11,7 @@
 //! 3. the guarded substeps: integrate every every-tick object, push the tissue out of the tools, hold what the
 //!    jaws hold, retry with halved substeps on the guard's verdict (`guarded.rs`, over
 //!    [`crate::tissue::guarded_step`]); a fault still there at the smallest substep is contained (here);
-//! 4. overstretched tissue tears (here, through `topology.rs`); instruments act on the step's result (grasps
+//! 4. overstretched tissue tears (`tearing.rs`, through `topology.rs`); instruments act on the step's result (grasps
 //!    take hold, slip and let go: `instruments/grasper.rs`);
 //! 5. per tool: its instrument acts on the surface it touches (the cautery burns: `instruments/cautery_tip.rs`);
 //!    the reaction force, clamped, and the local model a distant device renders (`tool_output.rs`);
@@ -29,6 +29,7 @@ mod instrument;
 mod instruments;
 mod object;
 mod step_report;
+mod tearing;
 mod tool;
 mod tool_output;
 mod topology;
@@ -43,7 +44,6 @@ use std::sync::Arc;
 use thiserror::Error;
 
 use crate::haptics::EnergyBudget;
-use crate::interaction::torn_seams;
 use crate::multirate::StepRunner;
 use crate::tissue::{TieSet, step_guarded};
 use sinew_parallel::{ChunkRunner, for_chunks_mut};
@@ -311,23 +311,7 @@ impl Sim {
         }
 
         // Sheets overstretched this tick tear before the grasps measure their pull.
-        for o in 0..self.objects.len() {
-            let object = &mut self.objects[o];
-            let Some(strain) = object.tear_strain else {
-                continue;
-            };
-            let mut torn = std::mem::take(&mut object.torn);
-            torn.clear();
-            torn_seams(&object.model, &object.state.positions_mm, strain, &mut torn);
-            // A capped number a tick (the first in spring order: deterministic), so a sheet pulled far past its
-            // limit at once rips over a few ticks rather than in one long tick.
-            torn.truncate(MAX_TEARS_PER_TICK);
-            if !torn.is_empty() {
-                report.seams_torn += torn.len() as u32;
-                report.vertices_split += self.open_seams(o, &torn).new_vertices() as u32;
-            }
-            self.objects[o].torn = torn;
-        }
+        self.tear_overstretched(&mut report);
         for t in 0..self.tools.len() {
             self.with_instrument(t, |i, sim| i.after_substeps(sim, t, dt_s, &mut report));
         }
@@ -388,6 +372,3 @@ impl Sim {
         }
     }
 }
-
-/// Most facets one object tears open in one tick.
-const MAX_TEARS_PER_TICK: usize = 32;
