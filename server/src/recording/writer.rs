@@ -7,7 +7,8 @@
 //! log line; the server runs on.
 //!
 //! The file holds, all stamped with simulated time:
-//! - `/sinew/ticks` (postcard, [`TickMessage`]): every tick's inputs and force commands, exactly (replay);
+//! - `/sinew/ticks` (postcard, [`TickMessage`](super::TickMessage)): every tick's inputs and force commands,
+//!   exactly (replay);
 //! - `/sinew/<device>/pose` and `/sinew/<device>/force` (JSON, with JSON schemas): the same, for Foxglove;
 //! - `/sinew/final_state` (postcard, [`FinalState`]): every node position when the recording ended;
 //! - what the scene published, as published ([`super::wire_tap`]): each zenoh key its own channel
@@ -16,6 +17,10 @@
 //! - attachments: the world file and every mesh file it names, so a recording replays on its own;
 //! - metadata `sinew`: recording format, kind (`session`, or `wire` for `sinew-recorder`'s files, which hold
 //!   only what was published), protocol version, scene, tick rate.
+//!
+//! Here: the handles (the sim thread's [`RecorderTap`], the owner's [`Recorder`]) and what they share with
+//! the writer thread. The file's layout (metadata and channels) is in `layout`; the writer thread's loop
+//! and what it writes per item in `writer_thread`.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -28,14 +33,16 @@ use std::thread::JoinHandle;
 
 use thiserror::Error;
 
-use super::queue::{Item, WIRE_QUEUE, WireItem, WireSink};
-use super::tick_record::{FinalState, MAX_RECORDED_TOOLS, TickMessage, TickRecord};
+use super::queue::{Item, WIRE_QUEUE, WireSink};
+use super::tick_record::{FinalState, MAX_RECORDED_TOOLS, TickRecord};
 use super::world_files::world_files;
-use super::{
-    FORMAT_VERSION, TICKS_ENCODING, TOPIC_EVENTS, TOPIC_FINAL, TOPIC_PRESENCE, TOPIC_STATS,
-    TOPIC_TICKS, TOPIC_TOOLS, WIRE_ENCODING,
-};
 use crate::scene::World;
+
+mod layout;
+mod writer_thread;
+
+use layout::open_file;
+use writer_thread::write_loop;
 
 /// Ticks the queue holds (a quarter second at 1 kHz) before it drops.
 pub const QUEUE_TICKS: usize = 256;
@@ -298,38 +305,6 @@ fn describe(error: &dyn std::error::Error) -> String {
     text
 }
 
-/// Create the file and write its `sinew` metadata (format, protocol, scene, and `extra`).
-fn open_file(
-    path: &Path,
-    scene: &str,
-    extra: BTreeMap<String, String>,
-) -> Result<mcap::Writer<BufWriter<File>>, RecordError> {
-    let file = File::create(path).map_err(|e| RecordError::Create {
-        path: path.to_owned(),
-        message: e.to_string(),
-    })?;
-    let mut out = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        // Compress on this thread: helper threads would compete with the 1 kHz loops for the cores.
-        .compression_threads(0)
-        .profile("sinew")
-        .create(BufWriter::new(file))
-        .map_err(write_error(path))?;
-    let mut metadata = extra;
-    metadata.insert("format_version".to_owned(), FORMAT_VERSION.to_string());
-    metadata.insert(
-        "protocol_version".to_owned(),
-        sinew_protocol::PROTOCOL_VERSION.to_string(),
-    );
-    metadata.insert("scene".to_owned(), scene.to_owned());
-    out.write_metadata(&mcap::records::Metadata {
-        name: "sinew".to_owned(),
-        metadata,
-    })
-    .map_err(write_error(path))?;
-    Ok(out)
-}
-
 /// Channel ids.
 struct Channels {
     ticks: u16,
@@ -346,306 +321,9 @@ struct Channels {
     devices: Vec<(u16, u16)>,
 }
 
-impl Channels {
-    fn add<W: std::io::Write + std::io::Seek>(
-        out: &mut mcap::Writer<W>,
-        world: Option<&World>,
-    ) -> Result<Self, mcap::McapError> {
-        let none = BTreeMap::new();
-        let ticks = out.add_channel(0, TOPIC_TICKS, TICKS_ENCODING, &none)?;
-        let final_state = out.add_channel(0, TOPIC_FINAL, TICKS_ENCODING, &none)?;
-        let pose_schema = out.add_schema(
-            "sinew.DevicePose",
-            "jsonschema",
-            super::json_view::POSE_SCHEMA.as_bytes(),
-        )?;
-        let force_schema = out.add_schema(
-            "sinew.ForceCommand",
-            "jsonschema",
-            super::json_view::FORCE_SCHEMA.as_bytes(),
-        )?;
-        let event_schema = out.add_schema(
-            "sinew.SessionEvent",
-            "jsonschema",
-            super::json_view::EVENT_SCHEMA.as_bytes(),
-        )?;
-        let events = out.add_channel(event_schema, TOPIC_EVENTS, "json", &none)?;
-        let mut json_channel = |name: &str, schema: &str, topic: &str| {
-            let schema = out.add_schema(name, "jsonschema", schema.as_bytes())?;
-            out.add_channel(schema, topic, "json", &none)
-        };
-        let tools_json = json_channel(
-            "sinew.ToolStates",
-            super::json_view::TOOLS_SCHEMA,
-            TOPIC_TOOLS,
-        )?;
-        let stats_json = json_channel(
-            "sinew.ServerStats",
-            super::json_view::STATS_SCHEMA,
-            TOPIC_STATS,
-        )?;
-        let presence_json = json_channel(
-            "sinew.Presence",
-            super::json_view::PRESENCE_SCHEMA,
-            TOPIC_PRESENCE,
-        )?;
-        let tools = world.map_or(&[][..], |w| &w.tools[..]);
-        let mut devices = Vec::with_capacity(tools.len());
-        for tool in tools {
-            let mut metadata = BTreeMap::new();
-            metadata.insert("tool".to_owned(), tool.name.clone());
-            let pose = out.add_channel(
-                pose_schema,
-                &format!("/sinew/{}/pose", tool.device_id),
-                "json",
-                &metadata,
-            )?;
-            let force = out.add_channel(
-                force_schema,
-                &format!("/sinew/{}/force", tool.device_id),
-                "json",
-                &metadata,
-            )?;
-            devices.push((pose, force));
-        }
-        Ok(Self {
-            ticks,
-            final_state,
-            events,
-            tools_json,
-            stats_json,
-            presence_json,
-            wire: BTreeMap::new(),
-            device_ids: tools.iter().map(|t| t.device_id.clone()).collect(),
-            devices,
-        })
-    }
-}
-
 /// The counters the writer thread shares with its handle.
 struct WriterShared<'a> {
     dropped: &'a AtomicU64,
     failed: &'a AtomicBool,
     wire_in_flight: &'a AtomicUsize,
-}
-
-fn write_loop<W: std::io::Write + std::io::Seek>(
-    mut out: mcap::Writer<W>,
-    mut channels: Channels,
-    items: Receiver<Item>,
-    give_back: Option<SyncSender<Box<TickRecord>>>,
-    tick_ns: u64,
-    mut summary: RecordSummary,
-    shared: &WriterShared<'_>,
-) -> RecordSummary {
-    let WriterShared {
-        dropped,
-        failed,
-        wire_in_flight,
-    } = *shared;
-    let mut sequence = 0u32;
-    let mut bytes = Vec::with_capacity(4096);
-    let fail = |summary: &mut RecordSummary, what: String| {
-        if summary.error.is_none() {
-            tracing::error!(
-                file = %summary.path.display(),
-                "recording stopped: {what}; the session goes on unrecorded"
-            );
-            summary.error = Some(what);
-            failed.store(true, Ordering::Relaxed);
-        }
-    };
-    for item in items {
-        match item {
-            Item::Tick(record) => {
-                if summary.error.is_none() {
-                    let time_ns = record.tick.saturating_mul(tick_ns);
-                    let message = TickMessage::from(record.as_ref());
-                    let result = write_tick(
-                        &mut out,
-                        &channels,
-                        &message,
-                        time_ns,
-                        &mut sequence,
-                        &mut bytes,
-                    )
-                    .and_then(|()| {
-                        write_events(&mut out, &channels, &record, time_ns, &mut sequence)
-                    });
-                    match result {
-                        Ok(()) => summary.ticks += 1,
-                        Err(e) => fail(&mut summary, e),
-                    }
-                }
-                if let Some(give_back) = &give_back {
-                    let _ = give_back.try_send(record);
-                }
-            }
-            Item::Wire(item) => {
-                wire_in_flight.fetch_sub(1, Ordering::AcqRel);
-                if summary.error.is_none() {
-                    match write_wire(&mut out, &mut channels, &item, &mut sequence) {
-                        Ok(()) => summary.wire_items += 1,
-                        Err(e) => fail(&mut summary, e),
-                    }
-                }
-            }
-            Item::End => break,
-            Item::Final(state) => {
-                if summary.error.is_none() {
-                    let time_ns = state.ticks.saturating_mul(tick_ns);
-                    let result = postcard::to_allocvec(&state)
-                        .map_err(|e| e.to_string())
-                        .and_then(|data| {
-                            write_message(
-                                &mut out,
-                                channels.final_state,
-                                &mut sequence,
-                                time_ns,
-                                &data,
-                            )
-                        });
-                    match result {
-                        Ok(()) => summary.final_state = true,
-                        Err(e) => fail(&mut summary, e),
-                    }
-                }
-            }
-        }
-    }
-    if summary.error.is_none()
-        && let Err(e) = out.finish()
-    {
-        fail(&mut summary, describe(&e));
-    }
-    summary.dropped = dropped.load(Ordering::Relaxed);
-    summary
-}
-
-fn write_tick<W: std::io::Write + std::io::Seek>(
-    out: &mut mcap::Writer<W>,
-    channels: &Channels,
-    message: &TickMessage,
-    time_ns: u64,
-    sequence: &mut u32,
-    bytes: &mut Vec<u8>,
-) -> Result<(), String> {
-    bytes.clear();
-    let data = postcard::to_extend(message, std::mem::take(bytes)).map_err(|e| e.to_string())?;
-    write_message(out, channels.ticks, sequence, time_ns, &data)?;
-    *bytes = data;
-    for (device, &(pose_channel, force_channel)) in message.devices.iter().zip(&channels.devices) {
-        if let Some(pose) = &device.pose {
-            let json = super::json_view::pose_json(pose, device.age_s, device.usable)?;
-            write_message(out, pose_channel, sequence, time_ns, json.as_bytes())?;
-        }
-        if let Some(force) = &device.force {
-            let json = super::json_view::force_json(force)?;
-            write_message(out, force_channel, sequence, time_ns, json.as_bytes())?;
-        }
-    }
-    Ok(())
-}
-
-fn write_wire<W: std::io::Write + std::io::Seek>(
-    out: &mut mcap::Writer<W>,
-    channels: &mut Channels,
-    item: &WireItem,
-    sequence: &mut u32,
-) -> Result<(), String> {
-    match item {
-        WireItem::Sample {
-            key,
-            log_time_ns,
-            payload,
-        } => {
-            let channel = match channels.wire.get(key) {
-                Some(&id) => id,
-                None => {
-                    let mut metadata = BTreeMap::new();
-                    metadata.insert(
-                        "format".to_owned(),
-                        "sinew wire envelope: u16 LE protocol version, u8 message kind, u64 LE sender, \
-                         postcard body"
-                            .to_owned(),
-                    );
-                    let id = out
-                        .add_channel(0, key, WIRE_ENCODING, &metadata)
-                        .map_err(|e| describe(&e))?;
-                    channels.wire.insert(key.clone(), id);
-                    id
-                }
-            };
-            write_message(out, channel, sequence, *log_time_ns, payload)?;
-            // JSON views of the low-rate messages an instructor reads in Foxglove.
-            let view = if key.ends_with("/tools") {
-                sinew_protocol::decode::<sinew_protocol::ToolStates>(payload)
-                    .ok()
-                    .map(|m| (channels.tools_json, serde_json::to_vec(&m)))
-            } else if key.ends_with("/stats") {
-                sinew_protocol::decode::<sinew_protocol::ServerStats>(payload)
-                    .ok()
-                    .map(|m| (channels.stats_json, serde_json::to_vec(&m)))
-            } else {
-                None
-            };
-            if let Some((channel, json)) = view {
-                let json = json.map_err(|e| e.to_string())?;
-                write_message(out, channel, sequence, *log_time_ns, &json)?;
-            }
-            Ok(())
-        }
-        WireItem::Presence {
-            key,
-            joined,
-            log_time_ns,
-        } => {
-            let json = super::json_view::presence_json(key, *joined)?;
-            write_message(
-                out,
-                channels.presence_json,
-                sequence,
-                *log_time_ns,
-                json.as_bytes(),
-            )
-        }
-    }
-}
-
-fn write_events<W: std::io::Write + std::io::Seek>(
-    out: &mut mcap::Writer<W>,
-    channels: &Channels,
-    record: &TickRecord,
-    time_ns: u64,
-    sequence: &mut u32,
-) -> Result<(), String> {
-    for event in record.events() {
-        let device = channels
-            .device_ids
-            .get(usize::from(event.tool))
-            .map_or("", String::as_str);
-        let json = super::json_view::event_json(event, device)?;
-        write_message(out, channels.events, sequence, time_ns, json.as_bytes())?;
-    }
-    Ok(())
-}
-
-fn write_message<W: std::io::Write + std::io::Seek>(
-    out: &mut mcap::Writer<W>,
-    channel_id: u16,
-    sequence: &mut u32,
-    time_ns: u64,
-    data: &[u8],
-) -> Result<(), String> {
-    *sequence = sequence.wrapping_add(1);
-    out.write_to_known_channel(
-        &mcap::records::MessageHeader {
-            channel_id,
-            sequence: *sequence,
-            log_time: time_ns,
-            publish_time: time_ns,
-        },
-        data,
-    )
-    .map_err(|e| describe(&e))
 }

@@ -33,9 +33,15 @@
 //! O(active region) (never O(object)). A rebuild (the active set changed: O(region), a few times per touch)
 //! refills the kept parts and sub-model in place, so nothing is allocated once the buffers have held a
 //! region this large (`server/tests/no_allocation.rs` counts it).
+//!
+//! Here: the tracker's settings, state and per-tick decisions ([`RegionTracker::update`]). The levels'
+//! breadth-first search and the depth changes are in `levels`; the sub-model, its rebuild and the step
+//! through it in `sub_model`.
 
-use super::integrators::fit;
-use super::{Integrator, MassSpringModel, ModelParts, TissueState, Vec3};
+use super::{MassSpringModel, ModelParts, TissueState, Vec3};
+
+mod levels;
+mod sub_model;
 
 /// Quiet levels kept active beyond the outermost live one; contacts must sit this many levels inside.
 pub const MARGIN_LEVELS: u32 = 2;
@@ -300,53 +306,6 @@ impl RegionTracker {
         self.stale = true;
     }
 
-    /// Advance the active region by `dt_s` with `integrator` (any method, unchanged), leaving every other node
-    /// as it is. Returns the integrator's iterations (0 when the region is empty). Real-time contract: no
-    /// allocation once the integrator is warm for this sub-model, never panics, O(region).
-    pub fn step(
-        &mut self,
-        integrator: &mut dyn Integrator,
-        state: &mut TissueState,
-        dt_s: f32,
-    ) -> u32 {
-        let Some(sub) = &self.sub_model else {
-            return 0;
-        };
-        if self.depth == 0 {
-            return 0;
-        }
-        let s = &mut self.sub_state;
-        for (k, (&g, &active)) in self.sub_nodes.iter().zip(&self.sub_active).enumerate() {
-            let g = g as usize;
-            s.positions_mm[k] = state.positions_mm[g];
-            s.velocities_mm_s[k] = if active {
-                state.velocities_mm_s[g]
-            } else {
-                Vec3::zeros()
-            };
-            s.external_forces_n[k] = state.external_forces_n[g];
-        }
-        s.pinned.clear();
-        for &g in &state.pinned {
-            if let Some(&local) = self.local_of.get(g as usize)
-                && local != OUTSIDE
-            {
-                s.pinned.push(local);
-            }
-        }
-        s.pinned.sort_unstable();
-        let iterations = integrator.step(sub, s, dt_s);
-        for (k, (&g, &active)) in self.sub_nodes.iter().zip(&self.sub_active).enumerate() {
-            if active {
-                let g = g as usize;
-                state.positions_mm[g] = s.positions_mm[k];
-                state.velocities_mm_s[g] = s.velocities_mm_s[k];
-                state.forces_n[g] = s.forces_n[k];
-            }
-        }
-        iterations
-    }
-
     /// Rebuild the sub-model if the active set changed; report.
     fn finish(&mut self, model: &MassSpringModel) -> RegionUpdate {
         let rebuilt = self.stale;
@@ -358,215 +317,6 @@ impl RegionTracker {
             active_nodes: self.active_nodes().len() as u32,
             rebuilt,
         }
-    }
-
-    /// New levels from `self.seeds`, [`MARGIN_LEVELS`] + 1 deep; nodes that were active and are not any more
-    /// have their velocities zeroed.
-    fn reseed(&mut self, model: &MassSpringModel, state: &mut TissueState) {
-        self.previous_active.clear();
-        let end = self
-            .level_start
-            .get(self.depth as usize)
-            .copied()
-            .unwrap_or(0) as usize;
-        self.previous_active
-            .extend_from_slice(&self.order[..end.min(self.order.len())]);
-        self.clear();
-        for &s in &self.seeds {
-            if let Some(level) = self.level_of.get_mut(s as usize)
-                && *level == OUTSIDE
-            {
-                *level = 0;
-                self.order.push(s);
-            }
-        }
-        self.level_start.push(self.order.len() as u32);
-        self.settle_s = 0.0;
-        self.set_depth(model, state, 1 + MARGIN_LEVELS);
-        for &i in &self.previous_active {
-            if self.level_of[i as usize] >= self.depth {
-                state.velocities_mm_s[i as usize] = Vec3::zeros();
-            }
-        }
-    }
-
-    /// Make levels `0..depth` active, computing levels up to `depth` (the boundary) as needed; the depth stops
-    /// where the BFS runs out of nodes. Nodes leaving the active set have their velocities zeroed.
-    fn set_depth(&mut self, model: &MassSpringModel, state: &mut TissueState, depth: u32) {
-        let computed = |s: &Self| s.level_start.len() as u32 - 1;
-        // Extend the BFS until level `depth` exists or the component is exhausted.
-        while computed(self) <= depth {
-            let level = computed(self);
-            if level == 0 {
-                break;
-            }
-            let (from, to) = (
-                self.level_start[level as usize - 1] as usize,
-                self.level_start[level as usize] as usize,
-            );
-            if from == to {
-                break;
-            }
-            for k in from..to {
-                let i = self.order[k] as usize;
-                for &s in model.node_springs(i) {
-                    let j = model.other_end(s, i);
-                    if self.level_of[j] == OUTSIDE {
-                        self.level_of[j] = level;
-                        self.order.push(j as u32);
-                    }
-                }
-            }
-            self.level_start.push(self.order.len() as u32);
-        }
-        // Levels with nodes: 0..nonempty.
-        let nonempty = (0..computed(self))
-            .take_while(|&l| self.level_start[l as usize] < self.level_start[l as usize + 1])
-            .count() as u32;
-        let depth = depth.min(nonempty);
-        if depth < self.depth {
-            // Leaving the active set: levels depth..self.depth keep their positions and stop.
-            let (from, to) = (
-                self.level_start[depth as usize] as usize,
-                self.level_start[self.depth as usize] as usize,
-            );
-            for &i in &self.order[from..to] {
-                state.velocities_mm_s[i as usize] = Vec3::zeros();
-            }
-        }
-        // Keep levels 0..=depth (the boundary ring); forget the rest.
-        let keep_levels = (depth as usize + 1).min(self.level_start.len() - 1);
-        let keep = self.level_start[keep_levels] as usize;
-        for &i in &self.order[keep..] {
-            self.level_of[i as usize] = OUTSIDE;
-        }
-        self.order.truncate(keep);
-        self.level_start.truncate(keep_levels + 1);
-        if depth == 0 {
-            self.clear();
-        }
-        if depth != self.depth {
-            self.stale = true;
-        }
-        self.depth = depth;
-    }
-
-    /// The sub-model over the active nodes and their boundary ring, in original index order.
-    fn rebuild(&mut self, model: &MassSpringModel) {
-        for &g in &self.sub_nodes {
-            self.local_of[g as usize] = OUTSIDE;
-        }
-        self.sub_nodes.clear();
-        self.sub_active.clear();
-        if self.depth == 0 {
-            if let Some(model) = self.sub_model.take() {
-                self.spare_model = Some(model);
-            }
-            return;
-        }
-        self.rebuilds += 1;
-        self.sub_nodes.extend_from_slice(&self.order);
-        self.sub_nodes.sort_unstable();
-        for (k, &g) in self.sub_nodes.iter().enumerate() {
-            self.local_of[g as usize] = k as u32;
-            self.sub_active.push(self.level_of[g as usize] < self.depth);
-        }
-        let n = self.sub_nodes.len();
-        let rest = model.rest_positions_mm();
-        let springs = model.springs();
-        // Refill the kept parts in place: no allocation once they have held a region this large.
-        let parts = &mut self.parts;
-        parts.rest_positions_mm.clear();
-        parts
-            .rest_positions_mm
-            .extend(self.sub_nodes.iter().map(|&g| rest[g as usize]));
-        parts.mass_kg.clear();
-        parts
-            .mass_kg
-            .extend(self.sub_nodes.iter().map(|&g| model.mass_kg()[g as usize]));
-        parts.fixed.clear();
-        parts.fixed.extend(
-            self.sub_nodes
-                .iter()
-                .zip(&self.sub_active)
-                .map(|(&g, &active)| !active || model.is_fixed(g as usize)),
-        );
-        parts.law = Some(model.law());
-        parts.anchor_stiffness_n_per_mm = model.anchor_stiffness_n_per_mm();
-        parts.drag_per_s = model.drag_per_s();
-        parts.gravity_mm_per_s2 = model.gravity_mm_per_s2();
-        parts.tet_bulk_modulus_n_per_mm2 = model.tets().bulk_modulus_n_per_mm2;
-        parts.fem = model.fem().material();
-        parts.edges.clear();
-        parts.edge_stiffness_n_per_mm.clear();
-        parts.edge_damping_n_s_per_mm.clear();
-        parts.tets.clear();
-        let expected_springs = n * 3;
-        parts.edges.reserve(expected_springs);
-        parts.edge_stiffness_n_per_mm.reserve(expected_springs);
-        parts.edge_damping_n_s_per_mm.reserve(expected_springs);
-        for k in 0..n {
-            if !self.sub_active[k] {
-                continue;
-            }
-            let g = self.sub_nodes[k] as usize;
-            for &s in model.node_springs(g) {
-                let other = self.local_of[model.other_end(s, g)];
-                if other == OUTSIDE || (self.sub_active[other as usize] && (other as usize) < k) {
-                    // Outside cannot happen (the ring holds every neighbour); an active pair is taken once.
-                    continue;
-                }
-                let k = k as u32;
-                parts.edges.push([k.min(other), k.max(other)]);
-                parts
-                    .edge_stiffness_n_per_mm
-                    .push(springs.stiffness_n_per_mm[s as usize]);
-                parts
-                    .edge_damping_n_s_per_mm
-                    .push(springs.damping_n_s_per_mm[s as usize]);
-            }
-        }
-        // Tetrahedra touching an active node, each once; a tet with a vertex beyond the ring (only possible when
-        // its edges are not springs) is left out.
-        if !self.tet_stamp.is_empty() {
-            let stamp = self.rebuilds as u32;
-            let tets = model.tets();
-            for k in 0..n {
-                if !self.sub_active[k] {
-                    continue;
-                }
-                for &t in model.node_tets(self.sub_nodes[k] as usize) {
-                    let Some(mark) = self.tet_stamp.get_mut(t as usize) else {
-                        continue;
-                    };
-                    if *mark == stamp {
-                        continue;
-                    }
-                    *mark = stamp;
-                    let local = tets.tets[t as usize].map(|v| self.local_of[v as usize]);
-                    if local.iter().all(|&v| v != OUTSIDE) {
-                        parts.tets.push(local);
-                    }
-                }
-            }
-        }
-        let mut sub = match self.sub_model.take().or_else(|| self.spare_model.take()) {
-            Some(model) => model,
-            None => MassSpringModel::from_parts(ModelParts::default()),
-        };
-        sub.rebuild_from(&self.parts);
-        // The region steps on the same threads as the whole object would.
-        sub.set_chunk_runner(model.shared_chunk_runner().cloned());
-        let s = &mut self.sub_state;
-        for buffer in [
-            &mut s.positions_mm,
-            &mut s.velocities_mm_s,
-            &mut s.forces_n,
-            &mut s.external_forces_n,
-        ] {
-            fit(buffer, n);
-        }
-        self.sub_model = Some(sub);
     }
 }
 
