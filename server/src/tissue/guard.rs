@@ -30,10 +30,17 @@ pub const ENERGY_GROWTH: f64 = 1.5;
 pub const ENERGY_FLOOR_N_MM: f64 = 1e-6;
 
 /// Whether the energy rose from `before` to `after` (N mm) by more than the growth factor, the floor and the
-/// `allowance_n_mm` of work done from outside. Non-finite `after` counts as growth.
+/// `allowance_n_mm` of work done from outside. Non-finite `after` counts as growth. The growth is a share of
+/// the energy's size: under gravity the mechanical energy is negative once an object hangs below its rest
+/// shape, and a settling object's energy then falls further below zero, which is not growth.
 pub fn energy_grew(before_n_mm: f64, after_n_mm: f64, allowance_n_mm: f64) -> bool {
-    !after_n_mm.is_finite()
-        || after_n_mm > ENERGY_GROWTH * before_n_mm + allowance_n_mm + ENERGY_FLOOR_N_MM
+    // `before + (ENERGY_GROWTH - 1) |before|`, written so a non-negative `before` gives the same bits as ever.
+    let grown_n_mm = if before_n_mm >= 0.0 {
+        ENERGY_GROWTH * before_n_mm
+    } else {
+        (2.0 - ENERGY_GROWTH) * before_n_mm
+    };
+    !after_n_mm.is_finite() || after_n_mm > grown_n_mm + allowance_n_mm + ENERGY_FLOOR_N_MM
 }
 
 /// The most work one active tool can have done on the tissue in a step, N mm: four times its force limit times
@@ -108,6 +115,16 @@ impl DivergenceGuard {
             max_speed_mm_s: DEFAULT_MAX_SPEED_MM_S,
             max_displacement_mm: diagonal,
         }
+    }
+
+    /// The same guard with another displacement limit, mm: an object whose nodes honestly travel further than
+    /// its rest size (a thread fixed at one end swings through twice its length) is judged against what it can
+    /// reach. A non-finite or non-positive limit keeps the default.
+    pub fn with_max_displacement_mm(mut self, limit_mm: f32) -> Self {
+        if limit_mm.is_finite() && limit_mm > 0.0 {
+            self.max_displacement_mm = limit_mm;
+        }
+        self
     }
 
     /// Remember `state` (no allocation once sized).
@@ -227,10 +244,33 @@ impl DivergenceGuard {
         }
         // kg (mm/s)^2 = 1e-3 N mm.
         let kinetic = 0.5e-3 * f64::from(kinetic_2);
+        // Gravity's potential counts with its sign: an object falling under gravity trades it for kinetic
+        // energy, which is not growth (`energy_grew` measures growth against the energy's size).
         let potential = f64::from(nodes) + model.elastic_energy_n_mm(&state.positions_mm);
         Assessment {
             broken,
-            energy_n_mm: kinetic + potential.max(0.0),
+            energy_n_mm: kinetic + potential,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn growth_is_a_share_of_the_energy_whatever_its_sign() {
+        // Positive energy: as ever, 1.5 times plus the floor.
+        assert!(!energy_grew(1.0, 1.5, 0.0));
+        assert!(energy_grew(1.0, 1.6, 0.0));
+        // A hanging object's energy is negative (gravity's potential): settling lower is not growth, and
+        // gaining half its size is.
+        assert!(!energy_grew(-1.0, -1.2, 0.0));
+        assert!(!energy_grew(-1.0, -0.5, 0.0));
+        assert!(energy_grew(-1.0, -0.4, 0.0));
+        // The allowance and the floor apply on both sides of zero.
+        assert!(!energy_grew(-1.0, 0.5, 1.0));
+        assert!(!energy_grew(0.0, 0.5 * ENERGY_FLOOR_N_MM, 0.0));
+        assert!(energy_grew(-1.0, f64::NAN, 0.0));
     }
 }
