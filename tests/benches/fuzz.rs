@@ -1,11 +1,11 @@
-//! The generated-input fuzzer at scale: `cargo bench -p sinew --bench fuzz -- [--decoders N] [--worlds N]
+//! The generated-input fuzzer at scale: `cargo bench -p sinew-testkit --bench fuzz -- [--decoders N] [--worlds N]
 //! [--recordings N] [--seed S]` (defaults: 10,000,000 decoder inputs, 100,000 worlds, 10,000 recordings).
 //! Prints, per target, the inputs tried, accepted, refused and crashed, and the rate; exits 1 on any crash,
 //! printing the inputs that made the first ones.
 
 use std::time::Instant;
 
-use sinew::fuzz::{TargetReport, fuzz_decoders, fuzz_recordings, fuzz_world_loader};
+use sinew_testkit::fuzz::{TargetReport, fuzz_decoders, fuzz_recordings, fuzz_world_loader};
 
 fn arg(name: &str, default: u64) -> u64 {
     let args: Vec<String> = std::env::args().collect();

@@ -1,12 +1,12 @@
 //! Force against depth of an 8 mm sphere pressed into the Hertz block (issue "Tissue from material data"):
 //! Hertz's answer, the corotational FEM, the calibrated springs and the old hand-tuned per-edge springs, as a
-//! table and a figure. The machinery is `sinew::hertz` (shared with `tests/tests/hertz.rs`); the answers are
+//! table and a figure. The machinery is `sinew_testkit::hertz` (shared with `tests/tests/hertz.rs`); the answers are
 //! static equilibria, so they do not depend on the machine.
 //!
 //! ```text
-//! cargo bench -p sinew --bench hertz_figure                                         # the table
-//! cargo bench -p sinew --bench hertz_figure -- --figure ../docs/hertz_force_depth.png  (relative to tests/)
-//! cargo bench -p sinew --bench hertz_figure -- --simulated   # also the FEM as the simulation renders it
+//! cargo bench -p sinew-testkit --bench hertz_figure                                         # the table
+//! cargo bench -p sinew-testkit --bench hertz_figure -- --figure ../docs/hertz_force_depth.png  (relative to tests/)
+//! cargo bench -p sinew-testkit --bench hertz_figure -- --simulated   # also the FEM as the simulation renders it
 //! ```
 //!
 //! `--simulated` adds, at 1.5 mm, the force the simulation itself renders to the indenter (tool commands in,
@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context as _;
 use plotters::prelude::*;
 use sinew::figure_font::plot_error;
-use sinew::hertz::{Material, block_parts, hertz_n, press};
+use sinew_testkit::hertz::{Material, block_parts, hertz_n, press};
 
 /// Depths, mm: 0.25 to 3 in quarter millimetres.
 fn depths_mm() -> Vec<f32> {
@@ -72,7 +72,7 @@ fn main() -> anyhow::Result<()> {
     if std::env::args().any(|a| a == "--simulated") {
         let h = hertz_n(1.5);
         for (label, step_hz) in [("multi-rate at 25 Hz", 25), ("stepped every tick", 1000)] {
-            let f = sinew::hertz::sim_press(Material::Fem, step_hz, &[1.5])?[0];
+            let f = sinew_testkit::hertz::sim_press(Material::Fem, step_hz, &[1.5])?[0];
             println!(
                 "FEM in the simulation, {label}: 1.5 mm: {f:.4} N, Hertz {h:.4} N ({:+.1}%)",
                 (f / h - 1.0) * 100.0

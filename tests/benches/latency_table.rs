@@ -1,13 +1,13 @@
 //! The latency-moderated mode's results (issue "Remote surgeons"): a table of mode x round trip x hand, and the
 //! figure of force against time for direct and moderated mode at 100 ms with the light hand.
 //!
-//! Every run is a drill on virtual time (`sinew::scenarios`): the real server tick and device loops joined by
+//! Every run is a drill on virtual time (`sinew_testkit::scenarios`): the real server tick and device loops joined by
 //! seeded emulated links, so the figures are deterministic and do not depend on the machine's speed.
 //!
 //! ```text
-//! cargo bench -p sinew --bench latency_table                      # table, all round trips
-//! cargo bench -p sinew --bench latency_table -- --rtts 100,200    # fewer round trips
-//! cargo bench -p sinew --bench latency_table -- --figure figures/force_direct_vs_moderated_100ms_light.png  (relative to tests/)
+//! cargo bench -p sinew-testkit --bench latency_table                      # table, all round trips
+//! cargo bench -p sinew-testkit --bench latency_table -- --rtts 100,200    # fewer round trips
+//! cargo bench -p sinew-testkit --bench latency_table -- --figure figures/force_direct_vs_moderated_100ms_light.png  (relative to tests/)
 //! ```
 //!
 //! Columns: the hold on the soft pad and on the 10x stiffer pad at +-20 ms jitter and 5% loss (stable = force
@@ -24,9 +24,9 @@ use std::sync::Mutex;
 use anyhow::Context as _;
 use hapticserver::{HandPreset, ModePolicy, TraceSample};
 use plotters::prelude::*;
-use sinew::drill::Link;
 use sinew::figure_font::plot_error;
-use sinew::scenarios::{felt_stiffness_n_per_mm, hold, lossy_link, stroke_error};
+use sinew_testkit::drill::Link;
+use sinew_testkit::scenarios::{felt_stiffness_n_per_mm, hold, lossy_link, stroke_error};
 
 const HANDS: [HandPreset; 3] = [HandPreset::Light, HandPreset::Nominal, HandPreset::Firm];
 const MODES: [ModePolicy; 2] = [ModePolicy::Direct, ModePolicy::Moderated];

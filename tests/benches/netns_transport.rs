@@ -15,7 +15,7 @@
 //! echo starts at all on a lossy UDP-only transport, where declarations travel unreliably.
 //!
 //! Run (root; the `sinew-netem` binary is built with the bench):
-//! `cargo bench -p sinew --bench netns_transport -- --seconds 20 --trials 8`
+//! `cargo bench -p sinew-testkit --bench netns_transport -- --seconds 20 --trials 8`
 //! (`--only tcp|udp|both` restricts the transports; `--skip-trials`, `--skip-table`; `--no-realtime` and
 //! `--relay-spin-ns N` change how the relay waits; `--open-timeout-ms N` sets zenoh's link handshake timeout;
 //! `--tcp-cc cubic` the lab's TCP congestion control (default: the host's, `bbr` here); `--verbose` prints the
@@ -29,10 +29,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use sinew::netem::DEFAULT_SPIN_NS;
-use sinew::netns::{LabConfig, NetnsLab, wait_output};
 use sinew_protocol::network::NetworkOptions;
 use sinew_protocol::rt::{LatencyHistogram, Pacer};
+use sinew_testkit::netem::DEFAULT_SPIN_NS;
+use sinew_testkit::netns::{LabConfig, NetnsLab, wait_output};
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Reliability};
 

@@ -7,21 +7,21 @@
 //! 4. the server tick time inside the live system;
 //! 5. mesh-delta bytes/s while the tissue is stroked, against sending the whole mesh at the same rate.
 //!
-//! Run: `cargo bench -p sinew --bench round_trip` (add `-- --seconds N`, default 10).
+//! Run: `cargo bench -p sinew-testkit --bench round_trip` (add `-- --seconds N`, default 10).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use sinew::harness::{
-    Pacing, SimDeviceSetup, free_loopback_endpoint, load_shipped_world, start_server,
-    start_sim_device_emulated, surgeon_scripts,
-};
 use sinew_protocol::DevicePose;
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::network::NetworkOptions;
 use sinew_protocol::rt::{LatencyHistogram, Pacer};
+use sinew_testkit::harness::{
+    Pacing, SimDeviceSetup, free_loopback_endpoint, load_shipped_world, start_server,
+    start_sim_device_emulated, surgeon_scripts,
+};
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 

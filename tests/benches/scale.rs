@@ -4,18 +4,18 @@
 //! replicate the scene headless. The pad gets two more probes (devices `left2` and `right2`, 15 mm from the
 //! first two along y) for the second phase.
 //!
-//! Run: `cargo bench -p sinew --bench scale` (add `-- --seconds N`, default 10 per phase, and `-- --viewers N`,
+//! Run: `cargo bench -p sinew-testkit --bench scale` (add `-- --seconds N`, default 10 per phase, and `-- --viewers N`,
 //! default 16).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
 
 use std::time::Duration;
 
-use sinew::harness::{
+use sinew_protocol::rt::LatencyHistogram;
+use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
     start_viewer, surgeon_scripts,
 };
-use sinew_protocol::rt::LatencyHistogram;
 
 fn arg(name: &str, default: f64) -> f64 {
     let args: Vec<String> = std::env::args().collect();

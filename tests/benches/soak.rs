@@ -8,16 +8,16 @@
 //! issue's bound is 5%), and the last window's p99s over the first's (drift shows as a ratio well above 1; the
 //! machine's noise moves single windows by tens of percent, so read the whole column).
 //!
-//! Run: `cargo bench -p sinew --bench soak` (options: `--minutes M`, default 10; `--window-s S`, default 60).
+//! Run: `cargo bench -p sinew-testkit --bench soak` (options: `--minutes M`, default 10; `--window-s S`, default 60).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
 
 use std::time::{Duration, Instant};
 
-use sinew::harness::{
+use sinew_protocol::rt::LatencyHistogram;
+use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
     start_viewer, surgeon_scripts, wait_until,
 };
-use sinew_protocol::rt::LatencyHistogram;
 
 fn arg(name: &str, default: f64) -> f64 {
     let args: Vec<String> = std::env::args().collect();

@@ -1,8 +1,8 @@
-//! Exploratory: one drill, metrics printed. `cargo run --release -p sinew --example drill_explore -- <world> <hand> <mode> <rtt_ms>`
+//! Exploratory: one drill, metrics printed. `cargo run --release -p sinew-testkit --example drill_explore -- <world> <hand> <mode> <rtt_ms>`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use hapticserver::{HandPreset, HandScript, ModePolicy};
-use sinew::drill::*;
-use sinew::harness::load_shipped_world;
+use sinew_testkit::drill::*;
+use sinew_testkit::harness::load_shipped_world;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

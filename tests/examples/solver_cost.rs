@@ -1,7 +1,7 @@
 //! Exploratory: contact-stiffness solve size and iterations under a press; time of Sim::step with it.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-use sinew::harness::load_shipped_world;
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_testkit::harness::load_shipped_world;
 fn main() {
     let world = load_shipped_world("pad.toml").unwrap();
     let mut sim = Sim::new(&world).unwrap();

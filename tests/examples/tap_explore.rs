@@ -1,10 +1,10 @@
 //! Exploratory: the tap transient drill, with the largest force steps and the energy account around them.
-//! `cargo run --release -p sinew --example tap_explore -- <hand> <rtt_ms> <jitter_ms> <loss> <seed>`
+//! `cargo run --release -p sinew-testkit --example tap_explore -- <hand> <rtt_ms> <jitter_ms> <loss> <seed>`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use hapticserver::{HandPreset, ModePolicy};
-use sinew::drill::*;
-use sinew::harness::load_shipped_world;
-use sinew::scenarios;
+use sinew_testkit::drill::*;
+use sinew_testkit::harness::load_shipped_world;
+use sinew_testkit::scenarios;
 
 /// One trace sample's z components, the pre-passivity force, the blend offset and the energy account.
 fn print_sample(s: &hapticserver::TraceSample) {

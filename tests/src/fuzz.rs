@@ -5,7 +5,7 @@
 //! Owns: the mutators (bytes: bit flips, interesting bytes, truncation, insertion, removal, duplication, varint
 //! bombs; text: numbers replaced by extreme values, lines deleted, duplicated, swapped or garbled) and the
 //! three targets, each counting inputs, accepted, refused and crashes (a caught panic, with the input that made
-//! it). `cargo bench -p sinew --bench fuzz` runs millions; `tests/tests/fuzz_corpus.rs` a short run of each.
+//! it). `cargo bench -p sinew-testkit --bench fuzz` runs millions; `tests/tests/fuzz_corpus.rs` a short run of each.
 //!
 //! Must not: touch the network, or leave files outside the directory it is given.
 
@@ -15,10 +15,10 @@ use std::path::Path;
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::quantize::QuantBounds;
 use sinew_protocol::*;
-use sinew_server::server_tick::DeadbandParams;
 use sinew_server::recording::{
     FinalState, Recorder, TickRecord, read_recording, replay as replay_recording,
 };
+use sinew_server::server_tick::DeadbandParams;
 use sinew_server::server_tick::{PoseInput, ServerTick};
 use sinew_server::sim::Sim;
 use sinew_server::world::parse_world;

@@ -5,11 +5,11 @@
 use std::time::Duration;
 
 use hapticserver::HandScript;
-use sinew::harness::{Pacing, start_pad_server, start_sim_device, wait_until};
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::keys::SceneKeys;
 use sinew_protocol::network::NetworkOptions;
 use sinew_protocol::{DevicePose, PROTOCOL_VERSION};
+use sinew_testkit::harness::{Pacing, start_pad_server, start_sim_device, wait_until};
 use zenoh::Wait;
 
 #[test]

@@ -9,11 +9,11 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use sinew::debrief::{FrameOptions, PublishOptions, publish, write_frames};
-use sinew::harness::{free_loopback_endpoint, record_two_surgeons, serial, start_viewer};
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ReplayFeed, ServerConfig, ServerError, ServerNode, open_session};
 use sinew_server::recording::{Recording, read_recording};
 use sinew_server::world::World;
+use sinew_testkit::harness::{free_loopback_endpoint, record_two_surgeons, serial, start_viewer};
 use sinew_viewer::scene_view::BACKGROUND_RGB;
 use zenoh::Wait;
 
@@ -143,7 +143,7 @@ fn a_published_replay_is_watched_by_a_viewer_and_sends_no_force() {
 
 #[test]
 fn a_replay_refuses_a_bad_speed_or_being_recorded() {
-    let world = sinew::harness::load_shipped_world("pad.toml").unwrap();
+    let world = sinew_testkit::harness::load_shipped_world("pad.toml").unwrap();
     for speed in [0.0, -1.0, f64::NAN, f64::INFINITY, 1000.0] {
         let config = ServerConfig {
             replay: Some(ReplayFeed {

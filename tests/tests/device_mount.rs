@@ -11,11 +11,11 @@ use hapticserver::{
     Device, DeviceError, DeviceModel, DeviceReading, HandPreset, HandScript, HapticServer,
     ModePolicy, SimDevice, WorldFromDevice,
 };
-use sinew::harness::{
+use sinew_protocol::rt::LatestValue;
+use sinew_testkit::harness::{
     Pacing, deepest_dent_mm, pad_device_config, serial, start_pad_server, wait_device_active,
     wait_until,
 };
-use sinew_protocol::rt::LatestValue;
 
 /// A simulated device that also tells the test what its motors were last told, in its own frame.
 struct MotorSpy {

@@ -6,12 +6,12 @@ use std::time::{Duration, Instant};
 
 use hapticserver::server_watch::{Link, Standing};
 use hapticserver::{HandScript, HapticHandle};
-use sinew::harness::{
+use sinew_protocol::network::{NetworkOptions, with_udp_twin};
+use sinew_server::node::{ServerConfig, ServerError, ServerHandle, ServerNode};
+use sinew_testkit::harness::{
     KillOnDrop, Pacing, deepest_dent_mm, free_loopback_endpoint, load_shipped_world, serial,
     spawn_pad_server_process, start_pad_server, start_sim_device, start_viewer, wait_until,
 };
-use sinew_protocol::network::{NetworkOptions, with_udp_twin};
-use sinew_server::node::{ServerConfig, ServerError, ServerHandle, ServerNode};
 
 /// Device frame: the pad surface is z = 0 at the device origin.
 const HOVER: [f32; 3] = [0.0, 0.0, 10.0];
@@ -180,7 +180,8 @@ fn clients_that_reach_two_live_servers_stay_with_the_one_they_joined() {
             hapticserver::HandPreset::Grip.params(),
             hapticserver::sim_device::sim_device_model(),
         );
-        let mut config = sinew::harness::pad_device_config("left", Box::new(hand), &a_endpoint);
+        let mut config =
+            sinew_testkit::harness::pad_device_config("left", Box::new(hand), &a_endpoint);
         config.network.connect.extend(with_udp_twin(&b_endpoint));
         config.spin_accuracy_ns = 0;
         hapticserver::HapticServer::start(config).unwrap()

@@ -7,12 +7,12 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use hapticserver::{HandScript, HapticHandle};
-use sinew::harness::{
+use sinew_protocol::rt::LatestValue;
+use sinew_server::node::ServerHandle;
+use sinew_testkit::harness::{
     Pacing, deepest_dent_mm, load_shipped_world, replica_error, serial, start_pad_server,
     start_sim_device, start_viewer, wait_until,
 };
-use sinew_protocol::rt::LatestValue;
-use sinew_server::node::ServerHandle;
 
 /// Device frame: the pad surface is z = 0 at the device origin (left origin = world x -18, right = +18).
 const HOVER: [f32; 3] = [0.0, 0.0, 15.0];

@@ -1,10 +1,10 @@
-//! A short run of the generated-input fuzzer (issue "Labs and sites"; `cargo bench -p sinew --bench fuzz` runs
+//! A short run of the generated-input fuzzer (issue "Labs and sites"; `cargo bench -p sinew-testkit --bench fuzz` runs
 //! millions): every decoder, the world loader with the simulation it builds, and the recording reader with the
 //! replay of what it reads, each fed mutated valid input. No panic anywhere, and each target both accepts and
 //! refuses some inputs (so the mutations reach past the first check, and the run can fail).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
-use sinew::fuzz::{TargetReport, fuzz_decoders, fuzz_recordings, fuzz_world_loader};
+use sinew_testkit::fuzz::{TargetReport, fuzz_decoders, fuzz_recordings, fuzz_world_loader};
 
 fn check(report: &TargetReport) {
     println!(

@@ -15,12 +15,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use hapticserver::{HandPreset, ModePolicy, TraceSample};
-use sinew::drill::{DrillDevice, Link, run_drill_observed};
-use sinew::harness::{surgeon_scripts_for, worlds_dir};
 use sinew_protocol::{ForceCommand, InstanceId, encode};
 use sinew_server::server_tick::ServerTick;
 use sinew_server::sim::ToolOutput;
 use sinew_server::world::{InstrumentSpec, World};
+use sinew_testkit::drill::{DrillDevice, Link, run_drill_observed};
+use sinew_testkit::harness::{surgeon_scripts_for, worlds_dir};
 
 /// Virtual time each world runs: long enough for every demo script's whole act (a grasp-pull releases at
 /// 4.3 s, ten snips end at 5 s).
@@ -331,7 +331,7 @@ fn check(name: &str, world: &World, duration_s: f64) -> (Golden, Vec<u32>) {
 }
 
 fn shipped(file: &str) -> World {
-    sinew::harness::load_shipped_world(file).unwrap()
+    sinew_testkit::harness::load_shipped_world(file).unwrap()
 }
 
 /// Every `.toml` under `worlds/` that is a world has a test below (the material presets are a library).

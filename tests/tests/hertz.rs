@@ -1,9 +1,9 @@
 //! Hertz contact (issue "Tissue from material data"): a rigid 8 mm sphere pressed 0.5-3 mm into a large block
 //! of E = 10 kPa, nu = 0.45 follows F = 4/3 E* sqrt(R) d^1.5 within 10%, for the corotational FEM and for the
-//! calibrated springs alike (the machinery and the mesh: `sinew::hertz`). Each model's error is printed.
+//! calibrated springs alike (the machinery and the mesh: `sinew_testkit::hertz`). Each model's error is printed.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)] // test code
 
-use sinew::hertz::{Material, block_parts, hertz_n, press};
+use sinew_testkit::hertz::{Material, block_parts, hertz_n, press};
 
 const DEPTHS_MM: [f32; 3] = [0.5, 1.5, 3.0];
 
@@ -51,7 +51,7 @@ fn a_sphere_pressed_into_calibrated_springs_follows_hertz_within_10_percent() {
 fn the_force_a_hand_feels_from_a_multi_rate_fem_block_follows_hertz() {
     // Not the static solve: the simulation itself, the block stepping at 25 Hz on its pinned-contact steps and
     // the indenter's force rendered every tick from the local model of its latest step.
-    let forces = sinew::hertz::sim_press(Material::Fem, 25, &DEPTHS_MM).unwrap();
+    let forces = sinew_testkit::hertz::sim_press(Material::Fem, 25, &DEPTHS_MM).unwrap();
     for (&d, &f) in DEPTHS_MM.iter().zip(&forces) {
         let h = hertz_n(d);
         println!(

@@ -6,12 +6,12 @@
 
 use std::time::Duration;
 
-use sinew::harness::{
+use sinew_protocol::InstrumentInfo;
+use sinew_server::recording::{read_recording, replay};
+use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, record_two_surgeons_in, replica_error,
     serial, start_server, start_sim_device, start_viewer, surgeon_scripts_for, wait_until,
 };
-use sinew_protocol::InstrumentInfo;
-use sinew_server::recording::{read_recording, replay};
 use sinew_viewer::ViewerHandle;
 
 /// Highest point of the viewer's replica of the sheet above its rest plane, mm.

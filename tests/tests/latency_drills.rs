@@ -3,12 +3,12 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use hapticserver::{HandPreset, HandScript, ModePolicy};
-use sinew::drill::{
+use sinew_testkit::drill::{
     DrillDevice, Link, drift_mm, energy_output_mj, force_amplitude_at, hold_metrics,
     max_force_step, run_drill,
 };
-use sinew::harness::load_shipped_world;
-use sinew::scenarios::{
+use sinew_testkit::harness::load_shipped_world;
+use sinew_testkit::scenarios::{
     felt_stiffness_n_per_mm, hold, lossy_link, one_device, press, stroke_error, taps,
 };
 
@@ -200,7 +200,7 @@ fn right_feels_lefts_push_through_the_tissue_as_at_zero_delay() {
     };
     // Three whole periods of the 1 Hz push; 4/3 and 5/3 Hz are orthogonal to it over that window and measure
     // what is not the push (tissue noise, contact chatter).
-    let amplitude = |result: &sinew::drill::DrillResult, hz: f64| {
+    let amplitude = |result: &sinew_testkit::drill::DrillResult, hz: f64| {
         force_amplitude_at(&result.traces[1], hz, 3.0, 6.0)
     };
     let reference = run(0.0, 0.0);

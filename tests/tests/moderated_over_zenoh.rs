@@ -15,11 +15,11 @@ use hapticserver::sim_device::sim_device_model;
 use hapticserver::{
     HandPreset, HandScript, HapticConfig, HapticHandle, HapticServer, ModePolicy, SimDevice,
 };
-use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, start_server_emulated, wait_until,
-};
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_protocol::rt::EmulationConfig;
+use sinew_testkit::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, start_server_emulated, wait_until,
+};
 
 const ONE_WAY_MS: f64 = 50.0;
 const JITTER_MS: f64 = 20.0;

@@ -12,8 +12,8 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
-use sinew::harness::serial;
-use sinew::netns::{LabConfig, NetnsLab, Side, role_binary, wait_output};
+use sinew_testkit::harness::serial;
+use sinew_testkit::netns::{LabConfig, NetnsLab, Side, role_binary, wait_output};
 
 /// The build saw a usable lab: it must still be there.
 fn require_lab() {

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use hapticserver::openhaptics::{OpenHapticsConfig, OpenHapticsDevice};
 use hapticserver::{Device, DeviceError, HapticServer};
-use sinew::harness::{
+use sinew_testkit::harness::{
     Pacing, pad_device_config, serial, start_pad_server, wait_device_active, wait_until,
 };
 

@@ -4,7 +4,7 @@
 //! end within 100 us of it, in steps of at most 10 us a tick. Two loops at independent random phases both land
 //! within 100 us of a target by chance only about one time in 25, and at least one of them must have moved. A
 //! device with alignment off still measures its waits and never shifts its loop. Wall-clock
-//! latency is not asserted (benches measure it: `cargo bench -p sinew --bench round_trip`).
+//! latency is not asserted (benches measure it: `cargo bench -p sinew-testkit --bench round_trip`).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
@@ -12,10 +12,10 @@ use std::time::Duration;
 
 use hapticserver::sim_device::sim_device_model;
 use hapticserver::{HandPreset, HandScript, HapticConfig, HapticHandle, HapticServer, ModePolicy};
-use sinew::harness::{
+use sinew_protocol::network::{NetworkOptions, with_udp_twin};
+use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, start_server, wait_until,
 };
-use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 
 fn start_device(endpoint: &str, id: &str, at_x_mm: f32, align: Option<f32>) -> HapticHandle {
     let script = HandScript::Press {

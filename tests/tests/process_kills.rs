@@ -14,12 +14,12 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use hapticserver::HandScript;
-use sinew::harness::{
+use sinew_protocol::network::with_udp_twin;
+use sinew_testkit::harness::{
     KillOnDrop, Pacing, deepest_dent_mm, replica_error, serial, start_pad_server, start_sim_device,
     start_viewer, surgeon_scripts, wait_until,
 };
-use sinew::netns::role_binary;
-use sinew_protocol::network::with_udp_twin;
+use sinew_testkit::netns::role_binary;
 
 fn connect_args(endpoint: &str) -> Vec<String> {
     with_udp_twin(endpoint)

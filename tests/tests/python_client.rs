@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use sinew::harness::{Pacing, serial, start_pad_server};
+use sinew_testkit::harness::{Pacing, serial, start_pad_server};
 
 fn python_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

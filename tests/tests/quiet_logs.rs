@@ -8,9 +8,9 @@
 use std::process::Command;
 use std::time::Duration;
 
-use sinew::harness::{free_loopback_endpoint, spawn_pad_server_process};
-use sinew::netns::{role_binary, wait_output};
 use sinew_protocol::network::with_udp_twin;
+use sinew_testkit::harness::{free_loopback_endpoint, spawn_pad_server_process};
+use sinew_testkit::netns::{role_binary, wait_output};
 
 fn noise(output: &std::process::Output) -> Vec<String> {
     let text = format!(

@@ -7,15 +7,15 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, record_two_surgeons, serial,
-    start_sim_device, surgeon_scripts, wait_until,
-};
-use sinew::netns::role_binary;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerError, ServerNode, SimReport};
 use sinew_server::recording::{ReadError, ReplayOutcome, read_recording, replay, replay_observed};
 use sinew_server::training::{MetricsConfig, SessionObserver};
+use sinew_testkit::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, record_two_surgeons, serial,
+    start_sim_device, surgeon_scripts, wait_until,
+};
+use sinew_testkit::netns::role_binary;
 
 /// Byte offset of the first chunk's compressed records (MCAP: magic, then records of opcode u8, length u64;
 /// a chunk (0x06) has start, end, uncompressed size (u64 each), CRC (u32), compression (u32-length string),

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use hapticserver::HandScript;
 use hapticserver::server_watch::Link;
-use sinew::harness::{
+use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
     start_viewer, wait_until,
 };

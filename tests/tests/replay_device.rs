@@ -5,11 +5,11 @@
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use sinew::harness::{
-    Pacing, deepest_dent_mm, record_two_surgeons, serial, start_pad_server, wait_until,
-};
 use sinew::play_device::{play, read_with_world, recorded_hand};
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
+use sinew_testkit::harness::{
+    Pacing, deepest_dent_mm, record_two_surgeons, serial, start_pad_server, wait_until,
+};
 
 fn norm(v: [f32; 3]) -> f32 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()

@@ -8,11 +8,13 @@ use std::time::Duration;
 use hapticserver::sim_device::sim_device_model;
 use hapticserver::{HandPreset, HandScript, HapticConfig, HapticServer, SimDevice};
 use sinew::certs::{LabCerts, make_lab_certs};
-use sinew::harness::{deepest_dent_mm, load_shipped_world, serial, wait_device_active, wait_until};
 use sinew_protocol::network::NetworkOptions;
 use sinew_protocol::rt::LatestValue;
 use sinew_protocol::security::TlsFiles;
 use sinew_server::node::{ServerConfig, ServerHandle, ServerNode};
+use sinew_testkit::harness::{
+    deepest_dent_mm, load_shipped_world, serial, wait_device_active, wait_until,
+};
 
 fn lab(name: &str) -> LabCerts {
     sinew_server::node::access_refusals::install_for_tests();
@@ -23,7 +25,7 @@ fn lab(name: &str) -> LabCerts {
 
 /// A free loopback port as a secured (QUIC, TLS 1.3) endpoint.
 fn tls_endpoint() -> String {
-    let tcp = sinew::harness::free_loopback_endpoint().unwrap();
+    let tcp = sinew_testkit::harness::free_loopback_endpoint().unwrap();
     tcp.replacen("tcp/", "quic/", 1)
 }
 

@@ -12,12 +12,12 @@
 use std::time::Duration;
 
 use hapticserver::{HapticServer, ModePolicy, SimDevice};
-use sinew::drill::max_force_step;
-use sinew::harness::{
+use sinew_protocol::rt::EmulationConfig;
+use sinew_testkit::drill::max_force_step;
+use sinew_testkit::harness::{
     KillOnDrop, free_loopback_endpoint, pad_device_config, spawn_pad_server_process, wait_until,
 };
-use sinew::scenarios::press;
-use sinew_protocol::rt::EmulationConfig;
+use sinew_testkit::scenarios::press;
 
 /// The silence rule (50 ms) plus its ramp (20 ms): the bound from kill to zero force.
 const KILL_TO_ZERO_S: f64 = 0.070;

@@ -11,10 +11,10 @@
 use std::time::Duration;
 
 use hapticserver::{HapticServer, SimDevice};
-use sinew::harness::{
+use sinew_testkit::harness::{
     KillOnDrop, free_loopback_endpoint, pad_device_config, spawn_pad_server_process, wait_until,
 };
-use sinew::scenarios::press;
+use sinew_testkit::scenarios::press;
 
 fn start_server(endpoint: &str) -> KillOnDrop {
     KillOnDrop(spawn_pad_server_process(endpoint, &[], false).unwrap())

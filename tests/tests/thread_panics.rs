@@ -15,14 +15,14 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use hapticserver::{Device, DeviceError, DeviceModel, DeviceReading, HapticServer, SimDevice};
-use sinew::drill::max_force_step;
-use sinew::harness::{
+use sinew_protocol::network::udp_twin;
+use sinew_testkit::drill::max_force_step;
+use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, pad_device_config, spawn_pad_server_process, start_pad_server,
     wait_until,
 };
-use sinew::netns::{role_binary, wait_output};
-use sinew::scenarios::press;
-use sinew_protocol::network::udp_twin;
+use sinew_testkit::netns::{role_binary, wait_output};
+use sinew_testkit::scenarios::press;
 
 fn norm(f: [f32; 3]) -> f32 {
     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()

@@ -7,11 +7,11 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use sinew::harness::{Pacing, serial, start_pad_server, wait_until};
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::network::NetworkOptions;
 use sinew_protocol::{DevicePose, ForceCommand, InstanceId, ParticipantHello, Role, decode_from};
 use sinew_server::node::{ServerHandle, open_session};
+use sinew_testkit::harness::{Pacing, serial, start_pad_server, wait_until};
 use zenoh::Wait;
 
 /// A raw client for device `left` of the pad, pressing 3 mm (device z = 1 mm) while it runs.

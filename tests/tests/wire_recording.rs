@@ -8,14 +8,14 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::Duration;
 
-use sinew::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_sim_device, surgeon_scripts,
-    wait_until,
-};
-use sinew::netns::role_binary;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_server::node::{ServerConfig, ServerNode};
 use sinew_server::recording::{ReadError, Recording, read_recording, replay, survey};
+use sinew_testkit::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_sim_device, surgeon_scripts,
+    wait_until,
+};
+use sinew_testkit::netns::role_binary;
 
 fn temp(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("sinew-{}-{name}", std::process::id()))

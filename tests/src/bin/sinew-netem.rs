@@ -1,6 +1,6 @@
 //! `sinew-netem`: bridge two interfaces with delay, jitter and seeded loss per direction (the lab's relay).
 //!
-//! Owns: flag parsing, the stop signal and the report; the bridge is [`sinew::netem`].
+//! Owns: flag parsing, the stop signal and the report; the bridge is [`sinew_testkit::netem`].
 //!
 //! Run as root in a namespace holding both interfaces, e.g.
 //! `sinew-netem --a tosrv --b todev --a-to-b delay=50,jitter=20,loss=0.01,seed=1 --b-to-a delay=50,seed=2`.
@@ -13,8 +13,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Parser;
-use sinew::netem::{Bridge, BridgeConfig, DEFAULT_SPIN_NS, format_direction, parse_direction};
 use sinew_protocol::rt::EmulationConfig;
+use sinew_testkit::netem::{
+    Bridge, BridgeConfig, DEFAULT_SPIN_NS, format_direction, parse_direction,
+};
 
 /// Bridge Ethernet frames between two interfaces with one-way delay, jitter and Bernoulli loss.
 #[derive(Debug, Parser)]

@@ -13,7 +13,7 @@ use sinew_server::node::ServerHandle;
 use sinew_server::world::load_world;
 use sinew_viewer::ViewerHandle;
 
-use crate::harness::{
+use crate::loopback::{
     Pacing, SimDeviceSetup, replica_error, start_server_recording, start_sim_device_emulated,
     start_viewer, surgeon_scripts_for,
 };
