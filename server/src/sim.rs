@@ -38,6 +38,7 @@ use guarded::TickStepper;
 pub use object::SimObject;
 pub use step_report::StepReport;
 pub use tool::{SimTool, ToolCommand, ToolOutput};
+use tool::{ToolBody, ToolDrive, ToolHaptics};
 
 use std::sync::Arc;
 
@@ -195,9 +196,10 @@ impl Sim {
         let margin = self.collision_margin_mm;
         for tool in &mut self.tools {
             let mut aabb = tool
+                .body
                 .collider
                 .aabb(&tool.position_mm, &tool.rotation, margin);
-            if let Some(shaft) = &tool.shaft {
+            if let Some(shaft) = &tool.body.shaft {
                 parry3d::bounding_volume::BoundingVolume::merge(
                     &mut aabb,
                     &shaft.aabb(&tool.shaft_centre_mm(), &tool.rotation, margin),
@@ -347,11 +349,12 @@ impl Sim {
             let (model, state) = (&object.model, &object.state);
             for_chunks_mut(model.chunk_runner(), &mut self.tools, 1, |_, tools| {
                 for tool in tools {
-                    let Some(normal) = tool.stiffness_due.get_mut(o).and_then(Option::take) else {
+                    let Some(normal) = tool.haptic.stiffness_due.get_mut(o).and_then(Option::take)
+                    else {
                         continue;
                     };
                     let (Some(solver), Some(contacts)) =
-                        (tool.stiffness.get_mut(o), tool.contacts.get(o))
+                        (tool.haptic.stiffness.get_mut(o), tool.contacts.get(o))
                     else {
                         continue;
                     };

@@ -14,8 +14,8 @@ impl Sim {
     /// device pose).
     pub(super) fn apply_commands(&mut self, dt_s: f32, commands: &[ToolCommand]) {
         for tool in &mut self.tools {
-            tool.was_active = tool.active;
-            tool.last_position_mm = tool.position_mm;
+            tool.drive.was_active = tool.active;
+            tool.drive.last_position_mm = tool.position_mm;
         }
         for (t, tool) in self.tools.iter_mut().enumerate() {
             let Some(command) = commands.get(t) else {
@@ -35,27 +35,27 @@ impl Sim {
                 tool.active = false;
                 continue;
             }
-            tool.jaw_input = command.jaws;
-            tool.device_mm = tool.device_origin_in_world_mm + Vec3::from(p);
-            tool.device_velocity_mm_s = Vec3::from(v);
+            tool.drive.jaw_input = command.jaws;
+            tool.drive.device_mm = tool.device_origin_in_world_mm + Vec3::from(p);
+            tool.drive.device_velocity_mm_s = Vec3::from(v);
             if tool.active {
-                tool.position_mm = tool.coupling.step(
+                tool.position_mm = tool.drive.coupling.step(
                     dt_s,
-                    &tool.device_mm,
-                    &tool.device_velocity_mm_s,
-                    &tool.last_force_n,
-                    &tool.contact_k,
+                    &tool.drive.device_mm,
+                    &tool.drive.device_velocity_mm_s,
+                    &tool.haptic.last_force_n,
+                    &tool.haptic.contact_k,
                 );
             } else {
                 // (Re)taken: enter from outside the tissue, never at the device pose, which may lie in or beyond
                 // a surface (a device that rejoins while pressing, or a pose that jumped while nobody drove
                 // the tool). The coupling brings it to the pose at its speed limit.
-                tool.coupling.reset(tool.entry_mm);
-                tool.joined = false;
-                tool.position_mm = tool.entry_mm;
-                tool.last_position_mm = tool.entry_mm;
-                tool.last_force_n = Vec3::zeros();
-                tool.contact_k = Matrix3::zeros();
+                tool.drive.coupling.reset(tool.drive.entry_mm);
+                tool.drive.joined = false;
+                tool.position_mm = tool.drive.entry_mm;
+                tool.drive.last_position_mm = tool.drive.entry_mm;
+                tool.haptic.last_force_n = Vec3::zeros();
+                tool.haptic.contact_k = Matrix3::zeros();
             }
             tool.active = true;
             tool.rotation =

@@ -109,44 +109,36 @@ impl Sim {
             let origin = Vec3::from(spec.device_origin_in_world_mm);
             let entry_mm = entry_point_mm(&origin, reach_mm, &objects);
             tools.push(SimTool {
-                coupling: VirtualCoupling::new(spec.coupling, origin),
-                device_mm: origin,
-                device_velocity_mm_s: Vec3::zeros(),
-                stiffness: objects
-                    .iter()
-                    .map(|o| ContactStiffness::new(o.model.node_count()))
-                    .collect(),
-                stiffness_due: vec![None; objects.len()],
-                last_force_n: Vec3::zeros(),
-                contact_k: Matrix3::zeros(),
-                plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,
-                plane_damping_n_s_per_mm: 0.0,
-                plane_candidates: Vec::with_capacity(8192),
-                estimate: NormalStiffnessEstimate::default(),
-                instrument: spec.instrument,
-                jaw_input: JawInput::default(),
-                instrument_state: instrument::build_instrument(&spec.instrument, objects.len()),
-                shaft: spec.shaft.map(|s| {
-                    ToolCollider::Capsule(parry3d::shape::Capsule::new_z(
-                        0.5 * s.length_mm,
-                        s.radius_mm,
-                    ))
-                }),
-                shaft_spec: spec.shaft,
-                joined: false,
                 name: spec.name.clone(),
                 device_id: spec.device_id.clone(),
                 shape_spec: spec.shape.clone(),
-                collider,
+                shaft_spec: spec.shaft,
+                instrument: spec.instrument,
                 device_origin_in_world_mm: Vec3::from(spec.device_origin_in_world_mm),
                 max_force_n: spec.max_force_n,
                 position_mm: Vec3::from(spec.device_origin_in_world_mm),
                 rotation: UnitQuaternion::identity(),
                 active: false,
-                was_active: false,
-                last_position_mm: Vec3::from(spec.device_origin_in_world_mm),
-                reach_mm,
-                entry_mm,
+                body: ToolBody {
+                    collider,
+                    shaft: spec.shaft.map(|s| {
+                        ToolCollider::Capsule(parry3d::shape::Capsule::new_z(
+                            0.5 * s.length_mm,
+                            s.radius_mm,
+                        ))
+                    }),
+                    reach_mm,
+                },
+                drive: ToolDrive {
+                    coupling: VirtualCoupling::new(spec.coupling, origin),
+                    device_mm: origin,
+                    device_velocity_mm_s: Vec3::zeros(),
+                    jaw_input: JawInput::default(),
+                    was_active: false,
+                    last_position_mm: Vec3::from(spec.device_origin_in_world_mm),
+                    entry_mm,
+                    joined: false,
+                },
                 contacts: objects
                     .iter()
                     .map(|o| {
@@ -158,19 +150,34 @@ impl Sim {
                         }
                     })
                     .collect(),
+                haptic: ToolHaptics {
+                    stiffness: objects
+                        .iter()
+                        .map(|o| ContactStiffness::new(o.model.node_count()))
+                        .collect(),
+                    stiffness_due: vec![None; objects.len()],
+                    last_force_n: Vec3::zeros(),
+                    contact_k: Matrix3::zeros(),
+                    plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,
+                    plane_damping_n_s_per_mm: 0.0,
+                    plane_candidates: Vec::with_capacity(8192),
+                    estimate: NormalStiffnessEstimate::default(),
+                },
+                instrument_state: instrument::build_instrument(&spec.instrument, objects.len()),
             });
         }
         // Multi-rate objects step as jobs that see each tool's body at its pose when the step leaves.
         let seeds: Vec<ToolSeed> = tools
             .iter()
             .map(|tool| ToolSeed {
-                tip: tool.collider.clone(),
+                tip: tool.body.collider.clone(),
                 shaft: tool
+                    .body
                     .shaft
                     .clone()
                     .zip(tool.shaft_spec.map(|s| 0.5 * s.length_mm)),
                 max_force_n: tool.max_force_n,
-                reach_mm: tool.reach_mm,
+                reach_mm: tool.body.reach_mm,
             })
             .collect();
         for object in objects.iter_mut().filter(|o| o.pins_held) {

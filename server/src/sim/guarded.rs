@@ -80,10 +80,10 @@ impl Sim {
             .filter(|t| t.active)
             .map(|t| {
                 let travel_mm = guard::tool_travel_mm(
-                    t.was_active,
+                    t.drive.was_active,
                     &t.position_mm,
-                    &t.last_position_mm,
-                    t.reach_mm,
+                    &t.drive.last_position_mm,
+                    t.body.reach_mm,
                 );
                 guard::tool_work_allowance_n_mm(t.max_force_n, travel_mm)
             })
@@ -150,8 +150,8 @@ pub(super) fn hold_in_tools(tools: &mut [SimTool], o: usize, object: &mut SimObj
             .map_or(&[][..], |i| i.attached_nodes(o));
         let half_mm = tool.shaft_spec.map_or(0.0, |s| 0.5 * s.length_mm);
         let body = ToolBody::posed(
-            &tool.collider,
-            tool.shaft.as_ref().map(|s| (s, half_mm)),
+            &tool.body.collider,
+            tool.body.shaft.as_ref().map(|s| (s, half_mm)),
             tool.position_mm,
             tool.rotation,
         );

@@ -1,6 +1,7 @@
 //! One tool in the simulation and what crosses the step's boundary for it: its command in, its output out.
 //!
-//! Owns: [`SimTool`] (body, coupling, contacts, haptic state and its instrument's state), [`ToolCommand`] and
+//! Owns: [`SimTool`] and its components ([`ToolBody`], [`ToolDrive`], [`ToolHaptics`]; its contacts and its
+//! instrument's state), [`ToolCommand`] and
 //! [`ToolOutput`]. Must not: step anything.
 
 use nalgebra::{Matrix3, UnitQuaternion};
@@ -15,7 +16,8 @@ use crate::interaction::InstrumentSpec;
 use crate::interaction::{Grasp, JawInput, Jaws, ProbeContacts};
 use crate::tissue::Vec3;
 
-/// One tool in the simulation.
+/// One tool in the simulation: what it is and where it is (public), and its components: its rigid body, how
+/// it follows its device, its contacts, its haptic state and its instrument.
 #[derive(Debug)]
 pub struct SimTool {
     /// Name from the world file.
@@ -24,7 +26,10 @@ pub struct SimTool {
     pub device_id: String,
     /// Shape as specified.
     pub shape_spec: ToolShapeSpec,
-    pub(super) collider: ToolCollider,
+    /// The shaft as the world gives it.
+    pub shaft_spec: Option<crate::collision::ShaftSpec>,
+    /// What the tool is beyond its body (a probe, a grasper).
+    pub instrument: InstrumentSpec,
     /// Device frame origin in the world, mm.
     pub device_origin_in_world_mm: Vec3,
     /// Server-side force limit, N.
@@ -35,24 +40,58 @@ pub struct SimTool {
     pub rotation: UnitQuaternion<f32>,
     /// A device drives it (released tools do not touch the tissue).
     pub active: bool,
-    /// Active on the previous tick.
-    pub(super) was_active: bool,
-    /// Origin on the previous tick, mm.
-    pub(super) last_position_mm: Vec3,
-    /// Largest distance from the tool origin to its surface, mm.
-    pub(super) reach_mm: f32,
-    /// Where the tool enters the scene each time a device (re)takes it, world, mm: the device origin lifted
-    /// along the nearby tissue's outward rest normal until the tool clears every node ([`entry_point_mm`]).
-    /// From there the coupling brings it to the device pose at its speed limit, so it meets every surface
-    /// from outside: a device that (re)joins pressing into a thin sheet never finds its tool under it.
-    pub(super) entry_mm: Vec3,
+    /// Its rigid body.
+    pub(super) body: ToolBody,
+    /// How it follows its device.
+    pub(super) drive: ToolDrive,
     /// One contact set per object.
     pub(super) contacts: Vec<ProbeContacts>,
+    /// What the tissue answers it, kept for the coupling and the local model.
+    pub(super) haptic: ToolHaptics,
+    /// The instrument's implementation and state (`None`: a probe, or the instrument is out running a hook,
+    /// [`Sim::with_instrument`]).
+    pub(super) instrument_state: Option<Box<dyn super::instrument::Instrument>>,
+}
+
+/// A tool's rigid body.
+#[derive(Debug)]
+pub(super) struct ToolBody {
+    /// The tip's collision shape.
+    pub(super) collider: ToolCollider,
+    /// The shaft (a capsule along the tool's z, from the origin up), which pushes tissue as the tip does.
+    pub(super) shaft: Option<ToolCollider>,
+    /// Largest distance from the tool origin to its surface (or its instrument's blades), mm.
+    pub(super) reach_mm: f32,
+}
+
+/// How a tool follows its device: the coupling, the device's pose this tick and the tool's last.
+#[derive(Debug)]
+pub(super) struct ToolDrive {
     /// How the tool follows its device pose.
     pub(super) coupling: VirtualCoupling,
     /// Device pose (target of the coupling) this tick, world, mm and mm/s.
     pub(super) device_mm: Vec3,
     pub(super) device_velocity_mm_s: Vec3,
+    /// The device's buttons and jaw angle this tick.
+    pub(super) jaw_input: JawInput,
+    /// Active on the previous tick.
+    pub(super) was_active: bool,
+    /// Origin on the previous tick, mm.
+    pub(super) last_position_mm: Vec3,
+    /// Where the tool enters the scene each time a device (re)takes it, world, mm: the device origin lifted
+    /// along the nearby tissue's outward rest normal until the tool clears every node ([`entry_point_mm`]).
+    /// From there the coupling brings it to the device pose at its speed limit, so it meets every surface
+    /// from outside: a device that (re)joins pressing into a thin sheet never finds its tool under it.
+    pub(super) entry_mm: Vec3,
+    /// The tool has reached its hand since it was (re)taken: until then it is being dragged from its entry
+    /// point, and a blade does not cut along that path (the surgeon did not make it).
+    pub(super) joined: bool,
+}
+
+/// What the tissue answers a tool, kept between ticks: the coupling's inputs, the contact-stiffness solves,
+/// the planes' stiffness.
+#[derive(Debug)]
+pub(super) struct ToolHaptics {
     /// One contact-stiffness solver per object.
     pub(super) stiffness: Vec<ContactStiffness>,
     /// Per object: the contact normal of a solver iteration due after this tick's forces went out (the tick's
@@ -68,20 +107,6 @@ pub struct SimTool {
     pub(super) plane_candidates: Vec<u32>,
     /// The contact's normal stiffness fitted to the tissue's answer.
     pub(super) estimate: NormalStiffnessEstimate,
-    /// What the tool is beyond its body (a probe, a grasper).
-    pub instrument: InstrumentSpec,
-    /// The device's jaw input this tick.
-    pub(super) jaw_input: JawInput,
-    /// The instrument's implementation and state (`None`: a probe, or the instrument is out running a hook,
-    /// [`Sim::with_instrument`]).
-    pub(super) instrument_state: Option<Box<dyn super::instrument::Instrument>>,
-    /// The shaft as the world gives it.
-    pub shaft_spec: Option<crate::collision::ShaftSpec>,
-    /// The shaft (a capsule along the tool's z, from the origin up), which pushes tissue as the tip does.
-    pub(super) shaft: Option<ToolCollider>,
-    /// The tool has reached its hand since it was (re)taken: until then it is being dragged from its entry
-    /// point, and a blade does not cut along that path (the surgeon did not make it).
-    pub(super) joined: bool,
 }
 
 impl SimTool {
@@ -93,12 +118,12 @@ impl SimTool {
 
     /// The latest finished contact-stiffness solve of this tool on object `object`.
     pub fn contact_response(&self, object: usize) -> Option<&crate::haptics::ContactResponse> {
-        self.stiffness.get(object).and_then(|s| s.response())
+        self.haptic.stiffness.get(object).and_then(|s| s.response())
     }
 
     /// The coupling parameters.
     pub fn coupling(&self) -> &CouplingParams {
-        self.coupling.params()
+        self.drive.coupling.params()
     }
 
     /// The instrument's jaws (a grasper's, scissors'; None for a probe).

@@ -57,7 +57,7 @@ impl Sim {
                 .instrument_state
                 .as_ref()
                 .map_or(&[][..], |i| i.attached_nodes(o));
-            let solver = &mut tool.stiffness[o];
+            let solver = &mut tool.haptic.stiffness[o];
             if !tool.active {
                 solver.forget();
                 continue;
@@ -74,8 +74,8 @@ impl Sim {
                     d += contact.damping_matrix();
                 } else {
                     let n = contact.normal;
-                    k += n * n.transpose() * tool.plane_stiffness_n_per_mm;
-                    d += n * n.transpose() * tool.plane_damping_n_s_per_mm;
+                    k += n * n.transpose() * tool.haptic.plane_stiffness_n_per_mm;
+                    d += n * n.transpose() * tool.haptic.plane_damping_n_s_per_mm;
                 }
                 continue;
             }
@@ -83,7 +83,7 @@ impl Sim {
                 solver.forget();
                 if plane_count < MAX_PLANES
                     && let Some(plane) = nearest_surface_plane(
-                        &tool.collider,
+                        &tool.body.collider,
                         &tool.position_mm,
                         &tool.rotation,
                         PLANE_LOOK_AHEAD_MM,
@@ -91,12 +91,12 @@ impl Sim {
                         &object.state,
                         &object.collider,
                         &mut object.marks,
-                        &mut tool.plane_candidates,
+                        &mut tool.haptic.plane_candidates,
                     )
                 {
                     planes[plane_count] = WorldPlane {
-                        stiffness_n_per_mm: tool.plane_stiffness_n_per_mm,
-                        damping_n_s_per_mm: tool.plane_damping_n_s_per_mm,
+                        stiffness_n_per_mm: tool.haptic.plane_stiffness_n_per_mm,
+                        damping_n_s_per_mm: tool.haptic.plane_damping_n_s_per_mm,
                         ..plane
                     };
                     plane_count += 1;
@@ -119,7 +119,7 @@ impl Sim {
             });
             // The solver's next iterations belong to the tick's tail: they read this tick's final state and
             // contacts and refine K for the next ticks, so they run after this tick's forces are published.
-            tool.stiffness_due[o] = Some(normal);
+            tool.haptic.stiffness_due[o] = Some(normal);
             self.tail_due = true;
             match solver.response() {
                 Some(response) => {
@@ -130,8 +130,8 @@ impl Sim {
                     // First ticks of a contact, before the solve finishes: the last measured normal
                     // stiffness of this tool along the contact normal.
                     if let Some(n) = out.force_world_n.try_normalize(1e-9) {
-                        k += n * n.transpose() * tool.plane_stiffness_n_per_mm;
-                        d += n * n.transpose() * tool.plane_damping_n_s_per_mm;
+                        k += n * n.transpose() * tool.haptic.plane_stiffness_n_per_mm;
+                        d += n * n.transpose() * tool.haptic.plane_damping_n_s_per_mm;
                     }
                 }
             }
@@ -141,35 +141,40 @@ impl Sim {
             && tool.active
         {
             // The normal stiffness the tissue actually shows, capped by the frozen-contact solve.
-            tool.estimate
+            tool.haptic
+                .estimate
                 .record(-n.dot(&tool.position_mm), n.dot(&out.force_world_n), dt_s);
             // K is rank one along the CURRENT contact normal (the solve may have started on an older one).
             let solved = (n.transpose() * k * n)[(0, 0)].max(0.0);
-            let kn = tool.estimate.stiffness_n_per_mm(solved).unwrap_or(solved);
+            let kn = tool
+                .haptic
+                .estimate
+                .stiffness_n_per_mm(solved)
+                .unwrap_or(solved);
             k = n * n.transpose() * kn;
             let dn = (n.transpose() * d * n)[(0, 0)].max(0.0);
             d = n * n.transpose() * dn;
             if kn.is_finite() && kn > 0.0 {
-                tool.plane_stiffness_n_per_mm = kn;
-                tool.plane_damping_n_s_per_mm = (n.transpose() * d * n)[(0, 0)].max(0.0);
+                tool.haptic.plane_stiffness_n_per_mm = kn;
+                tool.haptic.plane_damping_n_s_per_mm = (n.transpose() * d * n)[(0, 0)].max(0.0);
             }
         }
         if !out.in_contact || !tool.active {
-            tool.estimate.reset();
+            tool.haptic.estimate.reset();
         }
-        tool.contact_k = k;
-        tool.last_force_n = out.force_world_n;
+        tool.haptic.contact_k = k;
+        tool.haptic.last_force_n = out.force_world_n;
         if tool.active {
-            let step = tool.position_mm - tool.last_position_mm;
+            let step = tool.position_mm - tool.drive.last_position_mm;
             self.budget.record(t, &out.force_world_n, &step, dt_s);
         } else {
             self.budget.release(t);
         }
         let tool = &self.tools[t];
         out.position_world_mm = tool.position_mm;
-        out.velocity_world_mm_s = tool.coupling.velocity_mm_s();
-        out.device_world_mm = tool.device_mm;
-        out.device_velocity_world_mm_s = tool.device_velocity_mm_s;
+        out.velocity_world_mm_s = tool.drive.coupling.velocity_mm_s();
+        out.device_world_mm = tool.drive.device_mm;
+        out.device_velocity_world_mm_s = tool.drive.device_velocity_mm_s;
         out.stiffness_n_per_mm = k;
         out.damping_n_s_per_mm = d;
         out.planes = planes;

@@ -85,7 +85,7 @@ impl Sim {
         all.retain(|f| shared_by_two(&o.model, f));
         o.severed = all;
         for tool in &mut self.tools {
-            if let Some(stiffness) = tool.stiffness.get_mut(object) {
+            if let Some(stiffness) = tool.haptic.stiffness.get_mut(object) {
                 *stiffness = ContactStiffness::new(n);
             }
             if let Some(instrument) = &mut tool.instrument_state {

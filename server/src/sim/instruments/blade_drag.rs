@@ -72,9 +72,9 @@ pub(super) fn blade_tick(tool: &mut SimTool, drag: &mut BladeDrag) -> BladeTick 
         drag.level = 0.0;
         return BladeTick::Idle;
     }
-    if !tool.joined {
-        tool.joined = (tool.device_mm - tool.position_mm).norm() <= JOINED_MM;
-        return if tool.joined {
+    if !tool.drive.joined {
+        tool.drive.joined = (tool.drive.device_mm - tool.position_mm).norm() <= JOINED_MM;
+        return if tool.drive.joined {
             BladeTick::Joined
         } else {
             BladeTick::Idle

@@ -32,7 +32,7 @@ impl Instrument for CauteryTip {
         self.burning = false;
         let tool = &sim.tools[t];
         let spec = &self.spec;
-        if !tool.active || tool.jaw_input.buttons & spec.button_mask == 0 {
+        if !tool.active || tool.drive.jaw_input.buttons & spec.button_mask == 0 {
             return;
         }
         // Fixed point: 256 units per burn level; at least one unit a tick so a slow rate still burns.
@@ -48,6 +48,7 @@ impl Instrument for CauteryTip {
                     continue;
                 };
                 if tool
+                    .body
                     .collider
                     .distance_mm(&tool.position_mm, &tool.rotation, x)
                     <= spec.reach_mm + BITE_TOLERANCE_MM

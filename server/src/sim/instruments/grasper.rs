@@ -47,7 +47,7 @@ impl Instrument for Grasper {
             }
             return;
         }
-        let closed = jaws.update(&tool.jaw_input, dt_s);
+        let closed = jaws.update(&tool.drive.jaw_input, dt_s);
         if grasp.closing_edge(closed) {
             grasp.start_take();
             let bite_mm = grasp.spec().bite_mm;
@@ -65,6 +65,7 @@ impl Instrument for Grasper {
                         continue;
                     };
                     if tool
+                        .body
                         .collider
                         .distance_mm(&tool.position_mm, &tool.rotation, x)
                         <= bite_mm + BITE_TOLERANCE_MM

@@ -40,7 +40,7 @@ impl Instrument for Scissors {
         self.drag.begin_tick(dt_s);
         let tool = &mut sim.tools[t];
         if tool.active {
-            self.jaws.update(&tool.jaw_input, dt_s);
+            self.jaws.update(&tool.drive.jaw_input, dt_s);
         } else {
             self.jaws.open();
         }
