@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_protocol::{DevicePose, RenderMode};
-use sinew_server::server_tick::DeadbandParams;
 use sinew_server::recording::{FinalState, Recorder, TickRecord};
+use sinew_server::server_tick::DeadbandParams;
 use sinew_server::server_tick::{PoseInput, ServerTick};
 use sinew_server::sim::Sim;
 use sinew_server::world::{World, load_world};
