@@ -18,7 +18,10 @@ fn help_lists_every_subcommand() {
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     for subcommand in ["demo", "replay", "report", "certs", "play-device", "info"] {
-        assert!(text.contains(subcommand), "`{subcommand}` missing from:\n{text}");
+        assert!(
+            text.contains(subcommand),
+            "`{subcommand}` missing from:\n{text}"
+        );
     }
 }
 
