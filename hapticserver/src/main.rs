@@ -90,8 +90,8 @@ struct Args {
     #[arg(long)]
     duration_s: Option<f64>,
     /// How to render forces: `direct` (the streamed force; right on a LAN), `moderated` (the local model
-    /// against the current position every tick; for distant servers) or `auto` (moderated above a 20 ms
-    /// round trip, direct below 10 ms).
+    /// against the current position every tick; for distant servers) or `auto` (moderated above a 4 ms
+    /// round trip, direct below 2.5 ms).
     #[arg(long, default_value = "auto")]
     mode: ModePolicy,
     /// Phase alignment while rendering directly: `on` (default) shifts the loop's phase, in steps of at most

@@ -47,6 +47,9 @@ fn command(k: u64, moderated: bool) -> Vec<u8> {
         planes,
         plane_count: 1,
         energy_allowance_mj: 1.0,
+        // Every term the renderer has: a grasp's bilateral part on odd ticks, the drag of cutting.
+        attached: k % 2 == 1,
+        cut_drag_n: 0.15,
     };
     let command = ForceCommand {
         seq: k + 1,

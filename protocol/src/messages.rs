@@ -11,7 +11,9 @@ mod tools;
 
 pub use force::{ForceCommand, ForceMode};
 pub use hello::{ParticipantHello, Role};
-pub use local_model::{ContactPlane, LocalModel, MAX_CONTACT_PLANES, Sym3};
+pub use local_model::{
+    CUT_DRAG_SMOOTHING_MM_S, ContactPlane, LocalModel, MAX_CONTACT_PLANES, Sym3,
+};
 pub use mesh_delta::{MeshDelta, TopologyDelta};
 pub use pose::{DevicePose, RenderMode};
 pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShaft, ToolShape};

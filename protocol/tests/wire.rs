@@ -71,6 +71,8 @@ fn local_model(rng: &mut fastrand::Rng) -> LocalModel {
         planes,
         plane_count,
         energy_allowance_mj: rng.f32() * 50.0,
+        attached: rng.bool(),
+        cut_drag_n: rng.f32() * 0.5,
     }
 }
 
@@ -660,6 +662,13 @@ fn local_model_fields_out_of_domain_are_refused_by_name() {
     let mut m = good;
     m.energy_allowance_mj = -1.0;
     assert_eq!(refused(m), "local_model.energy_allowance_mj");
+    // A negative or non-finite drag of cutting.
+    let mut m = good;
+    m.cut_drag_n = -0.1;
+    assert_eq!(refused(m), "local_model.cut_drag_n");
+    let mut m = good;
+    m.cut_drag_n = f32::INFINITY;
+    refused(m);
 }
 
 #[test]

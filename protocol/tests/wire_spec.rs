@@ -59,6 +59,8 @@ fn force_local_model() -> ForceCommand {
             planes,
             plane_count: 1,
             energy_allowance_mj: 0.0,
+            attached: false,
+            cut_drag_n: 0.0,
         }),
         ..force_direct()
     }

@@ -76,8 +76,23 @@ fn grasp_then_pull_feels_like_a_pull_and_release_lets_the_tissue_relax() {
     press(&mut sim, 1.5);
     let (pressed, _) = run(&mut sim, at(1.5, false), 1);
     assert!(pressed.force_world_n.z > 0.0, "pressing pushes the tool up");
-    let (closed, report) = run(&mut sim, at(1.5, true), 50);
-    assert_eq!(report.grasps_taken, 1);
+    // Close: the tissue is taken at once, and the force passes from the body's push to the grasp's pull as
+    // the jaws close, never stepping by more than 0.05 N a tick (counting the taken points' push twice on the
+    // take's tick stepped it by 0.2 N here).
+    let mut previous_n = pressed.force_world_n;
+    let mut taken = 0;
+    for tick in 1..=50 {
+        let (out, report) = run(&mut sim, at(1.5, true), 1);
+        taken += report.grasps_taken;
+        let step_n = (out.force_world_n - previous_n).norm();
+        assert!(
+            step_n <= 0.05,
+            "tick {tick} of the take: stepped {step_n} N"
+        );
+        previous_n = out.force_world_n;
+    }
+    assert_eq!(taken, 1);
+    let (closed, _) = run(&mut sim, at(1.5, true), 1);
     assert!(closed.jaws_closed && closed.attachments > 0);
     let held = closed.attachments;
     // Pull up 5 mm over 1 s, 1 mm at a time, holding 0.2 s at each.
@@ -113,10 +128,38 @@ fn grasp_then_pull_feels_like_a_pull_and_release_lets_the_tissue_relax() {
         max_displacement_mm(&sim) > 4.0,
         "the grasped tissue follows the jaws up"
     );
-    // Open: the tissue is let go and relaxes.
-    let (open, report) = run(&mut sim, at(-3.5, false), 1);
-    assert_eq!(report.attachments_released, u32::from(held));
-    assert_eq!(open.attachments, 0);
+    // Open: the jaws let go as they open (40 degrees at 8 rad/s, about 87 ms), the pull falling with them,
+    // never by more than 0.1 N a tick; then the tissue is let go and relaxes.
+    let pulled_n = forces[4].norm();
+    let mut previous_n = pulled_n;
+    let mut released = 0;
+    let mut let_go_after = None;
+    for tick in 1..=150 {
+        let (open, report) = run(&mut sim, at(-3.5, false), 1);
+        let force_n = open.force_world_n.norm();
+        assert!(
+            (force_n - previous_n).abs() <= 0.1,
+            "tick {tick} of the opening: {previous_n} -> {force_n} N"
+        );
+        if tick == 10 {
+            assert_eq!(
+                open.attachments, held,
+                "still holding 10 ms into the opening"
+            );
+            assert!(
+                force_n < pulled_n && force_n > 0.5 * pulled_n,
+                "10 ms in: {force_n} N of {pulled_n}"
+            );
+        }
+        released += report.attachments_released;
+        if open.attachments == 0 && let_go_after.is_none() {
+            let_go_after = Some(tick);
+        }
+        previous_n = force_n;
+    }
+    assert_eq!(released, u32::from(held));
+    let ticks = let_go_after.expect("the jaws never let go");
+    assert!((80..=95).contains(&ticks), "let go after {ticks} ticks");
     run(&mut sim, at(-3.5, false), 2000);
     assert!(
         max_displacement_mm(&sim) < 0.1,

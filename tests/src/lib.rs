@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod drill;
+pub mod fidelity;
 pub mod fuzz;
 pub mod harness;
 pub mod hertz;

@@ -5,10 +5,14 @@
 //! the measured round trip and cross-fades between the two forces over [`ModeSwitch::FADE_S`], so a switch
 //! never steps the force.
 //!
-//! `auto` (the default) renders directly while the round trip stays under 10 ms and switches to the local
-//! model above 20 ms (hysteresis, on a smoothed round trip). On a LAN the streamed force is the simulation's
-//! exact force a millisecond or two late, which a hand cannot tell from immediate; beyond a few tens of ms a
-//! streamed force is felt late and, on stiff tissue, goes unstable, while the local model stays crisp.
+//! `auto` (the default) renders directly while the round trip stays under 2.5 ms and switches to the local
+//! model above 4 ms (hysteresis, on a smoothed round trip). On a LAN or loopback the streamed force is the
+//! simulation's exact force a millisecond or two late, which a hand cannot tell from immediate; further away a
+//! streamed force is felt late and, on stiff contact, goes unstable (passive only while the hand's damping
+//! `b > K (T/2 + delay)`), while the local model stays crisp. The band was 10-20 ms until a grasp, the
+//! stiffest contact a hand holds (the full 3x3 stiffness of the tissue and the coupling), was measured at
+//! 10 ms: streamed, it drove the light and nominal hands to the 3.3 N clamp in grasp_pull
+//! (`tests/tests/instrument_fidelity.rs`); the model at 5-10 ms holds them within 3% of zero delay.
 //!
 //! Must not: evaluate either force (the loop hands both in) or touch safety.
 
@@ -34,8 +38,8 @@ pub enum ModePolicy {
 impl Default for ModePolicy {
     fn default() -> Self {
         ModePolicy::Auto {
-            moderate_above_ms: 20.0,
-            direct_below_ms: 10.0,
+            moderate_above_ms: 4.0,
+            direct_below_ms: 2.5,
         }
     }
 }
@@ -169,25 +173,22 @@ mod tests {
         let mut switch = ModeSwitch::new(ModePolicy::default());
         assert!(!switch.moderated());
         for _ in 0..500 {
-            switch.observe_round_trip(15.0);
+            switch.observe_round_trip(3.0);
         }
-        assert!(
-            !switch.moderated(),
-            "15 ms is inside the band: stays direct"
-        );
+        assert!(!switch.moderated(), "3 ms is inside the band: stays direct");
         for _ in 0..500 {
             switch.observe_round_trip(100.0);
         }
         assert!(switch.moderated());
         for _ in 0..500 {
-            switch.observe_round_trip(15.0);
+            switch.observe_round_trip(3.0);
         }
         assert!(
             switch.moderated(),
-            "15 ms is inside the band: stays moderated"
+            "3 ms is inside the band: stays moderated"
         );
         for _ in 0..500 {
-            switch.observe_round_trip(2.0);
+            switch.observe_round_trip(1.0);
         }
         assert!(!switch.moderated());
         assert_eq!(switch.switches(), 2);

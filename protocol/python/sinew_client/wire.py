@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 9
+PROTOCOL_VERSION = 10
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -227,6 +227,10 @@ class LocalModel:
     planes: List[ContactPlane] = wire_field(("arr", ContactPlane, 4), default_factory=lambda: [ContactPlane() for _ in range(4)])
     plane_count: int = wire_field("u8", default=0)
     energy_allowance_mj: float = wire_field("f32", default=0.0)
+    # The tool holds tissue (a grasp): the linear part pulls both ways (v10).
+    attached: bool = wire_field("bool", default=False)
+    # The drag of cutting against the device's motion while a blade cuts, N (v10).
+    cut_drag_n: float = wire_field("f32", default=0.0)
 
 
 @dataclass

@@ -9,7 +9,9 @@
 //! moving at `v` (mm/s), the linear part renders `f = f0 - K (x - x0) - D v` (N), where `K` (N/mm) and `D`
 //! (N s/mm) are symmetric positive semi-definite: pushing into the tissue raises the force that pushes back,
 //! and motion is resisted. The linear part is one-sided along the contact normal (the direction of `f0`): it
-//! never pulls the tool into the tissue.
+//! never pulls the tool into the tissue; unless the tool holds tissue ([`LocalModel::attached`]: a grasp's
+//! points), when it pulls both ways. While a blade cuts, the model also carries the drag of cutting
+//! ([`LocalModel::cut_drag_n`]), rendered against the device's current motion: `-F v / sqrt(|v|^2 + v_s^2)`.
 
 use serde::{Deserialize, Serialize};
 
@@ -98,7 +100,18 @@ pub struct LocalModel {
     /// Energy this port may output beyond what its own hand put in, mJ (>= 0): work the other ports did on the
     /// shared tissue, granted by the server's energy budget to the device's passivity controller.
     pub energy_allowance_mj: f32,
+    /// The tool holds tissue (a grasp's attachments): the linear part is bilateral, `f0 - K (x - x0) - D v`
+    /// whichever way the device moves (within the radius), and `K` is the full 3x3 stiffness of the held
+    /// tissue. False: one-sided along the contact normal.
+    pub attached: bool,
+    /// The drag of cutting while a blade cuts, N (>= 0; 0: not cutting): a force of this size against the
+    /// device's current motion, smoothed below [`CUT_DRAG_SMOOTHING_MM_S`]. Not part of `f0`.
+    pub cut_drag_n: f32,
 }
+
+/// Below this speed the drag of cutting fades with the speed (`-F v / sqrt(|v|^2 + v_s^2)`), mm/s: the drag
+/// is continuous through a stop, and a hand at rest feels none.
+pub const CUT_DRAG_SMOOTHING_MM_S: f32 = 2.0;
 
 impl LocalModel {
     /// The planes in use.
@@ -116,8 +129,16 @@ impl LocalModel {
         check::finite("local_model.damping_n_s_per_mm", &self.damping_n_s_per_mm)?;
         check::finite(
             "local_model.radius_mm",
-            &[self.radius_mm, self.fade_mm, self.energy_allowance_mj],
+            &[
+                self.radius_mm,
+                self.fade_mm,
+                self.energy_allowance_mj,
+                self.cut_drag_n,
+            ],
         )?;
+        if self.cut_drag_n < 0.0 {
+            return Err(("local_model.cut_drag_n", "negative"));
+        }
         if !sym3_is_psd(&self.stiffness_n_per_mm) {
             return Err((
                 "local_model.stiffness_n_per_mm",

@@ -106,6 +106,8 @@ pub struct ContactResponse {
     pub stiffness_n_per_mm: Matrix3<f32>,
     /// `D`, N s/mm, world frame.
     pub damping_n_s_per_mm: Matrix3<f32>,
+    /// Solved in all three directions (the tool grasps): `K` is full rank. False: `k_n n n^T`.
+    pub full: bool,
     /// CG iterations the solve took.
     pub iterations: u32,
     /// Nodes in the local problem.
@@ -117,6 +119,7 @@ impl Default for ContactResponse {
         Self {
             stiffness_n_per_mm: Matrix3::zeros(),
             damping_n_s_per_mm: Matrix3::zeros(),
+            full: false,
             iterations: 0,
             nodes: 0,
         }
@@ -151,6 +154,8 @@ pub struct ContactStiffness {
     converged: [bool; 3],
     iterations: u32,
     solving: bool,
+    /// This solve covers the three axes (a grasp), not only the contact normal.
+    full: bool,
     normal: Vec3,
     result: Option<ContactResponse>,
 }

@@ -74,6 +74,9 @@ pub struct Grasp {
     was_closed: bool,
     /// Attachments that slipped since the grasp was built.
     slipped: u64,
+    /// How firmly the points are held, 0..1 ([`Grasp::set_grip`]): each substep moves a point this share of
+    /// the way to its place on the jaws, and the tool feels this share of its pull.
+    grip: f32,
 }
 
 impl Grasp {
@@ -90,7 +93,23 @@ impl Grasp {
             touched: [false; 2],
             was_closed: false,
             slipped: 0,
+            grip: 0.0,
         }
+    }
+
+    /// How firmly the points are held, 0..1.
+    pub fn grip(&self) -> f32 {
+        self.grip
+    }
+
+    /// Move the grip toward `target` (0..1) by at most `max_step`: jaws take hold and let go as they close
+    /// and open, so the force at the hand changes no faster than the jaws move.
+    pub fn set_grip(&mut self, target: f32, max_step: f32) {
+        if !(target.is_finite() && max_step >= 0.0) {
+            return;
+        }
+        let target = target.clamp(0.0, 1.0);
+        self.grip += (target - self.grip).clamp(-max_step, max_step);
     }
 
     /// The grasp's parameters.
@@ -204,6 +223,7 @@ impl Grasp {
     }
 
     fn clear(&mut self) {
+        self.grip = 0.0;
         self.attachments.clear();
         self.pull_n.clear();
         for list in &mut self.attached_nodes {
@@ -211,7 +231,8 @@ impl Grasp {
         }
     }
 
-    /// Move each held point of object `object` to its place on the jaws (one substep). Fixed nodes are not
+    /// Move each held point of object `object` to its place on the jaws (one substep; at a partial grip, that
+    /// share of the way, and that share of its velocity taken). Fixed nodes are not
     /// moved; a point whose nodes are all fixed is left alone.
     pub fn hold(
         &self,
@@ -237,19 +258,24 @@ impl Grasp {
             if free_weight <= 0.0 {
                 continue;
             }
-            let correction = (target - point) / free_weight;
+            let correction = (target - point) / free_weight * self.grip;
             for (&c, &b) in corners.iter().zip(&a.barycentric) {
                 let c = c as usize;
                 if b == 0.0 || model.is_fixed(c) || c >= state.positions_mm.len() {
                     continue;
                 }
                 state.positions_mm[c] += correction * b;
-                state.velocities_mm_s[c] = Vec3::zeros();
+                state.velocities_mm_s[c] = if self.grip >= 1.0 {
+                    Vec3::zeros()
+                } else {
+                    state.velocities_mm_s[c] * (1.0 - self.grip)
+                };
             }
         }
     }
 
-    /// The tissue's pull on the tool through the points of object `object` held at the end of a tick, N; an
+    /// The tissue's pull on the tool through the points of object `object` held at the end of a tick (times the
+    /// grip), N; an
     /// attachment pulled harder than `slip_force_n` lets go (counted). Call once per object per tick, after
     /// the substeps. No allocation.
     pub fn settle(&mut self, object: usize, model: &MassSpringModel, state: &TissueState) -> Vec3 {
@@ -298,12 +324,14 @@ impl Grasp {
             self.pull_n.truncate(keep);
             self.rebuild_nodes(object, model);
         }
-        self.pull_n
+        let pull: Vec3 = self
+            .pull_n
             .iter()
             .zip(&self.attachments)
             .filter(|(_, a)| usize::from(a.object) == object)
             .map(|(p, _)| *p)
-            .sum()
+            .sum();
+        pull * self.grip
     }
 
     /// Object `object`'s topology changed (a cut or tear re-pointed some triangles' corners): re-read the

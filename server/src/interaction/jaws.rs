@@ -49,6 +49,31 @@ impl Jaws {
         self.angle_rad
     }
 
+    /// How firmly the jaws would hold what is between them, 0..1: button-driven jaws by how far they have
+    /// closed (`1 - angle / open angle`), a gripper by how far its angle is below the opening threshold
+    /// (`1 - angle / open_above`, which reaches 0 exactly where the jaws open).
+    pub fn grip(&self) -> f32 {
+        let span_rad = match self.activation {
+            JawActivation::Button { .. } => self.open_angle_rad,
+            JawActivation::Angle { open_above_rad, .. } => open_above_rad,
+        };
+        if span_rad > 0.0 {
+            (1.0 - self.angle_rad / span_rad).clamp(0.0, 1.0)
+        } else {
+            f32::from(u8::from(self.closed))
+        }
+    }
+
+    /// The fastest the grip may change, per second: button-driven jaws close from open in `open angle /
+    /// SLEW_RAD_S` (about 90 ms), and a grip takes and lets go of tissue no faster.
+    pub fn grip_rate_per_s(&self) -> f32 {
+        if self.open_angle_rad > 0.0 {
+            Self::SLEW_RAD_S / self.open_angle_rad
+        } else {
+            f32::INFINITY
+        }
+    }
+
     /// Take this tick's input; returns the closed state. A non-finite angle changes nothing.
     pub fn update(&mut self, input: &JawInput, dt_s: f32) -> bool {
         match self.activation {

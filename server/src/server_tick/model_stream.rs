@@ -12,7 +12,9 @@
 //!   thresholds are 5-10%, Jones 1989, Pang, Tan & Durlach 1991; Hinterseer et al. 2008 cut haptic packet
 //!   rates by ~90% with such a deadband and no perceived difference) or an absolute 10 mN floor (below the
 //!   hand's detection threshold for force changes of a few tens of mN); or `K` moved by 10%; or a plane moved
-//!   by 0.05 mm or turned by 1 degree; or the contact began or ended; or the energy allowance moved by 0.5 mJ.
+//!   by 0.05 mm or turned by 1 degree; or the contact began or ended; or a grasp took hold or let go
+//!   (`attached`); or the drag of cutting moved by the Weber fraction or the floor; or the energy allowance
+//!   moved by 0.5 mJ.
 //!   The heartbeat (7 ms, 143 messages/s) keeps a still hand's stream inside the device's 50 ms silence rule
 //!   on a jittery path: with `k` messages lost in a row the device waits at most `(k + 1) * 7 ms` plus the
 //!   path's peak-to-peak jitter, so with 20 ms of jitter (+-10 ms) a false silence needs four losses in a row
@@ -182,11 +184,8 @@ impl ModelStream {
         radius_mm: f32,
     ) -> LocalModel {
         let origin = self.origin_world_mm;
-        let mut f0 = out.force_world_n;
-        let magnitude = f0.norm();
-        if magnitude > max_force_n {
-            f0 *= max_force_n / magnitude;
-        }
+        // The drag of cutting is rendered against the device's own motion (`cut_drag_n`), not from f0.
+        let f0 = clamp_to(out.force_world_n - out.cut_drag_world_n, max_force_n);
         let mut planes = [ContactPlane::default(); MAX_CONTACT_PLANES];
         let count = usize::from(out.plane_count).min(MAX_CONTACT_PLANES);
         for (wire, plane) in planes.iter_mut().zip(&out.planes[..count]) {
@@ -210,6 +209,12 @@ impl ModelStream {
             planes,
             plane_count: count as u8,
             energy_allowance_mj: out.energy_allowance_mj.max(0.0),
+            attached: out.attached,
+            cut_drag_n: if out.cut_drag_n.is_finite() {
+                out.cut_drag_n.clamp(0.0, max_force_n)
+            } else {
+                0.0
+            },
         }
     }
 
@@ -237,7 +242,8 @@ impl ModelStream {
         // renders its spring: extrapolating to the device pose (f0 - K (x_d - x0) - D (v_d - v0)) carried the
         // noise of the fitted K and of the device velocity into a streamed force and kept a held probe from
         // settling (end_to_end::both_pressing...).
-        let force = Vec3::from(model.f0_n);
+        // (With the drag of cutting in it: a direct device feels the drag through this force.)
+        let force = clamp_to(out.force_world_n, max_force_n);
         self.last_sent = Some(model);
         self.last_sent_s = now_s;
         self.seq += 1;
@@ -280,6 +286,9 @@ impl ModelStream {
         // The tolerance keeps float rounding of tick times from stretching the period by a tick.
         if now_s - self.last_sent_s >= p.heartbeat_s - HEARTBEAT_TOLERANCE_S
             || last.in_contact != model.in_contact
+            || last.attached != model.attached
+            || (last.cut_drag_n - model.cut_drag_n).abs()
+                > p.force_floor_n.max(p.weber_fraction * model.cut_drag_n)
             || last.plane_count != model.plane_count
             || (last.energy_allowance_mj - model.energy_allowance_mj).abs() > p.allowance_mj
         {
@@ -307,6 +316,15 @@ impl ModelStream {
                         > p.stiffness_fraction * a.stiffness_n_per_mm.max(0.01)
             })
     }
+}
+
+/// `force` scaled down to `max_force_n` if it is larger.
+fn clamp_to(mut force: Vec3, max_force_n: f32) -> Vec3 {
+    let magnitude = force.norm();
+    if magnitude > max_force_n {
+        force *= max_force_n / magnitude;
+    }
+    force
 }
 
 #[cfg(test)]

@@ -210,4 +210,12 @@ pub struct ToolOutput {
     pub burning: bool,
     /// A scalpel's edge cut tissue this tick.
     pub cutting: bool,
+    /// The tool holds tissue (a grasp's attachments): the local model is bilateral and `K` full rank.
+    pub attached: bool,
+    /// The drag of cutting the local model carries, N (>= 0; 0 when the blade has not cut lately): the
+    /// tissue's cutting resistance times how recently the edge cut.
+    pub cut_drag_n: f32,
+    /// The drag of cutting inside `force_world_n`, world frame, N (the model renders it from `cut_drag_n`
+    /// against the device's own motion, so its `f0` leaves it out).
+    pub cut_drag_world_n: Vec3,
 }

@@ -51,6 +51,12 @@ impl Sim {
         let mut d = Matrix3::zeros();
         let mut planes = [WorldPlane::default(); MAX_PLANES];
         let mut plane_count = 0usize;
+        // A tool that holds tissue renders it bilaterally, with the full 3x3 stiffness of what it holds.
+        let attached = tool.active
+            && tool
+                .instrument_state
+                .as_ref()
+                .is_some_and(|i| (0..self.objects.len()).any(|o| !i.attached_nodes(o).is_empty()));
         for (o, object) in self.objects.iter_mut().enumerate() {
             let contacts = &tool.contacts[o];
             let grasped = tool
@@ -126,6 +132,12 @@ impl Sim {
                     k += response.stiffness_n_per_mm;
                     d += response.damping_n_s_per_mm;
                 }
+                None if attached => {
+                    // First ticks of a grasp, before the solve finishes: the last measured normal
+                    // stiffness of this tool, in every direction.
+                    k += Matrix3::identity() * tool.haptic.plane_stiffness_n_per_mm;
+                    d += Matrix3::identity() * tool.haptic.plane_damping_n_s_per_mm;
+                }
                 None => {
                     // First ticks of a contact, before the solve finishes: the last measured normal
                     // stiffness of this tool along the contact normal.
@@ -139,6 +151,7 @@ impl Sim {
         if let Some(n) = out.force_world_n.try_normalize(1e-9)
             && out.in_contact
             && tool.active
+            && !attached
         {
             // The normal stiffness the tissue actually shows, capped by the frozen-contact solve.
             tool.haptic
@@ -159,9 +172,10 @@ impl Sim {
                 tool.haptic.plane_damping_n_s_per_mm = (n.transpose() * d * n)[(0, 0)].max(0.0);
             }
         }
-        if !out.in_contact || !tool.active {
+        if !out.in_contact || !tool.active || attached {
             tool.haptic.estimate.reset();
         }
+        out.attached = attached;
         tool.haptic.contact_k = k;
         tool.haptic.last_force_n = out.force_world_n;
         if tool.active {

@@ -312,7 +312,7 @@ fn summarize(running: &Running, bench_tick: &sinew_protocol::rt::LatencyHistogra
             "device {id}: mode {} ({}, {} switches); pose->force round trip p50 {p50:.0} us, p99 {p99:.0} us; \
              {:.0} force messages/s ({} suppressed by the deadband); max rendered force {max_force:.2} N; \
              silences {}; port energy {:+.2} mJ (passivity: active on {} of {} ticks, withheld {:.2} mJ); \
-             last second: F {:.2} N, peak-to-peak {:.4} N, stylus speed RMS {:.2} mm/s -> {}",
+             {}; last second: F {:.2} N, peak-to-peak {:.4} N, stylus speed RMS {:.2} mm/s -> {}",
             if report.moderated {
                 "moderated"
             } else {
@@ -327,6 +327,11 @@ fn summarize(running: &Running, bench_tick: &sinew_protocol::rt::LatencyHistogra
             report.passivity.active_ticks,
             report.ticks,
             report.passivity.withheld_mj,
+            if report.safety.clamped == 0 {
+                "the clamp was never reached".to_owned()
+            } else {
+                format!("the clamp was reached on {} ticks", report.safety.clamped)
+            },
             report.last_second.mean_force_n,
             report.last_second.force_p2p_n,
             report.last_second.speed_rms_mm_s,

@@ -17,7 +17,7 @@ use sinew_protocol::LocalModel;
 use thiserror::Error;
 
 use super::all_finite;
-use super::local_model::linear_force_n;
+use super::local_model::{cut_drag_force_n, linear_force_n};
 use super::plane_proxy::PlaneProxy;
 
 /// A [`RenderConfig`] value out of its domain.
@@ -96,7 +96,7 @@ fn add3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     std::array::from_fn(|i| a[i] + b[i])
 }
 
-/// The force of `model` at the device state: linear part plus planes, the latter moving `proxy`.
+/// The force of `model` at the device state: linear part, planes (moving `proxy`) and the drag of cutting.
 fn model_force_n(
     model: &LocalModel,
     proxy: &mut PlaneProxy,
@@ -105,7 +105,10 @@ fn model_force_n(
 ) -> [f32; 3] {
     let linear_n = linear_force_n(model, position_mm, velocity_mm_s);
     let planes_n = proxy.step(model.active_planes(), position_mm, velocity_mm_s);
-    add3(linear_n, planes_n)
+    add3(
+        add3(linear_n, planes_n),
+        cut_drag_force_n(model, velocity_mm_s),
+    )
 }
 
 /// Renders the newest local model against the current device state every tick, continuously across swaps.

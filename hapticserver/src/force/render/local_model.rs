@@ -1,11 +1,11 @@
 //! The linear part of a local model: `f = f0 - K (x - x0) - D v`, one-sided along the contact normal and faded
 //! out towards the model's radius.
 //!
-//! Owns: [`linear_force_n`] and its fade ([`fade_weight`]). Must not: touch the planes (that is
+//! Owns: [`linear_force_n`] and its fade ([`fade_weight`]), and the drag of cutting ([`cut_drag_force_n`]). Must not: touch the planes (that is
 //! [`super::plane_proxy`]), keep state, blend between models ([`super::blend`]), or clamp for safety.
 
-use sinew_protocol::LocalModel;
 use sinew_protocol::messages::local_model::sym3_mul;
+use sinew_protocol::{CUT_DRAG_SMOOTHING_MM_S, LocalModel};
 
 use super::{MAX_DRAG_PER_NORMAL, all_finite, dot3};
 
@@ -16,6 +16,8 @@ pub const MIN_CONTACT_FORCE_N: f32 = 1e-6;
 ///
 /// Zero unless `model.in_contact` and `|f0| > MIN_CONTACT_FORCE_N`. With the contact normal `n = f0 / |f0|` and
 /// the spring part `s = f0 - K (x - x0)`:
+/// - with `model.attached` (the tool holds tissue) the result is `s - D v`, faded: held tissue pulls back
+///   whichever way the tool moves, so none of the one-sided rules below apply;
 /// - `n . s <= 0`: the tool has left the tissue, exactly zero (tissue never pulls);
 /// - otherwise `f = s - D v`, where everything but the elastic normal part `(n . s) n` (the tangential spring
 ///   and the damping) is capped in magnitude at [`MAX_DRAG_PER_NORMAL`] `* (n . s)`, so the force falls
@@ -57,10 +59,15 @@ pub fn linear_force_n(
     let k_dx_n = sym3_mul(&model.stiffness_n_per_mm, &offset_mm);
     let spring_n: [f32; 3] = std::array::from_fn(|i| f0[i] - k_dx_n[i]);
     let spring_normal_n = dot3(normal, spring_n);
-    if spring_normal_n.is_nan() || spring_normal_n <= 0.0 {
+    if spring_normal_n.is_nan() || (spring_normal_n <= 0.0 && !model.attached) {
         return ZERO;
     }
     let d_v_n = sym3_mul(&model.damping_n_s_per_mm, &velocity_mm_s);
+    if model.attached {
+        // Held tissue pulls back whichever way the tool moves: no one-sided cut-off, no drag cap.
+        let force_n: [f32; 3] = std::array::from_fn(|i| weight * (spring_n[i] - d_v_n[i]));
+        return if all_finite(force_n) { force_n } else { ZERO };
+    }
     // Everything but the elastic normal part: the tangential spring and the damping.
     let drag_n: [f32; 3] =
         std::array::from_fn(|i| spring_n[i] - spring_normal_n * normal[i] - d_v_n[i]);
@@ -81,6 +88,28 @@ pub fn linear_force_n(
     }
     let force_n = force_n.map(|c| weight * c);
     if all_finite(force_n) { force_n } else { ZERO }
+}
+
+/// The drag of cutting at the device's velocity `velocity_mm_s`, N: `-F v / sqrt(|v|^2 + v_s^2)` with
+/// `F = model.cut_drag_n` and `v_s` = [`CUT_DRAG_SMOOTHING_MM_S`]. Always against the motion (it only takes
+/// energy out of the hand), continuous in `v` (no step as the hand stops or turns), at most `F`. Not faded at
+/// the radius: it acts wherever the hand is while the server says the blade cuts, and ends with the model
+/// that says it no longer does (blended like any model change).
+///
+/// Real-time contract: no allocation, never panics; finite (zero when any input is not).
+pub fn cut_drag_force_n(model: &LocalModel, velocity_mm_s: [f32; 3]) -> [f32; 3] {
+    let drag_n = model.cut_drag_n;
+    if !(drag_n.is_finite() && drag_n > 0.0) {
+        return [0.0; 3];
+    }
+    let smoothing = CUT_DRAG_SMOOTHING_MM_S * CUT_DRAG_SMOOTHING_MM_S;
+    let scale = drag_n / (dot3(velocity_mm_s, velocity_mm_s) + smoothing).sqrt();
+    let force_n = velocity_mm_s.map(|v| -scale * v);
+    if all_finite(force_n) {
+        force_n
+    } else {
+        [0.0; 3]
+    }
 }
 
 /// How much of the linear part applies at distance `r_mm` from `x0`: 1 up to `radius - fade`, a smoothstep
@@ -243,6 +272,70 @@ mod tests {
             assert_eq!(linear_force_n(&zero_f0, x, [0.0, 0.0, -50.0]), [0.0; 3]);
             assert_eq!(linear_force_n(&not_in_contact, x, [0.0; 3]), [0.0; 3]);
         }
+    }
+
+    #[test]
+    fn an_attached_model_pulls_back_both_ways() {
+        // A grasp pulled 2 mm up: f0 pulls down with 0.4 N; K = 0.2 I.
+        let model = LocalModel {
+            attached: true,
+            f0_n: [0.0, 0.0, -0.4],
+            ..pressing_model()
+        };
+        // Pulled further up: more pull. Pushed back down past x0 + 2 mm: it pushes up (the held tissue is
+        // compressed), where a one-sided model would render exactly zero.
+        let up = linear_force_n(&model, [0.0, 0.0, 1.0], [0.0; 3]);
+        assert!(close(up, [0.0, 0.0, -0.6], 1e-5), "{up:?}");
+        let down = linear_force_n(&model, [0.0, 0.0, -3.0], [0.0; 3]);
+        assert!(close(down, [0.0, 0.0, 0.2], 1e-5), "{down:?}");
+        // Sideways: the full tangential stiffness, no drag cap (a 5 mm slide would be capped at 0.4 N).
+        let side = linear_force_n(&model, [5.0, 0.0, 0.0], [0.0; 3]);
+        assert!(close(side, [-1.0, 0.0, -0.4], 1e-5), "{side:?}");
+        let unattached = LocalModel {
+            attached: false,
+            ..model
+        };
+        assert_eq!(
+            linear_force_n(&unattached, [0.0, 0.0, -3.0], [0.0; 3]),
+            [0.0; 3]
+        );
+        // Still faded at the radius.
+        assert_eq!(linear_force_n(&model, [0.0, 0.0, 10.0], [0.0; 3]), [0.0; 3]);
+    }
+
+    #[test]
+    fn the_cut_drag_opposes_motion_is_bounded_and_continuous_through_a_stop() {
+        let model = LocalModel {
+            cut_drag_n: 0.15,
+            ..LocalModel::default()
+        };
+        let fast = cut_drag_force_n(&model, [0.0, 40.0, 0.0]);
+        assert!(
+            fast[1] < -0.149 && fast[1] >= -0.15 && fast[0] == 0.0,
+            "{fast:?}"
+        );
+        assert_eq!(cut_drag_force_n(&model, [0.0; 3]), [0.0; 3]);
+        let mut rng = fastrand::Rng::with_seed(3);
+        for _ in 0..10_000 {
+            let v: [f32; 3] = std::array::from_fn(|_| rng.f32() * 200.0 - 100.0);
+            let f = cut_drag_force_n(&model, v);
+            assert!(
+                dot3(f, v) <= 0.0 && dot3(f, f).sqrt() <= 0.15 + 1e-6,
+                "{v:?}: {f:?}"
+            );
+        }
+        // Through a stop at 1 mm/s^2 per tick the force changes by at most F / v_s per mm/s.
+        let mut previous = cut_drag_force_n(&model, [0.0, 5.0, 0.0]);
+        for i in 1..=100 {
+            let f = cut_drag_force_n(&model, [0.0, 5.0 - 0.1 * i as f32, 0.0]);
+            assert!((f[1] - previous[1]).abs() <= 0.15 / 2.0 * 0.1 + 1e-6);
+            previous = f;
+        }
+        let none = LocalModel {
+            cut_drag_n: f32::NAN,
+            ..model
+        };
+        assert_eq!(cut_drag_force_n(&none, [0.0, 5.0, 0.0]), [0.0; 3]);
     }
 
     #[test]

@@ -83,7 +83,15 @@ impl ContactStiffness {
             self.u[dir].clear();
         }
 
-        // Held nodes first, with their imposed motion for each basis direction.
+        // Held nodes first, with their imposed motion for each solved direction: a push solves only the
+        // contact normal's mode (see the module doc; the other two stay zero); a grasp holds its points in
+        // every direction, so the tool's three axes are solved (the full 3x3 `K`).
+        self.full = !grasped.is_empty();
+        let axes = if self.full {
+            [Vec3::x(), Vec3::y(), Vec3::z()]
+        } else {
+            [*contact_normal, Vec3::zeros(), Vec3::zeros()]
+        };
         let push_dirs = model.rest_normals();
         for (&g, normal) in held.iter().zip(tool_normals) {
             let g = g as usize;
@@ -92,15 +100,13 @@ impl ContactStiffness {
             }
             let d = -push_dirs[g];
             let along = normal.dot(&d);
-            // Only the contact normal's mode is solved (see the module doc); the other two stay zero.
-            let imposed = if along.abs() > 0.2 {
-                d * (normal.dot(contact_normal) / along)
-            } else {
-                Vec3::zeros()
-            };
-            self.u[0].push(imposed);
-            self.u[1].push(Vec3::zeros());
-            self.u[2].push(Vec3::zeros());
+            for (u, axis) in self.u.iter_mut().zip(&axes) {
+                u.push(if along.abs() > 0.2 {
+                    d * (normal.dot(axis) / along)
+                } else {
+                    Vec3::zeros()
+                });
+            }
         }
         // Grasped nodes move rigidly with the jaws: all of the tool's motion is imposed on them.
         for &g in grasped {
@@ -108,9 +114,9 @@ impl ContactStiffness {
             if g >= n || self.local_of[g] != NONE || !self.local(g, HELD, model) {
                 continue;
             }
-            self.u[0].push(*contact_normal);
-            self.u[1].push(Vec3::zeros());
-            self.u[2].push(Vec3::zeros());
+            for (u, axis) in self.u.iter_mut().zip(&axes) {
+                u.push(*axis);
+            }
         }
         // Rings of free nodes around them (breadth first over the spring graph).
         let mut ring_start = 0;

@@ -156,38 +156,56 @@ impl ContactStiffness {
     #[allow(clippy::needless_range_loop)] // several buffers indexed in step
     pub(super) fn finish(&mut self) {
         let m = self.nodes.len();
-        // k_n = u . A u and d_n = u . C u of the normal mode; K = k_n n n^T, D = d_n n n^T.
-        let mut au = std::mem::take(&mut self.ap[0]);
-        self.apply(&self.u[0], &mut au);
-        let mut k_n = 0.0;
-        let mut d_n = 0.0;
-        for l in 0..m {
-            k_n += self.u[0][l].dot(&au[l]);
-            d_n += self.drag_n_s_per_mm[l] * self.u[0][l].norm_squared();
+        // K_ij = u_i . A u_j and D_ij = u_i . C u_j over the solved modes: the normal one for a push
+        // (K = k_n n n^T), the three axes for a grasp (the full 3x3 Schur complement).
+        let modes = if self.full { 3 } else { 1 };
+        for j in 0..modes {
+            let mut au = std::mem::take(&mut self.ap[j]);
+            self.apply(&self.u[j], &mut au);
+            self.ap[j] = au;
         }
-        for s in &self.springs {
-            let ua = self.u[0][s.a as usize];
-            let ub = if s.b == NONE {
-                Vec3::zeros()
-            } else {
-                self.u[0][s.b as usize]
-            };
-            d_n += s.c * (ua - ub).dot(&s.dir).powi(2);
+        let mut k = Matrix3::zeros();
+        let mut d = Matrix3::zeros();
+        for i in 0..modes {
+            for j in 0..modes {
+                let mut k_ij = 0.0;
+                let mut d_ij = 0.0;
+                for l in 0..m {
+                    k_ij += self.u[i][l].dot(&self.ap[j][l]);
+                    d_ij += self.drag_n_s_per_mm[l] * self.u[i][l].dot(&self.u[j][l]);
+                }
+                for s in &self.springs {
+                    let along = |u: &[Vec3]| {
+                        let ub = if s.b == NONE {
+                            Vec3::zeros()
+                        } else {
+                            u[s.b as usize]
+                        };
+                        (u[s.a as usize] - ub).dot(&s.dir)
+                    };
+                    d_ij += s.c * (along(&self.u[i]) * along(&self.u[j]));
+                }
+                k[(i, j)] = k_ij;
+                d[(i, j)] = d_ij;
+            }
         }
-        self.ap[0] = au;
-        let nn = self.normal * self.normal.transpose();
-        let finite = k_n.is_finite() && d_n.is_finite();
+        let finite = k.iter().chain(d.iter()).all(|v| v.is_finite());
+        let (stiffness, damping) = if !finite {
+            (Matrix3::zeros(), Matrix3::zeros())
+        } else if self.full {
+            // The axes are the world's: K is the matrix itself (symmetrised: the solve is inexact).
+            (
+                psd_part(&((k + k.transpose()) * 0.5)),
+                psd_part(&((d + d.transpose()) * 0.5)),
+            )
+        } else {
+            let nn = self.normal * self.normal.transpose();
+            (nn * k[(0, 0)].max(0.0), nn * d[(0, 0)].max(0.0))
+        };
         self.result = Some(ContactResponse {
-            stiffness_n_per_mm: if finite {
-                nn * k_n.max(0.0)
-            } else {
-                Matrix3::zeros()
-            },
-            damping_n_s_per_mm: if finite {
-                nn * d_n.max(0.0)
-            } else {
-                Matrix3::zeros()
-            },
+            stiffness_n_per_mm: stiffness,
+            damping_n_s_per_mm: damping,
+            full: self.full,
             iterations: self.iterations,
             nodes: m as u32,
         });

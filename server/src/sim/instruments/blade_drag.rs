@@ -13,6 +13,8 @@ use super::super::*;
 /// steady 10-20 mm/s the edge crosses a 1 mm mesh's facets every 50-100 ms, and the drag holds in between.
 pub(super) const CUT_DRAG_TAU_S: f32 = 0.1;
 
+/// Below this mean drag the local model carries none, N (a step this small is below what a hand detects).
+pub(super) const MIN_MODEL_DRAG_N: f32 = 0.005;
 /// An edge slower than this, mm/s, is held still: it feels no drag and is not cutting (the coupled tool still
 /// settles by micrometres after the hand stops).
 pub(super) const MIN_CUT_SPEED_MM_S: f32 = 1.0;
@@ -35,11 +37,20 @@ pub(super) struct BladeDrag {
     pub(super) level: f32,
     /// The blade moved this tick.
     pub(super) moving: bool,
+    /// The drag's size averaged over [`CUT_DRAG_TAU_S`], N: what the local model carries. The drag itself
+    /// is a sawtooth (1 at each facet cut, decaying between), which a model sent on change would render
+    /// high by the deadband.
+    mean_n: f32,
 }
 
 impl BladeDrag {
-    /// A new tick: no drag yet, the level decays.
+    /// A new tick: the last drag joins the mean, no drag yet, the level decays.
     pub(super) fn begin_tick(&mut self, dt_s: f32) {
+        // The last tick's drag joins the running mean (a tick late: the model is a smoothed figure anyway).
+        let magnitude = self.force_n.norm();
+        if magnitude.is_finite() {
+            self.mean_n += (magnitude - self.mean_n) * (1.0 - (-dt_s / CUT_DRAG_TAU_S).exp());
+        }
         self.force_n = Vec3::zeros();
         self.level *= (-dt_s / CUT_DRAG_TAU_S).exp();
         self.moving = false;
@@ -48,6 +59,18 @@ impl BladeDrag {
     /// The blade is cutting: moving, and cut recently.
     pub(super) fn cutting(&self) -> bool {
         self.moving && self.level > 0.5
+    }
+
+    /// Mark `out` with the drag of cutting: for the local model its mean size (zero below
+    /// [`MIN_MODEL_DRAG_N`]), and the drag inside the tool's force this tick.
+    pub(super) fn mark(&self, out: &mut ToolOutput) {
+        out.cutting = self.cutting();
+        out.cut_drag_world_n = self.force_n;
+        out.cut_drag_n = if self.mean_n >= MIN_MODEL_DRAG_N {
+            self.mean_n
+        } else {
+            0.0
+        };
     }
 }
 

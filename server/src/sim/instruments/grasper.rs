@@ -19,6 +19,12 @@ pub(in crate::sim) struct Grasper {
     grasp: Grasp,
     /// The tissue's pull on the tool through the grasp at the end of the last tick, N.
     pull_n: Vec3,
+    /// Since the take, the grasp's share of the force on the tool, 0..1, rising as the jaws close: the rest
+    /// is `handed_over_n`. The points are held rigidly from the take; what the hand feels passes from the
+    /// body's push on them to the grasp's pull on them as fast as the jaws close, not in one tick.
+    take_share: f32,
+    /// The body's push through the points it handed to the grasp, at the take, N.
+    handed_over_n: Vec3,
 }
 
 impl Grasper {
@@ -28,6 +34,8 @@ impl Grasper {
             jaws: Jaws::new(spec.activation, spec.open_angle_rad),
             grasp: Grasp::new(spec, objects),
             pull_n: Vec3::zeros(),
+            take_share: 1.0,
+            handed_over_n: Vec3::zeros(),
         }
     }
 }
@@ -48,7 +56,9 @@ impl Instrument for Grasper {
             return;
         }
         let closed = jaws.update(&tool.drive.jaw_input, dt_s);
-        if grasp.closing_edge(closed) {
+        let mut took = false;
+        // Jaws that close again while they still hold (opening, not yet open) keep their hold.
+        if grasp.closing_edge(closed) && grasp.attachments().is_empty() {
             grasp.start_take();
             let bite_mm = grasp.spec().bite_mm;
             // A multi-rate object is not grasped (its nodes move on its own thread).
@@ -82,16 +92,42 @@ impl Instrument for Grasper {
                 }
             }
             match grasp.finish_take() {
-                GraspEvent::Took(_) => report.grasps_taken += 1,
+                GraspEvent::Took(_) => {
+                    // Taken at once, at full grip, at their places on the jaws; the force the hand feels
+                    // passes from the body's push on them to their pull over the jaws' closing time.
+                    grasp.set_grip(1.0, 1.0);
+                    self.take_share = 0.0;
+                    took = true;
+                    self.handed_over_n = handed_over_n(sim, t, grasp);
+                    report.grasps_taken += 1;
+                }
                 _ => report.grasps_missed += 1,
             }
-        } else if !closed && !grasp.attachments().is_empty() {
+        }
+        // Opening jaws let go progressively: the grip falls as they open, so the force at the hand falls no
+        // faster than the jaws move; jaws that close again before they are open hold on.
+        let target = if closed { 1.0 } else { jaws.grip() };
+        grasp.set_grip(target, jaws.grip_rate_per_s() * dt_s);
+        if !closed && grasp.grip() <= 0.0 && !grasp.attachments().is_empty() {
             report.attachments_released += released(grasp.release());
         }
         let before = grasp.slipped();
         for (o, object) in sim.objects.iter().enumerate() {
             if !grasp.attached_nodes(o).is_empty() {
                 self.pull_n += grasp.settle(o, &object.model, &object.state);
+            }
+        }
+        if self.take_share < 1.0 {
+            if grasp.attachments().is_empty() {
+                self.take_share = 1.0;
+            } else if took {
+                // This tick's contacts still hold the taken points and report their push: the grasp adds
+                // nothing until the next tick (counting both stepped the force by their push).
+                self.pull_n = Vec3::zeros();
+            } else {
+                let share = self.take_share;
+                self.pull_n = self.pull_n * share + self.handed_over_n * (1.0 - share);
+                self.take_share = (share + jaws.grip_rate_per_s() * dt_s).min(1.0);
             }
         }
         report.attachments_slipped += (grasp.slipped() - before) as u32;
@@ -151,4 +187,50 @@ fn released(event: GraspEvent) -> u32 {
         GraspEvent::Released(n) => u32::from(n),
         _ => 0,
     }
+}
+
+/// The push tool `t`'s body felt, at the end of this tick's substeps, through the nodes `grasp` now holds:
+/// each held node's push along the tool normal and its friction, as `ProbeContacts::reaction_force_n`
+/// counts it. No allocation.
+fn handed_over_n(sim: &Sim, t: usize, grasp: &Grasp) -> Vec3 {
+    let tool = &sim.tools[t];
+    let mut force = Vec3::zeros();
+    for (o, object) in sim.objects.iter().enumerate() {
+        let taken = grasp.attached_nodes(o);
+        let Some(contacts) = tool.contacts.get(o) else {
+            continue;
+        };
+        if taken.is_empty() || contacts.held.is_empty() {
+            continue;
+        }
+        let (model, state) = (&object.model, &object.state);
+        let pressure = model.pressure_n_per_mm2(&state.positions_mm);
+        for (&node, dir) in contacts.held.iter().zip(&contacts.normals) {
+            if taken.binary_search(&node).is_err() {
+                continue;
+            }
+            let f = model.node_force(
+                node as usize,
+                &state.positions_mm,
+                &state.velocities_mm_s,
+                pressure,
+            );
+            let normal = f.dot(dir);
+            if normal < 0.0 {
+                force += dir * normal;
+                let friction = object.friction;
+                if friction > 0.0 && friction.is_finite() {
+                    let f_t = f - dir * normal;
+                    let limit_n = -normal * friction;
+                    let t = f_t.norm();
+                    force += if t <= limit_n {
+                        f_t
+                    } else {
+                        f_t * (limit_n / t)
+                    };
+                }
+            }
+        }
+    }
+    force
 }

@@ -71,6 +71,6 @@ impl Instrument for Scalpel {
     }
 
     fn mark_output(&self, out: &mut ToolOutput) {
-        out.cutting = self.drag.cutting();
+        self.drag.mark(out);
     }
 }

@@ -87,6 +87,7 @@ impl Instrument for Scissors {
     fn mark_output(&self, out: &mut ToolOutput) {
         out.jaws_closed = self.jaws.closed();
         out.jaw_angle_rad = self.jaws.angle_rad();
+        // A snip's resistance is in the grip, which no device renders: no drag of cutting in the model either.
         out.cutting = self.drag.cutting();
     }
 

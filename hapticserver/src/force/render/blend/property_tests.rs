@@ -89,10 +89,15 @@ fn random_model(rng: &mut fastrand::Rng, near_mm: [f32; 3], normals: &[[f32; 3]]
         planes,
         plane_count: plane_count as u8,
         energy_allowance_mj: 0.0,
+        attached: rng.f32() < 0.3,
+        cut_drag_n: if rng.bool() { rng.f32() * 0.3 } else { 0.0 },
     };
     assert!(model.validate().is_ok(), "{model:?}");
     model
 }
+
+/// The walk's top speed, mm/s.
+const MAX_WALK_SPEED_MM_S: f32 = 300.0;
 
 /// The device: a random walk in velocity (steps of up to 5.7 mm/s per axis per tick, speed <= 300 mm/s),
 /// pulled weakly back to the origin.
@@ -107,8 +112,8 @@ impl Walk {
             self.velocity_mm_s[i] += (rng.f32() * 2.0 - 1.0) * 5.7;
         }
         let speed = norm(self.velocity_mm_s);
-        if speed > 300.0 {
-            self.velocity_mm_s = self.velocity_mm_s.map(|c| c * 300.0 / speed);
+        if speed > MAX_WALK_SPEED_MM_S {
+            self.velocity_mm_s = self.velocity_mm_s.map(|c| c * MAX_WALK_SPEED_MM_S / speed);
         }
         // Pulled gently back to the origin so models keep meeting the device.
         for i in 0..3 {
@@ -137,11 +142,19 @@ fn lipschitz(model: Option<&LocalModel>, dx_mm: f32) -> (f32, f32) {
     let k = psd_norm_bound(&m.stiffness_n_per_mm);
     let d = psd_norm_bound(&m.damping_n_s_per_mm);
     let (mut per_mm, mut per_mm_s) = (0.0, 0.0);
-    if m.in_contact {
+    if m.in_contact && m.attached {
+        // Bilateral: `w (f0 - K dx - D v)`, no cap; the fade multiplies all of it, damping at the walk's
+        // top speed included.
+        per_mm += k + 1.5 / m.fade_mm
+            * (norm(m.f0_n) + k * (m.radius_mm + dx_mm) + d * 1.1 * MAX_WALK_SPEED_MM_S);
+        per_mm_s += d;
+    } else if m.in_contact {
         per_mm += (2.0 + c) * k
             + 1.5 / m.fade_mm * (1.0 + c) * (norm(m.f0_n) + k * (m.radius_mm + dx_mm));
         per_mm_s += d;
     }
+    // The drag of cutting, `-F v / sqrt(|v|^2 + v_s^2)`: its slope in v is at most F / v_s.
+    per_mm_s += m.cut_drag_n / sinew_protocol::CUT_DRAG_SMOOTHING_MM_S;
     let planes = m.active_planes();
     let k_max = planes
         .iter()

@@ -1,0 +1,170 @@
+//! Every interaction at a distance, on virtual time: the shipped instrument worlds with the demo's scripts,
+//! in `--mode auto`, at 50-200 ms round trips, against the same trajectories at zero delay
+//! (`tests/src/fidelity.rs`). Deterministic: no wall-clock assertion.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use hapticserver::HandPreset;
+use sinew_testkit::drill::Link;
+use sinew_testkit::fidelity::{
+    FIDELITY_RUN_S, TUG_HOLD_S, fidelity, mean_force_n, sheet_difference_mm, tug_of_war,
+};
+use sinew_testkit::harness::load_shipped_world;
+
+const ROUND_TRIPS_MS: [f64; 3] = [50.0, 100.0, 200.0];
+
+// The runs cover the release (the demo's jaws open at 4.5 s), and the tug's hold ends before left opens (5 s).
+const _: () = assert!(FIDELITY_RUN_S > 4.6 && TUG_HOLD_S.1 < 5.0);
+
+/// Two graspers pull one sheet apart (grasp_pull's demo): peak and RMS force felt within 10% of zero delay,
+/// the passivity controller quiet, no clamp, no silence; `--mode auto` renders the local model at a
+/// distance (10 ms included: streamed there, a grasp drove these hands to the clamp) and streams at zero
+/// delay. Before the grasp had a bilateral term of its own, the nominal hand felt +130% at 200 ms with
+/// 115 mJ withheld.
+#[test]
+fn a_grasped_pull_is_felt_at_a_distance_as_at_zero_delay() {
+    let world = load_shipped_world("grasp_pull.toml").unwrap();
+    let mut rows = Vec::new();
+    let mut failures = Vec::new();
+    for hand in [HandPreset::Light, HandPreset::Nominal] {
+        for rtt_ms in [10.0].into_iter().chain(ROUND_TRIPS_MS) {
+            let f = fidelity(&world, hand, Link::rtt(rtt_ms), Link::rtt(rtt_ms)).unwrap();
+            for (d, row) in f.devices.iter().zip(f.rows("grasp_pull", hand, rtt_ms)) {
+                if d.peak_error().abs() > 0.10
+                    || d.rms_error().abs() > 0.10
+                    || d.withheld_mj >= 1.0
+                    || d.clamped
+                    || d.stale_events > 0
+                {
+                    failures.push(row.clone());
+                }
+                rows.push(row);
+            }
+            for (delayed, reference) in f.delayed.traces.iter().zip(&f.reference.traces) {
+                let weight = |t: &[hapticserver::TraceSample]| t.last().unwrap().model_weight;
+                assert_eq!(weight(reference), 0.0, "auto streams at zero delay");
+                assert_eq!(
+                    weight(delayed),
+                    1.0,
+                    "auto renders the model at {rtt_ms} ms"
+                );
+            }
+        }
+    }
+    println!("{}", rows.join("\n"));
+    assert!(failures.is_empty(), "outside 10%:\n{}", failures.join("\n"));
+}
+
+/// The scalpel's drag, felt while it cuts (cut.toml's demo: 40 mm along +y at 20 mm/s), within 10% of zero
+/// delay for the nominal and firm hands. Before the model carried the drag of cutting, nothing was felt at
+/// 200 ms. (The light hand feels 6-10% less than at zero delay: BENCHMARKS.md.)
+#[test]
+fn the_drag_of_cutting_is_felt_at_a_distance_as_at_zero_delay() {
+    let world = load_shipped_world("cut.toml").unwrap();
+    let mut rows = Vec::new();
+    for hand in [HandPreset::Nominal, HandPreset::Firm] {
+        for rtt_ms in ROUND_TRIPS_MS {
+            let f = fidelity(&world, hand, Link::rtt(rtt_ms), Link::rtt(rtt_ms)).unwrap();
+            // The edge cuts from about 1.2 s to 3 s at zero delay: the steady part.
+            let (from_s, to_s) = (1.4, 2.9);
+            let reference = mean_force_n(&f.reference.traces[0], from_s, to_s);
+            let felt = mean_force_n(&f.delayed.traces[0], from_s, to_s);
+            rows.push(format!(
+                "{} {rtt_ms} ms: drag {felt:.4} N against {reference:.4} N",
+                hand.name()
+            ));
+            assert!(reference > 0.05, "no drag at zero delay: {rows:?}");
+            assert!(
+                (felt / reference - 1.0).abs() <= 0.10,
+                "drag outside 10%: {rows:?}"
+            );
+            assert!(f.devices[0].withheld_mj < 1.0 && !f.devices[0].clamped);
+        }
+    }
+    println!("{}", rows.join("\n"));
+}
+
+/// The other instrument worlds at 200 ms, nominal hands: the cautery and the graspers' RMS force within 10%
+/// of zero delay, cut_under_tension's scalpel's drag while it cuts within 10%, the controller quiet, no
+/// clamp. (Peaks are not asserted here: the cautery's touch-down on the pad overshoots, BENCHMARKS.md.)
+#[test]
+fn cautery_and_a_cut_under_tension_are_felt_at_200_ms_as_at_zero_delay() {
+    for world_name in ["cautery.toml", "cut_under_tension.toml"] {
+        let world = load_shipped_world(world_name).unwrap();
+        let f = fidelity(
+            &world,
+            HandPreset::Nominal,
+            Link::rtt(200.0),
+            Link::rtt(200.0),
+        )
+        .unwrap();
+        let rows = f.rows(world_name, HandPreset::Nominal, 200.0);
+        println!("{}", rows.join("\n"));
+        for (device, d) in f.devices.iter().enumerate() {
+            assert!(d.withheld_mj < 1.0 && !d.clamped, "{}", rows.join("\n"));
+            let scalpel = world_name == "cut_under_tension.toml" && device == 0;
+            if scalpel {
+                let (from_s, to_s) = (1.4, 2.9);
+                let reference = mean_force_n(&f.reference.traces[0], from_s, to_s);
+                let felt = mean_force_n(&f.delayed.traces[0], from_s, to_s);
+                assert!(
+                    (felt / reference - 1.0).abs() <= 0.10,
+                    "drag while cutting {felt:.4} N against {reference:.4} N"
+                );
+            } else {
+                assert!(d.rms_error().abs() <= 0.10, "{}", rows.join("\n"));
+            }
+        }
+    }
+}
+
+/// A tug of war: right holds the sheet while left takes hold 12 mm from it and pulls 6 mm outward and 8 mm
+/// up. With left at 10 or 200 ms and right at 200 or 10 ms (and both at 200 ms): left feels its pull within
+/// 15% of zero delay, both hold still afterwards (the stability rule of the remote-surgeons issue), the
+/// controller withholds under 1 mJ, nothing reaches the clamp or the silence rule, and the sheet in the
+/// middle of the hold is where it is at zero delay to 0.5 mm. What right feels of left's pull is printed,
+/// not asserted: the shipped sheet's anchors (0.008 N/mm a node) keep it to about 2 mN at 12 mm, too little
+/// to hold to 15% (a tug world of an unanchored membrane is the next step: BENCHMARKS.md).
+#[test]
+fn a_tug_of_war_at_200_ms_is_felt_and_held_as_at_zero_delay() {
+    let world = load_shipped_world("grasp_pull.toml").unwrap();
+    let hand = HandPreset::Nominal;
+    let reference = tug_of_war(&world, hand, Link::rtt(0.0), Link::rtt(0.0)).unwrap();
+    assert!(
+        reference.left_feels_n > 0.5,
+        "left must feel its own pull: {} N",
+        reference.left_feels_n
+    );
+    let mut rows = Vec::new();
+    for (left_ms, right_ms) in [(10.0, 200.0), (200.0, 10.0), (200.0, 200.0)] {
+        let tug = tug_of_war(&world, hand, Link::rtt(left_ms), Link::rtt(right_ms)).unwrap();
+        let right_ratio = tug.right_feels_n / reference.right_feels_n;
+        let left_ratio = tug.left_feels_n / reference.left_feels_n;
+        let sheet_mm = sheet_difference_mm(&tug.sheet_mm, &reference.sheet_mm);
+        let row = format!(
+            "left {left_ms} / right {right_ms} ms: left feels {:.3} N ({left_ratio:.3} of zero delay), right {:.4} N \
+             ({right_ratio:.3}); hold {:?}; energy out {:?} mJ; withheld {:?} mJ; clamped {:?}; sheet {sheet_mm:.3} mm",
+            tug.left_feels_n,
+            tug.right_feels_n,
+            tug.hold,
+            tug.energy_out_mj,
+            tug.withheld_mj,
+            tug.clamped
+        );
+        let stable = tug
+            .hold
+            .iter()
+            .all(|h| h.force_p2p_n < 0.05 && h.velocity_rms_mm_s < 1.0)
+            && tug.energy_out_mj.iter().all(|&e| e <= 1.0);
+        assert!(
+            (0.85..=1.15).contains(&left_ratio)
+                && stable
+                && tug.withheld_mj.iter().all(|&w| w < 1.0)
+                && !tug.clamped.iter().any(|&c| c)
+                && tug.stale_events.iter().all(|&s| s == 0)
+                && sheet_mm <= 0.5,
+            "{row}"
+        );
+        rows.push(row);
+    }
+    println!("{}", rows.join("\n"));
+}
