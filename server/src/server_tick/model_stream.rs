@@ -199,7 +199,14 @@ impl ModelStream {
         LocalModel {
             server_time_ns: (now_s.max(0.0) * 1e9) as u64,
             in_contact: out.in_contact,
-            x0_mm: (out.position_world_mm - origin).into(),
+            // A grasp is linearised about the device position that drove the tool, its K in series with the
+            // coupling (`Sim::local_model`); a push about the tool, its K the tissue's.
+            x0_mm: (if out.attached {
+                out.device_world_mm
+            } else {
+                out.position_world_mm
+            } - origin)
+                .into(),
             f0_n: f0.into(),
             // The wire refuses anything but positive semi-definite: send the PSD part, whatever came in.
             stiffness_n_per_mm: sym3(&psd_part(&out.stiffness_n_per_mm)),

@@ -189,7 +189,19 @@ impl Sim {
         out.velocity_world_mm_s = tool.drive.coupling.velocity_mm_s();
         out.device_world_mm = tool.drive.device_mm;
         out.device_velocity_world_mm_s = tool.drive.device_velocity_mm_s;
-        out.stiffness_n_per_mm = k;
+        out.stiffness_n_per_mm = if attached {
+            // A grasp is rendered from the device position that drove the tool (`device_world_mm`), through
+            // the coupling: the tissue's K in series with the coupling's k_c, K_eff = k_c K (K + k_c I)^-1.
+            // (Rendering the tissue's K from the tool's position counted the coupling's static lag F / k_c as
+            // tissue stretch: +0.3 N at a firm hand's 3 N pull.)
+            let k_c = tool.drive.coupling.params().stiffness_n_per_mm;
+            (k * k_c)
+                * (k + Matrix3::identity() * k_c)
+                    .try_inverse()
+                    .unwrap_or_else(Matrix3::zeros)
+        } else {
+            k
+        };
         out.damping_n_s_per_mm = d;
         out.planes = planes;
         out.plane_count = plane_count as u8;
