@@ -18,4 +18,4 @@ pub use instrument::{
     CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
 };
 pub use jaws::{JawInput, Jaws};
-pub use probe::{ProbeContacts, ToolBody};
+pub use probe::{ProbeContacts, ToolBody, add_node_reaction};

@@ -305,21 +305,28 @@ impl ProbeContacts {
                 &state.velocities_mm_s,
                 pressure,
             );
-            let normal = f.dot(dir);
-            if normal < 0.0 {
-                force += dir * normal;
-                if friction > 0.0 && friction.is_finite() {
-                    let f_t = f - dir * normal;
-                    let limit_n = -normal * friction;
-                    let t = f_t.norm();
-                    force += if t <= limit_n {
-                        f_t
-                    } else {
-                        f_t * (limit_n / t)
-                    };
-                }
-            }
+            add_node_reaction(&mut force, &f, dir, friction);
         }
         force
+    }
+}
+
+/// Add to `force` what one held node pushes on the tool: the tissue force `f` on the node along the tool
+/// normal `dir` where it pushes, and with `friction` its tangential pull up to `friction` times that push
+/// (the two added one after the other, as [`ProbeContacts::reaction_force_n`] always has). No allocation.
+pub fn add_node_reaction(force: &mut Vec3, f: &Vec3, dir: &Vec3, friction: f32) {
+    let normal = f.dot(dir);
+    if normal < 0.0 {
+        *force += dir * normal;
+        if friction > 0.0 && friction.is_finite() {
+            let f_t = f - dir * normal;
+            let limit_n = -normal * friction;
+            let t = f_t.norm();
+            *force += if t <= limit_n {
+                f_t
+            } else {
+                f_t * (limit_n / t)
+            };
+        }
     }
 }

@@ -215,21 +215,7 @@ fn handed_over_n(sim: &Sim, t: usize, grasp: &Grasp) -> Vec3 {
                 &state.velocities_mm_s,
                 pressure,
             );
-            let normal = f.dot(dir);
-            if normal < 0.0 {
-                force += dir * normal;
-                let friction = object.friction;
-                if friction > 0.0 && friction.is_finite() {
-                    let f_t = f - dir * normal;
-                    let limit_n = -normal * friction;
-                    let t = f_t.norm();
-                    force += if t <= limit_n {
-                        f_t
-                    } else {
-                        f_t * (limit_n / t)
-                    };
-                }
-            }
+            crate::interaction::add_node_reaction(&mut force, &f, dir, object.friction);
         }
     }
     force
