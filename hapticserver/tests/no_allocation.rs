@@ -47,9 +47,12 @@ fn command(k: u64, moderated: bool) -> Vec<u8> {
         planes,
         plane_count: 1,
         energy_allowance_mj: 1.0,
-        // Every term the renderer has: a grasp's bilateral part on odd ticks, the drag of cutting.
+        // Every term the renderer has: a grasp's bilateral part on odd ticks, the drag of cutting, and
+        // friction about the stick point on even ticks.
         attached: k % 2 == 1,
         cut_drag_n: 0.15,
+        friction_coefficient: 0.5,
+        stick_stiffness_n_per_mm: 1.5,
     };
     let command = ForceCommand {
         seq: k + 1,

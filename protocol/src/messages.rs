@@ -12,7 +12,8 @@ mod tools;
 pub use force::{ForceCommand, ForceMode};
 pub use hello::{ParticipantHello, Role};
 pub use local_model::{
-    CUT_DRAG_SMOOTHING_MM_S, ContactPlane, LocalModel, MAX_CONTACT_PLANES, Sym3,
+    CUT_DRAG_SMOOTHING_MM_S, ContactPlane, LocalModel, MAX_CONTACT_PLANES,
+    MAX_FRICTION_COEFFICIENT, Sym3,
 };
 pub use mesh_delta::{MeshDelta, TopologyDelta};
 pub use pose::{DevicePose, RenderMode};

@@ -73,6 +73,8 @@ fn local_model(rng: &mut fastrand::Rng) -> LocalModel {
         energy_allowance_mj: rng.f32() * 50.0,
         attached: rng.bool(),
         cut_drag_n: rng.f32() * 0.5,
+        friction_coefficient: rng.f32() * 2.0,
+        stick_stiffness_n_per_mm: rng.f32() * 3.0,
     }
 }
 
@@ -669,6 +671,15 @@ fn local_model_fields_out_of_domain_are_refused_by_name() {
     let mut m = good;
     m.cut_drag_n = f32::INFINITY;
     refused(m);
+    // A friction coefficient out of 0..=2, or not finite; a negative stick spring.
+    for bad in [-0.1, 2.5, f32::NAN] {
+        let mut m = good;
+        m.friction_coefficient = bad;
+        assert_eq!(refused(m), "local_model.friction_coefficient");
+    }
+    let mut m = good;
+    m.stick_stiffness_n_per_mm = -1.0;
+    assert_eq!(refused(m), "local_model.stick_stiffness_n_per_mm");
 }
 
 #[test]

@@ -61,6 +61,8 @@ fn force_local_model() -> ForceCommand {
             energy_allowance_mj: 0.0,
             attached: false,
             cut_drag_n: 0.0,
+            friction_coefficient: 0.0,
+            stick_stiffness_n_per_mm: 0.0,
         }),
         ..force_direct()
     }

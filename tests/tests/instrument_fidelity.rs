@@ -118,6 +118,46 @@ fn cautery_and_a_cut_under_tension_are_felt_at_200_ms_as_at_zero_delay() {
     }
 }
 
+/// The pad with Coulomb friction 0.5 (as the golden traces make it), stroked by the demo's nominal hands: peak
+/// and RMS force within 10% of zero delay at 50-200 ms, the controller quiet, no clamp. The friction is
+/// rendered about the device's own stick point with the sliding coefficient the server measures; carried in
+/// `f0` it was a round trip late and tilted the contact normal: +37-108% peaks and up to 24 mJ withheld.
+/// (The light hand's touch-down overshoots as on the frictionless pad, +8-14% at 100-200 ms; the firm hand
+/// ploughs a dent whose wall drag still travels in `f0`: BENCHMARKS.md.)
+#[test]
+fn friction_on_the_pad_is_felt_at_a_distance_as_at_zero_delay() {
+    let mut world = load_shipped_world("pad.toml").unwrap();
+    world.objects[0].material.friction_coefficient = 0.5;
+    let mut rows = Vec::new();
+    let mut failures = Vec::new();
+    for rtt_ms in ROUND_TRIPS_MS {
+        let f = fidelity(
+            &world,
+            HandPreset::Nominal,
+            Link::rtt(rtt_ms),
+            Link::rtt(rtt_ms),
+        )
+        .unwrap();
+        for (d, row) in f
+            .devices
+            .iter()
+            .zip(f.rows("pad_friction", HandPreset::Nominal, rtt_ms))
+        {
+            if d.peak_error().abs() > 0.10
+                || d.rms_error().abs() > 0.10
+                || d.withheld_mj >= 1.0
+                || d.clamped
+                || d.stale_events > 0
+            {
+                failures.push(row.clone());
+            }
+            rows.push(row);
+        }
+    }
+    println!("{}", rows.join("\n"));
+    assert!(failures.is_empty(), "outside 10%:\n{}", failures.join("\n"));
+}
+
 /// A tug of war: right holds the sheet while left takes hold 12 mm from it and pulls 6 mm outward and 8 mm
 /// up. With left at 10 or 200 ms and right at 200 or 10 ms (and both at 200 ms): left feels its pull within
 /// 15% of zero delay, both hold still afterwards (the stability rule of the remote-surgeons issue), the

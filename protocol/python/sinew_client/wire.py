@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 10
+PROTOCOL_VERSION = 11
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -231,6 +231,9 @@ class LocalModel:
     attached: bool = wire_field("bool", default=False)
     # The drag of cutting against the device's motion while a blade cuts, N (v10).
     cut_drag_n: float = wire_field("f32", default=0.0)
+    # Coulomb friction the device renders about its own stick point: the cone and the stick spring (v11).
+    friction_coefficient: float = wire_field("f32", default=0.0)
+    stick_stiffness_n_per_mm: float = wire_field("f32", default=0.0)
 
 
 @dataclass

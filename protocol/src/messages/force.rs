@@ -6,7 +6,12 @@ use crate::codec::{FieldError, Message, MessageKind, check};
 use crate::messages::local_model::LocalModel;
 
 /// What a [`ForceCommand`] carries besides the streamed force.
+///
+/// The model is held inline, not boxed: a command is decoded into a stack value on the device's 1 kHz path,
+/// which must not allocate (`hapticserver/tests/no_allocation.rs`); the `Direct` variant is the rare one (a
+/// released tool's explicit zero).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[allow(clippy::large_enum_variant)]
 pub enum ForceMode {
     /// The streamed force only (the explicit zero a released tool gets): render `force_n` as it is.
     #[default]

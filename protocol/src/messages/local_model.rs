@@ -12,6 +12,8 @@
 //! never pulls the tool into the tissue; unless the tool holds tissue ([`LocalModel::attached`]: a grasp's
 //! points), when it pulls both ways. While a blade cuts, the model also carries the drag of cutting
 //! ([`LocalModel::cut_drag_n`]), rendered against the device's current motion: `-F v / sqrt(|v|^2 + v_s^2)`.
+//! A frictional contact carries a friction cone ([`LocalModel::friction_coefficient`]) and a stick spring
+//! that the device renders about a stick point of its own; its `f0` is then the push alone.
 
 use serde::{Deserialize, Serialize};
 
@@ -107,7 +109,17 @@ pub struct LocalModel {
     /// The drag of cutting while a blade cuts, N (>= 0; 0: not cutting): a force of this size against the
     /// device's current motion, smoothed below [`CUT_DRAG_SMOOTHING_MM_S`]. Not part of `f0`.
     pub cut_drag_n: f32,
+    /// Coulomb's coefficient of the friction the device renders from its own stick point (0..=2; 0: no
+    /// friction term). With friction, `f0` is the contact's push alone: the tangential force is
+    /// `-k_t P (x - a)` about a stick point `a` the device keeps, `P` the projection onto the surface
+    /// (normal to `f0`), capped at this coefficient times the rendered normal force; past the cap `a` slides.
+    pub friction_coefficient: f32,
+    /// The stick spring `k_t`, N/mm (>= 0; 0: no friction term).
+    pub stick_stiffness_n_per_mm: f32,
 }
+
+/// The largest friction coefficient a model may carry (as the world file's `friction_coefficient`).
+pub const MAX_FRICTION_COEFFICIENT: f32 = 2.0;
 
 /// Below this speed the drag of cutting fades with the speed (`-F v / sqrt(|v|^2 + v_s^2)`), mm/s: the drag
 /// is continuous through a stop, and a hand at rest feels none.
@@ -138,6 +150,16 @@ impl LocalModel {
         )?;
         if self.cut_drag_n < 0.0 {
             return Err(("local_model.cut_drag_n", "negative"));
+        }
+        check::finite(
+            "local_model.friction_coefficient",
+            &[self.friction_coefficient, self.stick_stiffness_n_per_mm],
+        )?;
+        if !(0.0..=MAX_FRICTION_COEFFICIENT).contains(&self.friction_coefficient) {
+            return Err(("local_model.friction_coefficient", "must be 0 to 2"));
+        }
+        if self.stick_stiffness_n_per_mm < 0.0 {
+            return Err(("local_model.stick_stiffness_n_per_mm", "negative"));
         }
         if !sym3_is_psd(&self.stiffness_n_per_mm) {
             return Err((

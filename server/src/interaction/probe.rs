@@ -293,9 +293,23 @@ impl ProbeContacts {
         state: &TissueState,
         friction: f32,
     ) -> Vec3 {
+        self.reaction_and_friction_n(model, state, friction).0
+    }
+
+    /// [`ProbeContacts::reaction_force_n`] and, apart, the friction inside it (the sum of the nodes'
+    /// tangential pulls, N): a distant device renders friction from its own stick point, so the local model's
+    /// `f0` leaves it out. The total is summed exactly as `reaction_force_n` always has (same bits). No
+    /// allocation.
+    pub fn reaction_and_friction_n(
+        &self,
+        model: &MassSpringModel,
+        state: &TissueState,
+        friction: f32,
+    ) -> (Vec3, Vec3) {
         let mut force = Vec3::zeros();
+        let mut friction_n = Vec3::zeros();
         if self.held.is_empty() {
-            return force;
+            return (force, friction_n);
         }
         let pressure = model.pressure_n_per_mm2(&state.positions_mm);
         for (&node, dir) in self.held.iter().zip(&self.normals) {
@@ -305,16 +319,17 @@ impl ProbeContacts {
                 &state.velocities_mm_s,
                 pressure,
             );
-            add_node_reaction(&mut force, &f, dir, friction);
+            friction_n += add_node_reaction(&mut force, &f, dir, friction);
         }
-        force
+        (force, friction_n)
     }
 }
 
 /// Add to `force` what one held node pushes on the tool: the tissue force `f` on the node along the tool
 /// normal `dir` where it pushes, and with `friction` its tangential pull up to `friction` times that push
-/// (the two added one after the other, as [`ProbeContacts::reaction_force_n`] always has). No allocation.
-pub fn add_node_reaction(force: &mut Vec3, f: &Vec3, dir: &Vec3, friction: f32) {
+/// (the two added one after the other, as [`ProbeContacts::reaction_force_n`] always has). Returns the
+/// tangential pull added (zero without friction). No allocation.
+pub fn add_node_reaction(force: &mut Vec3, f: &Vec3, dir: &Vec3, friction: f32) -> Vec3 {
     let normal = f.dot(dir);
     if normal < 0.0 {
         *force += dir * normal;
@@ -322,11 +337,14 @@ pub fn add_node_reaction(force: &mut Vec3, f: &Vec3, dir: &Vec3, friction: f32) 
             let f_t = f - dir * normal;
             let limit_n = -normal * friction;
             let t = f_t.norm();
-            *force += if t <= limit_n {
+            let pull = if t <= limit_n {
                 f_t
             } else {
                 f_t * (limit_n / t)
             };
+            *force += pull;
+            return pull;
         }
     }
+    Vec3::zeros()
 }

@@ -13,8 +13,8 @@
 //!   rates by ~90% with such a deadband and no perceived difference) or an absolute 10 mN floor (below the
 //!   hand's detection threshold for force changes of a few tens of mN); or `K` moved by 10%; or a plane moved
 //!   by 0.05 mm or turned by 1 degree; or the contact began or ended; or a grasp took hold or let go
-//!   (`attached`); or the drag of cutting moved by the Weber fraction or the floor; or the energy allowance
-//!   moved by 0.5 mJ.
+//!   (`attached`); or the drag of cutting moved by the Weber fraction or the floor; or the friction
+//!   coefficient changed or the stick spring moved by 10%; or the energy allowance moved by 0.5 mJ.
 //!   The heartbeat (7 ms, 143 messages/s) keeps a still hand's stream inside the device's 50 ms silence rule
 //!   on a jittery path: with `k` messages lost in a row the device waits at most `(k + 1) * 7 ms` plus the
 //!   path's peak-to-peak jitter, so with 20 ms of jitter (+-10 ms) a false silence needs four losses in a row
@@ -26,8 +26,8 @@
 
 use nalgebra::Matrix3;
 use sinew_protocol::{
-    ContactPlane, DevicePose, ForceCommand, ForceMode, LocalModel, MAX_CONTACT_PLANES, RenderMode,
-    Sym3,
+    ContactPlane, DevicePose, ForceCommand, ForceMode, LocalModel, MAX_CONTACT_PLANES,
+    MAX_FRICTION_COEFFICIENT, RenderMode, Sym3,
 };
 
 use crate::haptics::contact_stiffness::psd_part;
@@ -184,8 +184,19 @@ impl ModelStream {
         radius_mm: f32,
     ) -> LocalModel {
         let origin = self.origin_world_mm;
-        // The drag of cutting is rendered against the device's own motion (`cut_drag_n`), not from f0.
-        let f0 = clamp_to(out.force_world_n - out.cut_drag_world_n, max_force_n);
+        // The drag of cutting is rendered against the device's own motion (`cut_drag_n`), not from f0; a
+        // frictional contact's friction from the device's own stick point (`friction_coefficient`).
+        let friction = out.friction_coefficient.is_finite()
+            && out.friction_coefficient > 0.0
+            && out.stick_stiffness_n_per_mm.is_finite()
+            && out.stick_stiffness_n_per_mm > 0.0
+            && !out.attached;
+        let rendered_apart = if friction {
+            out.cut_drag_world_n + out.friction_world_n
+        } else {
+            out.cut_drag_world_n
+        };
+        let f0 = clamp_to(out.force_world_n - rendered_apart, max_force_n);
         let mut planes = [ContactPlane::default(); MAX_CONTACT_PLANES];
         let count = usize::from(out.plane_count).min(MAX_CONTACT_PLANES);
         for (wire, plane) in planes.iter_mut().zip(&out.planes[..count]) {
@@ -219,6 +230,16 @@ impl ModelStream {
             attached: out.attached,
             cut_drag_n: if out.cut_drag_n.is_finite() {
                 out.cut_drag_n.clamp(0.0, max_force_n)
+            } else {
+                0.0
+            },
+            friction_coefficient: if friction {
+                out.friction_coefficient.min(MAX_FRICTION_COEFFICIENT)
+            } else {
+                0.0
+            },
+            stick_stiffness_n_per_mm: if friction {
+                out.stick_stiffness_n_per_mm
             } else {
                 0.0
             },
@@ -298,6 +319,9 @@ impl ModelStream {
                 > p.force_floor_n.max(p.weber_fraction * model.cut_drag_n)
             || last.plane_count != model.plane_count
             || (last.energy_allowance_mj - model.energy_allowance_mj).abs() > p.allowance_mj
+            || last.friction_coefficient != model.friction_coefficient
+            || (last.stick_stiffness_n_per_mm - model.stick_stiffness_n_per_mm).abs()
+                > p.stiffness_fraction * last.stick_stiffness_n_per_mm.max(0.01)
         {
             return true;
         }
@@ -439,6 +463,55 @@ mod tests {
         );
         let mut fresh = ModelStream::new(DeadbandParams::default(), Vec3::zeros());
         assert_eq!(radius(&mut fresh, 0.0, f32::NAN, u32::MAX), MODEL_RADIUS_MM);
+    }
+
+    #[test]
+    fn a_frictional_contact_sends_its_cone_and_leaves_its_friction_out_of_f0() {
+        let mut stream = ModelStream::new(DeadbandParams::default(), Vec3::zeros());
+        let pose = moderated();
+        let mut out = contact(1.0, -3.0);
+        out.force_world_n = Vec3::new(-0.2, 0.0, 1.0);
+        out.friction_world_n = Vec3::new(-0.2, 0.0, 0.0);
+        out.friction_coefficient = 0.3;
+        out.stick_stiffness_n_per_mm = 1.5;
+        let model = |command: Option<ForceCommand>| match command {
+            Some(ForceCommand {
+                mode: ForceMode::LocalModel(model),
+                force_n,
+                ..
+            }) => (model, force_n),
+            other => panic!("{other:?}"),
+        };
+        let (m, direct) = model(stream.command(0.0, &out, &pose, 3.3));
+        assert_eq!(m.f0_n, [0.0, 0.0, 1.0], "f0 is the push alone");
+        assert_eq!(
+            direct,
+            [-0.2, 0.0, 1.0],
+            "the direct force keeps the friction"
+        );
+        assert_eq!(
+            (m.friction_coefficient, m.stick_stiffness_n_per_mm),
+            (0.3, 1.5)
+        );
+        m.validate().unwrap();
+        // The friction changing within the cone is the device's business: nothing to send.
+        out.force_world_n = Vec3::new(0.1, 0.0, 1.0);
+        out.friction_world_n = Vec3::new(0.1, 0.0, 0.0);
+        assert!(stream.command(0.001, &out, &pose, 3.3).is_none());
+        // The cone changing is sent.
+        out.friction_coefficient = 0.35;
+        assert!(stream.command(0.002, &out, &pose, 3.3).is_some());
+        // A grasp, or no stick spring: no friction term, and f0 keeps the friction.
+        for (attached, stick) in [(true, 1.5), (false, 0.0)] {
+            out.attached = attached;
+            out.stick_stiffness_n_per_mm = stick;
+            let m = stream.model(0.003, &out, 3.3);
+            assert_eq!(m.f0_n, [0.1, 0.0, 1.0]);
+            assert_eq!(
+                (m.friction_coefficient, m.stick_stiffness_n_per_mm),
+                (0.0, 0.0)
+            );
+        }
     }
 
     #[test]

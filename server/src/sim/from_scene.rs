@@ -7,7 +7,10 @@
 use nalgebra::{Matrix3, UnitQuaternion};
 
 use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
-use crate::haptics::{ContactStiffness, EnergyBudget, NormalStiffnessEstimate, VirtualCoupling};
+use crate::haptics::{
+    ContactStiffness, EnergyBudget, KineticFrictionEstimate, NormalStiffnessEstimate,
+    VirtualCoupling,
+};
 use crate::interaction::{JawInput, ProbeContacts};
 use crate::multirate::{StepLane, ToolSeed};
 use crate::scene::World;
@@ -162,6 +165,7 @@ impl Sim {
                     plane_damping_n_s_per_mm: 0.0,
                     plane_candidates: Vec::with_capacity(8192),
                     estimate: NormalStiffnessEstimate::default(),
+                    friction: KineticFrictionEstimate::default(),
                 },
                 instrument_state: instrument::build_instrument(&spec.instrument, objects.len()),
             });

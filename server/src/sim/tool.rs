@@ -9,8 +9,8 @@ use nalgebra::{Matrix3, UnitQuaternion};
 use crate::collision::ToolCollider;
 use crate::collision::ToolShapeSpec;
 use crate::haptics::{
-    ContactStiffness, CouplingParams, MAX_PLANES, NormalStiffnessEstimate, VirtualCoupling,
-    WorldPlane,
+    ContactStiffness, CouplingParams, KineticFrictionEstimate, MAX_PLANES, NormalStiffnessEstimate,
+    VirtualCoupling, WorldPlane,
 };
 use crate::interaction::InstrumentSpec;
 use crate::interaction::{Grasp, JawInput, Jaws, ProbeContacts};
@@ -107,6 +107,8 @@ pub(super) struct ToolHaptics {
     pub(super) plane_candidates: Vec<u32>,
     /// The contact's normal stiffness fitted to the tissue's answer.
     pub(super) estimate: NormalStiffnessEstimate,
+    /// The contact's sliding friction coefficient, measured (the model's cone).
+    pub(super) friction: KineticFrictionEstimate,
 }
 
 impl SimTool {
@@ -218,4 +220,14 @@ pub struct ToolOutput {
     /// The drag of cutting inside `force_world_n`, world frame, N (the model renders it from `cut_drag_n`
     /// against the device's own motion, so its `f0` leaves it out).
     pub cut_drag_world_n: Vec3,
+    /// The friction inside `force_world_n` along the surface: the held nodes' tangential pulls, less their
+    /// part along the contact's push, world frame, N (clamped with it). A distant device renders friction
+    /// from its own stick point, so the model's `f0` leaves it out.
+    pub friction_world_n: Vec3,
+    /// Coulomb's coefficient of the tissue the tool pushes on (the largest, if several; 0: frictionless or
+    /// not pushing): the model's friction cone.
+    pub friction_coefficient: f32,
+    /// Stiffness of the stuck contact along the surface as the device feels it, N/mm (0 without friction):
+    /// the model's stick spring ([`super::Sim::local_model`]).
+    pub stick_stiffness_n_per_mm: f32,
 }

@@ -15,6 +15,8 @@ impl Sim {
     pub(super) fn tool_output(&self, t: usize) -> ToolOutput {
         let tool = &self.tools[t];
         let mut force = Vec3::zeros();
+        let mut friction_n = Vec3::zeros();
+        let mut friction_coefficient = 0.0f32;
         let mut held = 0;
         for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
             if let Some(lane) = &object.lane {
@@ -27,7 +29,13 @@ impl Sim {
                 }
                 continue;
             }
-            force += contacts.reaction_force_n(&object.model, &object.state, object.friction);
+            let (push, pull) =
+                contacts.reaction_and_friction_n(&object.model, &object.state, object.friction);
+            force += push;
+            friction_n += pull;
+            if !contacts.held.is_empty() && object.friction.is_finite() {
+                friction_coefficient = friction_coefficient.max(object.friction);
+            }
             held += contacts.held.len() as u32;
         }
         let instrument = tool.instrument_state.as_deref();
@@ -36,6 +44,22 @@ impl Sim {
         force += Vec3::zeros() + instrument.map_or(Vec3::zeros(), |i| i.force_on_tool_n());
         held += u32::from(attachments);
         let mut out = limit_force(force, tool.max_force_n, held);
+        // The friction along the surface: each node's pull is tangent to the tool where that node touches
+        // it, so on a curved tool the sum has a part along the contact normal; that part stays in the push
+        // (the device's cone is about the push's normal). Scaled as the clamp scaled the force (zero if the
+        // force was dropped).
+        if let Some(n) = (force - friction_n).try_normalize(1e-9) {
+            friction_n -= n * n.dot(&friction_n);
+        }
+        let magnitude = force.norm();
+        out.friction_world_n = if out.clamped && magnitude > 0.0 && magnitude.is_finite() {
+            friction_n * (out.force_world_n.norm() / magnitude)
+        } else if out.clamped {
+            Vec3::zeros()
+        } else {
+            friction_n
+        };
+        out.friction_coefficient = friction_coefficient;
         out.attachments = attachments;
         if let Some(instrument) = instrument {
             instrument.mark_output(&mut out);
@@ -51,6 +75,12 @@ impl Sim {
         let mut d = Matrix3::zeros();
         let mut planes = [WorldPlane::default(); MAX_PLANES];
         let mut plane_count = 0usize;
+        // The contact's push without its friction: the friction is rendered from the device's stick point,
+        // so the normal, the solve's direction and the measured stiffness are the push's.
+        let push_n = out.force_world_n - out.friction_world_n;
+        // The tissue's surface normal under a frictional tool: the mean of its held nodes' outward normals
+        // (a frictionless tool's push is along it already: 0.004 rad off on the stroked pad).
+        let mut surface_normal = Vec3::zeros();
         // A tool that holds tissue renders it bilaterally, with the full 3x3 stiffness of what it holds.
         let attached = tool.active
             && tool
@@ -85,6 +115,15 @@ impl Sim {
                 }
                 continue;
             }
+            if object.friction > 0.0 {
+                let normals = object.model.rest_normals();
+                for &node in &contacts.held {
+                    surface_normal += normals
+                        .get(node as usize)
+                        .copied()
+                        .unwrap_or_else(Vec3::zeros);
+                }
+            }
             if contacts.held.is_empty() && grasped.is_empty() {
                 solver.forget();
                 if plane_count < MAX_PLANES
@@ -115,7 +154,7 @@ impl Sim {
                 .or(grasped.first())
                 .copied()
                 .unwrap_or(0);
-            let normal = out.force_world_n.try_normalize(1e-9).unwrap_or_else(|| {
+            let normal = push_n.try_normalize(1e-9).unwrap_or_else(|| {
                 object
                     .model
                     .rest_normals()
@@ -141,22 +180,28 @@ impl Sim {
                 None => {
                     // First ticks of a contact, before the solve finishes: the last measured normal
                     // stiffness of this tool along the contact normal.
-                    if let Some(n) = out.force_world_n.try_normalize(1e-9) {
+                    if let Some(n) = push_n.try_normalize(1e-9) {
                         k += n * n.transpose() * tool.haptic.plane_stiffness_n_per_mm;
                         d += n * n.transpose() * tool.haptic.plane_damping_n_s_per_mm;
                     }
                 }
             }
         }
-        if let Some(n) = out.force_world_n.try_normalize(1e-9)
+        if let Some(n) = push_n.try_normalize(1e-9)
             && out.in_contact
             && tool.active
             && !attached
         {
-            // The normal stiffness the tissue actually shows, capped by the frozen-contact solve.
+            // The normal stiffness the tissue actually shows, capped by the frozen-contact solve; measured
+            // along the tissue's surface normal under the tool (`s`), which stays put as the tool strokes,
+            // where the push's direction turns with the stroke (a frictional tool ploughs: 0.1 rad each way
+            // on the pad), and 20 mm out a turn of 0.1 rad moved `-n . p` by 2 mm: the fit saw a force that
+            // did not change with a depth that did, and the model lost its normal stiffness (0.04 against
+            // 0.2 N/mm), so the hand bobbed by 2 mm at 100 ms.
+            let s = surface_normal.try_normalize(1e-6).unwrap_or(n);
             tool.haptic
                 .estimate
-                .record(-n.dot(&tool.position_mm), n.dot(&out.force_world_n), dt_s);
+                .record(-s.dot(&tool.position_mm), s.dot(&push_n), dt_s);
             // K is rank one along the CURRENT contact normal (the solve may have started on an older one).
             let solved = (n.transpose() * k * n)[(0, 0)].max(0.0);
             let kn = tool
@@ -171,9 +216,33 @@ impl Sim {
                 tool.haptic.plane_stiffness_n_per_mm = kn;
                 tool.haptic.plane_damping_n_s_per_mm = (n.transpose() * d * n)[(0, 0)].max(0.0);
             }
+            if out.friction_coefficient > 0.0 {
+                tool.haptic.friction.record(
+                    &out.friction_world_n,
+                    n.dot(&push_n),
+                    &tool.drive.coupling.velocity_mm_s(),
+                    &n,
+                    dt_s,
+                );
+                out.friction_coefficient =
+                    tool.haptic.friction.coefficient(out.friction_coefficient);
+                let k_c = tool.drive.coupling.params().stiffness_n_per_mm;
+                // From the frozen-contact solve: stuck nodes are exactly a held set that does not change
+                // (the measured slope of a stroke is near zero: the push barely changes as the tool slides).
+                out.stick_stiffness_n_per_mm = stick_stiffness_n_per_mm(solved, k_c);
+            }
+        }
+        if attached || out.stick_stiffness_n_per_mm <= 0.0 || out.friction_coefficient <= 0.0 {
+            // A grasp renders its held tissue bilaterally (no friction term); without a stick spring there
+            // is no friction term either, and `f0` keeps the friction.
+            out.friction_coefficient = 0.0;
+            out.stick_stiffness_n_per_mm = 0.0;
         }
         if !out.in_contact || !tool.active || attached {
             tool.haptic.estimate.reset();
+        }
+        if !tool.active {
+            tool.haptic.friction.reset();
         }
         out.attached = attached;
         tool.haptic.contact_k = k;
@@ -209,6 +278,24 @@ impl Sim {
     }
 }
 
+/// Tangential over normal stiffness of a stuck contact on an elastic half-space, Mindlin (1949):
+/// `2 (1 - nu) / (2 - nu)`, at Poisson's ratio 0.5 (soft tissue is nearly incompressible).
+pub const MINDLIN_TANGENTIAL_RATIO: f32 = 2.0 / 3.0;
+
+/// The stick spring a distant device renders, N/mm: the stuck contact's tangential stiffness (the tissue's
+/// normal contact stiffness `kn_n_per_mm` times [`MINDLIN_TANGENTIAL_RATIO`]) in series with the coupling's
+/// `k_c_n_per_mm`, as a hand holding a stuck tool through the coupling feels it at zero delay. Zero for
+/// non-finite or non-positive input. Pure.
+pub fn stick_stiffness_n_per_mm(kn_n_per_mm: f32, k_c_n_per_mm: f32) -> f32 {
+    let k_t = MINDLIN_TANGENTIAL_RATIO * kn_n_per_mm;
+    let series = k_t * k_c_n_per_mm / (k_t + k_c_n_per_mm);
+    if series.is_finite() && series > 0.0 {
+        series
+    } else {
+        0.0
+    }
+}
+
 /// Clamp to `max_force_n`, and never pass a non-finite force. Pure.
 pub(super) fn limit_force(force: Vec3, max_force_n: f32, held: u32) -> ToolOutput {
     let mut out = ToolOutput {
@@ -233,6 +320,28 @@ pub(super) fn limit_force(force: Vec3, max_force_n: f32, held: u32) -> ToolOutpu
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_stick_spring_is_mindlins_tangential_stiffness_in_series_with_the_coupling() {
+        // 0.6 N/mm normal: 0.4 N/mm tangential, with a 5 N/mm coupling 2 / 5.4 N/mm.
+        let k = stick_stiffness_n_per_mm(0.6, 5.0);
+        assert!((k - 0.4 * 5.0 / 5.4).abs() < 1e-6, "{k}");
+        // Never above either spring; nothing for nothing or garbage.
+        assert!(stick_stiffness_n_per_mm(100.0, 5.0) < 5.0);
+        for (kn, kc) in [
+            (0.0, 5.0),
+            (0.6, 0.0),
+            (f32::NAN, 5.0),
+            (-1.0, 5.0),
+            (0.6, f32::INFINITY),
+        ] {
+            let k = stick_stiffness_n_per_mm(kn, kc);
+            assert!(k == 0.0 || (k.is_finite() && k > 0.0), "{kn} {kc}: {k}");
+        }
+        assert_eq!(stick_stiffness_n_per_mm(0.0, 5.0), 0.0);
+        assert_eq!(stick_stiffness_n_per_mm(f32::NAN, 5.0), 0.0);
+        assert_eq!(stick_stiffness_n_per_mm(-1.0, 5.0), 0.0);
+    }
 
     #[test]
     fn limit_force_clamps_and_drops_non_finite() {

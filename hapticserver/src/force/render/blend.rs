@@ -17,6 +17,7 @@ use sinew_protocol::LocalModel;
 use thiserror::Error;
 
 use super::all_finite;
+use super::friction_stick::StickPoint;
 use super::local_model::{cut_drag_force_n, linear_force_n};
 use super::plane_proxy::PlaneProxy;
 
@@ -96,17 +97,20 @@ fn add3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     std::array::from_fn(|i| a[i] + b[i])
 }
 
-/// The force of `model` at the device state: linear part, planes (moving `proxy`) and the drag of cutting.
+/// The force of `model` at the device state: linear part, friction (moving `stick`), planes (moving `proxy`)
+/// and the drag of cutting.
 fn model_force_n(
     model: &LocalModel,
     proxy: &mut PlaneProxy,
+    stick: &mut StickPoint,
     position_mm: [f32; 3],
     velocity_mm_s: [f32; 3],
 ) -> [f32; 3] {
     let linear_n = linear_force_n(model, position_mm, velocity_mm_s);
+    let friction_n = stick.step(model, linear_n, position_mm);
     let planes_n = proxy.step(model.active_planes(), position_mm, velocity_mm_s);
     add3(
-        add3(linear_n, planes_n),
+        add3(add3(linear_n, friction_n), planes_n),
         cut_drag_force_n(model, velocity_mm_s),
     )
 }
@@ -120,6 +124,7 @@ pub struct ModelRenderer {
     config: RenderConfig,
     model: Option<LocalModel>,
     proxy: PlaneProxy,
+    stick: StickPoint,
     blend: ForceBlend,
 }
 
@@ -129,6 +134,7 @@ impl Default for ModelRenderer {
             config: RenderConfig::default(),
             model: None,
             proxy: PlaneProxy::new(),
+            stick: StickPoint::default(),
             blend: ForceBlend::default(),
         }
     }
@@ -176,6 +182,11 @@ impl ModelRenderer {
         self.proxy.position_mm()
     }
 
+    /// The friction's stick point, mm, while the tool pushes on frictional tissue.
+    pub fn stick_point_mm(&self) -> Option<[f32; 3]> {
+        self.stick.anchor_mm()
+    }
+
     /// The blend offset rendered on top of the model at `now_s`, N (zero once a blend is over).
     pub fn blend_offset_n(&self, now_s: f64) -> [f32; 3] {
         self.blend.offset_at(now_s, self.config.blend_s)
@@ -200,20 +211,21 @@ impl ModelRenderer {
         if !(now_s.is_finite() && all_finite(position_mm) && all_finite(velocity_mm_s)) {
             self.model = Some(*model);
             self.proxy.reset();
+            self.stick.reset();
             self.blend = ForceBlend::FROM_ZERO_NEXT;
             return;
         }
         let before_n = match &self.model {
             Some(old) if !self.blend.from_zero_next => {
-                let mut proxy = self.proxy;
-                let old_n = model_force_n(old, &mut proxy, position_mm, velocity_mm_s);
+                let (mut proxy, mut stick) = (self.proxy, self.stick);
+                let old_n = model_force_n(old, &mut proxy, &mut stick, position_mm, velocity_mm_s);
                 add3(old_n, self.blend.offset_at(now_s, self.config.blend_s))
             }
             _ => [0.0; 3],
         };
         self.model = Some(*model);
-        let mut proxy = self.proxy;
-        let after_n = model_force_n(model, &mut proxy, position_mm, velocity_mm_s);
+        let (mut proxy, mut stick) = (self.proxy, self.stick);
+        let after_n = model_force_n(model, &mut proxy, &mut stick, position_mm, velocity_mm_s);
         let offset_n: [f32; 3] = std::array::from_fn(|i| before_n[i] - after_n[i]);
         self.blend = if all_finite(offset_n) {
             ForceBlend {
@@ -223,6 +235,7 @@ impl ModelRenderer {
             }
         } else {
             self.proxy.reset();
+            self.stick.reset();
             ForceBlend::FROM_ZERO_NEXT
         };
     }
@@ -242,13 +255,20 @@ impl ModelRenderer {
         const ZERO: [f32; 3] = [0.0; 3];
         if !(now_s.is_finite() && all_finite(position_mm) && all_finite(velocity_mm_s)) {
             self.proxy.reset();
+            self.stick.reset();
             self.blend = ForceBlend::FROM_ZERO_NEXT;
             return ZERO;
         }
         let Some(model) = &self.model else {
             return ZERO;
         };
-        let model_n = model_force_n(model, &mut self.proxy, position_mm, velocity_mm_s);
+        let model_n = model_force_n(
+            model,
+            &mut self.proxy,
+            &mut self.stick,
+            position_mm,
+            velocity_mm_s,
+        );
         if self.blend.from_zero_next {
             self.blend = ForceBlend {
                 offset_n: model_n.map(|c| -c),
@@ -261,6 +281,7 @@ impl ModelRenderer {
             force_n
         } else {
             self.proxy.reset();
+            self.stick.reset();
             self.blend = ForceBlend::FROM_ZERO_NEXT;
             ZERO
         }
@@ -271,6 +292,7 @@ impl ModelRenderer {
     pub fn clear(&mut self) {
         self.model = None;
         self.proxy.reset();
+        self.stick.reset();
         self.blend = ForceBlend::default();
     }
 }

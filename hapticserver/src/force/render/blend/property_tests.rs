@@ -91,6 +91,8 @@ fn random_model(rng: &mut fastrand::Rng, near_mm: [f32; 3], normals: &[[f32; 3]]
         energy_allowance_mj: 0.0,
         attached: rng.f32() < 0.3,
         cut_drag_n: if rng.bool() { rng.f32() * 0.3 } else { 0.0 },
+        friction_coefficient: if rng.bool() { rng.f32() } else { 0.0 },
+        stick_stiffness_n_per_mm: rng.f32() * 3.0,
     };
     assert!(model.validate().is_ok(), "{model:?}");
     model
@@ -149,9 +151,16 @@ fn lipschitz(model: Option<&LocalModel>, dx_mm: f32) -> (f32, f32) {
             * (norm(m.f0_n) + k * (m.radius_mm + dx_mm) + d * 1.1 * MAX_WALK_SPEED_MM_S);
         per_mm_s += d;
     } else if m.in_contact {
-        per_mm += (2.0 + c) * k
+        let linear_per_mm = (2.0 + c) * k
             + 1.5 / m.fade_mm * (1.0 + c) * (norm(m.f0_n) + k * (m.radius_mm + dx_mm));
+        per_mm += linear_per_mm;
         per_mm_s += d;
+        // Friction about the stick point: `k_t |dx| + mu |dN|`, the normal force moving at most as the
+        // linear part does.
+        if m.friction_coefficient > 0.0 && m.stick_stiffness_n_per_mm > 0.0 {
+            per_mm += m.stick_stiffness_n_per_mm + m.friction_coefficient * linear_per_mm;
+            per_mm_s += m.friction_coefficient * d;
+        }
     }
     // The drag of cutting, `-F v / sqrt(|v|^2 + v_s^2)`: its slope in v is at most F / v_s.
     per_mm_s += m.cut_drag_n / sinew_protocol::CUT_DRAG_SMOOTHING_MM_S;
