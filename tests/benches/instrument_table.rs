@@ -115,7 +115,7 @@ fn print_table(options: &Options) -> anyhow::Result<()> {
             }
         }
     }
-    let world = load_shipped_world("grasp_pull.toml")?;
+    let world = load_shipped_world("tug_of_war.toml")?;
     let hand = HandPreset::Nominal;
     let reference = tug_of_war(&world, hand, Link::rtt(0.0), Link::rtt(0.0))?;
     println!();
@@ -157,7 +157,7 @@ fn magnitude(f: [f32; 3]) -> f32 {
 /// The tug of war's two forces against time, at zero delay (wide, pale) and with both surgeons at 200 ms.
 fn draw_figure(path: &Path) -> anyhow::Result<()> {
     sinew::figure_font::register_sans_serif()?;
-    let world = load_shipped_world("grasp_pull.toml")?;
+    let world = load_shipped_world("tug_of_war.toml")?;
     let hand = HandPreset::Nominal;
     let reference = tug_of_war(&world, hand, Link::rtt(0.0), Link::rtt(0.0))?;
     let delayed = tug_of_war(&world, hand, Link::rtt(200.0), Link::rtt(200.0))?;
@@ -198,7 +198,7 @@ fn draw_figure(path: &Path) -> anyhow::Result<()> {
     root.fill(&WHITE).map_err(plot_error)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            "Tug of war on grasp_pull: left pulls, right holds (nominal hands)",
+            "Tug of war on tug_of_war.toml: left pulls, right holds (nominal hands)",
             ("sans-serif", 24),
         )
         .margin(16)

@@ -198,7 +198,7 @@ pub const TUG_HOLD_S: (f64, f64) = (4.0, 4.9);
 /// Length of a tug-of-war run, s.
 pub const TUG_RUN_S: f64 = 5.5;
 
-/// Two graspers on one sheet (`grasp_pull.toml`): both take hold 1.5 mm deep; left then pulls 6 mm outward
+/// Two graspers on one sheet (`tug_of_war.toml`): both take hold 1.5 mm deep; left then pulls 6 mm outward
 /// and 8 mm up over 1 s and holds; right holds where it took hold. What each felt.
 #[derive(Debug, Clone)]
 pub struct TugOfWar {
@@ -223,12 +223,20 @@ pub struct TugOfWar {
     pub traces: Vec<Vec<TraceSample>>,
 }
 
-/// Where each grasper takes hold, towards the other from its device origin (18 mm either side of the sheet's
-/// centre), mm: 12 mm apart, so the pull crosses the anchored sheet (its response decays within a few mm).
-pub const TUG_INWARD_MM: f32 = 12.0;
+/// Where each grasper takes hold, world x, mm: left at -6, right at +6, 12 mm apart (on grasp_pull's anchored
+/// sheet a pull's response decays within a few mm; tug_of_war.toml's looser sheet carries it across).
+pub const TUG_GRASP_X_MM: f32 = 6.0;
 
-/// The tug of war's scripts: (left, right).
-pub fn tug_scripts() -> (HandScript, HandScript) {
+/// The tug of war's scripts for `world`'s devices: (left, right), each taking hold at [`TUG_GRASP_X_MM`] either
+/// side of the sheet's centre (device frame: the world point less the device's origin).
+pub fn tug_scripts(world: &World) -> (HandScript, HandScript) {
+    let origin_x_mm = |device: &str| {
+        world
+            .tools
+            .iter()
+            .find(|t| t.device_id == device)
+            .map_or(0.0, |t| t.device_origin_in_world_mm[0])
+    };
     let grasp =
         |at_x_mm: f32, settle_s: f32, pull_mm: [f32; 3], hold_s: f32| HandScript::GraspPull {
             at_mm: [at_x_mm, 0.0, 0.0],
@@ -242,12 +250,17 @@ pub fn tug_scripts() -> (HandScript, HandScript) {
         };
     // Left closes at 1.8 s, pulls from 2 s to 3 s, opens at 5 s; right closes at 1.3 s and holds past the end.
     (
-        grasp(TUG_INWARD_MM, 0.8, [-6.0, 0.0, 8.0], 2.0),
-        grasp(-TUG_INWARD_MM, 0.3, [0.0; 3], 4.0),
+        grasp(
+            -TUG_GRASP_X_MM - origin_x_mm("left"),
+            0.8,
+            [-6.0, 0.0, 8.0],
+            2.0,
+        ),
+        grasp(TUG_GRASP_X_MM - origin_x_mm("right"), 0.3, [0.0; 3], 4.0),
     )
 }
 
-/// Run the tug of war on `grasp_pull.toml` with `hand` for both surgeons over `left` and `right` links
+/// Run the tug of war on `world` (two graspers, `left` and `right`: `tug_of_war.toml`) with `hand` for both surgeons over `left` and `right` links
 /// (`--mode auto`).
 pub fn tug_of_war(
     world: &World,
@@ -255,7 +268,7 @@ pub fn tug_of_war(
     left: Link,
     right: Link,
 ) -> anyhow::Result<TugOfWar> {
-    let (left_script, right_script) = tug_scripts();
+    let (left_script, right_script) = tug_scripts(world);
     let devices =
         [("left", left_script, left), ("right", right_script, right)].map(|(id, script, link)| {
             DrillDevice {
