@@ -4,8 +4,14 @@
 //! +-20 ms jitter and 5% loss each way. The drills (`latency_drills.rs`) prove the acceptance figures on
 //! virtual time; this proves the same code holds them with real sessions, threads and clocks: both surgeons
 //! press and hold still, no silence reaches a device's 50 ms rule, and holding costs at most 150 force
-//! messages a second. Tolerances are looser than the drills' only where a shared VM's scheduling stalls reach
-//! the simulated hand (its integrator sees the stall as a long tick).
+//! messages a second. The force's peak-to-peak is held to the stability rule the drills use (0.05 N; measured
+//! here 0.016 N). The stylus speed is held to 1.5 mm/s, not the rule's 1.0: measured 1.03-1.08 mm/s on four
+//! runs (2026-11-26), and not from scheduling stalls (no sample above 2 mm/s, the longest tick 3 ms) but a
+//! sideways sway of the nominal hand, 0.17 mm peak to peak at 3 Hz, each hand pressing 10 mm deep 14 mm off
+//! the pad's centre. The same scenario on virtual time sways the same (1.02-1.15 mm/s at 100 ms, with or without
+//! jitter and loss; 0.09-0.32 mm/s at zero delay: `cargo run --release -p sinew-testkit --example hold_sway`), so
+//! the real stack holds the drills' figures and the sway is the moderated model's own: an open finding
+//! (BENCHMARKS.md). The bounds were 0.1 N and 3 mm/s before.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
@@ -157,11 +163,11 @@ fn two_surgeons_100_ms_away_with_jitter_and_loss_hold_still_over_real_sessions()
             report.round_trip.percentile_ns(50.0)
         );
         assert!(
-            p2p < 0.1,
+            p2p < 0.05,
             "{id}: force peak-to-peak {p2p:.4} N while holding"
         );
         assert!(
-            speed_rms < 3.0,
+            speed_rms < 1.5,
             "{id}: stylus speed RMS {speed_rms:.3} mm/s while holding"
         );
         assert!(
