@@ -46,6 +46,16 @@ impl DeviceFidelity {
     pub fn rms_error(&self) -> f32 {
         self.rms_n / self.reference_rms_n - 1.0
     }
+
+    /// The acceptance for one device: peak and RMS within `fraction` of zero delay, under 1 mJ
+    /// withheld, never at the clamp, no silence reaching the 50 ms rule.
+    pub fn faithful_within(&self, fraction: f32) -> bool {
+        self.peak_error().abs() <= fraction
+            && self.rms_error().abs() <= fraction
+            && self.withheld_mj < 1.0
+            && !self.clamped
+            && self.stale_events == 0
+    }
 }
 
 /// A delayed run against the zero-delay run.

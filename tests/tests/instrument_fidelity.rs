@@ -30,12 +30,7 @@ fn a_grasped_pull_is_felt_at_a_distance_as_at_zero_delay() {
         for rtt_ms in [10.0].into_iter().chain(ROUND_TRIPS_MS) {
             let f = fidelity(&world, hand, Link::rtt(rtt_ms), Link::rtt(rtt_ms)).unwrap();
             for (d, row) in f.devices.iter().zip(f.rows("grasp_pull", hand, rtt_ms)) {
-                if d.peak_error().abs() > 0.10
-                    || d.rms_error().abs() > 0.10
-                    || d.withheld_mj >= 1.0
-                    || d.clamped
-                    || d.stale_events > 0
-                {
+                if !d.faithful_within(0.10) {
                     failures.push(row.clone());
                 }
                 rows.push(row);
@@ -143,12 +138,7 @@ fn friction_on_the_pad_is_felt_at_a_distance_as_at_zero_delay() {
             .iter()
             .zip(f.rows("pad_friction", HandPreset::Nominal, rtt_ms))
         {
-            if d.peak_error().abs() > 0.10
-                || d.rms_error().abs() > 0.10
-                || d.withheld_mj >= 1.0
-                || d.clamped
-                || d.stale_events > 0
-            {
+            if !d.faithful_within(0.10) {
                 failures.push(row.clone());
             }
             rows.push(row);
