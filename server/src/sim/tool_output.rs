@@ -227,8 +227,8 @@ impl Sim {
                 out.friction_coefficient =
                     tool.haptic.friction.coefficient(out.friction_coefficient);
                 let k_c = tool.drive.coupling.params().stiffness_n_per_mm;
-                // From the frozen-contact solve: stuck nodes are exactly a held set that does not change
-                // (the measured slope of a stroke is near zero: the push barely changes as the tool slides).
+                // From the frozen-contact solve, not the fitted slope: stuck nodes are exactly a held set
+                // that does not change, which is what the solve assumes.
                 out.stick_stiffness_n_per_mm = stick_stiffness_n_per_mm(solved, k_c);
             }
         }
