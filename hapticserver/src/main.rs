@@ -68,6 +68,31 @@ struct Args {
     /// Surface point to press at (or hold), device frame, mm: x,y,z.
     #[arg(long, value_parser = parse_vec3_mm, allow_hyphen_values = true)]
     at_mm: Option<[f32; 3]>,
+    /// Starting height above the surface point, mm (default 20).
+    #[arg(long)]
+    approach_mm: Option<f32>,
+    /// Time the descent from the starting height takes, s (default 2).
+    #[arg(long)]
+    descend_s: Option<f32>,
+    /// Stroke length, mm: `press-stroke`'s amplitude, `cauterize`'s burn, `cut-line`'s line and `snip-line`'s
+    /// line of bites (default 10).
+    #[arg(long)]
+    stroke_mm: Option<f32>,
+    /// `grasp-pull`: time at depth before the jaws close, s (default 0.3).
+    #[arg(long)]
+    settle_s: Option<f32>,
+    /// `grasp-pull`: the pull after the jaws close, device frame, mm: x,y,z (default: straight up by the
+    /// depth + 5 mm), made over 1 s.
+    #[arg(long, value_parser = parse_vec3_mm, allow_hyphen_values = true)]
+    pull_mm: Option<[f32; 3]>,
+    /// `grasp-pull`: time held after the pull before the jaws open, s (default 2).
+    #[arg(long)]
+    hold_s: Option<f32>,
+    /// The simulated hand waits still at the script's start, jaws open, until this long after the process
+    /// started, s (time for the scene to come up over a slow link; devices started together with the same
+    /// delay move together).
+    #[arg(long)]
+    start_delay_s: Option<f64>,
     /// zenoh endpoints and mode. Give the server's TCP and UDP endpoints: one transport with two links,
     /// reliable messages on TCP, poses and forces on UDP (a lost packet never holds later forces).
     #[command(flatten)]
@@ -174,6 +199,24 @@ fn build_device(args: &Args) -> Result<Box<dyn Device>> {
             Ok(Box::new(device))
         }
         DeviceKind::Sim => {
+            let grasp_only = [
+                ("--settle-s", args.settle_s.is_some()),
+                ("--pull-mm", args.pull_mm.is_some()),
+                ("--hold-s", args.hold_s.is_some()),
+            ];
+            if let Some((flag, _)) = grasp_only
+                .iter()
+                .find(|(_, given)| *given && args.script != ScriptKind::GraspPull)
+            {
+                bail!("{flag} is for --script grasp-pull (not {})", args.script);
+            }
+            if let Some(delay_s) = args.start_delay_s
+                && !(0.0..=3600.0).contains(&delay_s)
+            {
+                bail!("--start-delay-s {delay_s} must be a number of seconds in [0, 3600]");
+            }
+            let start_at =
+                Instant::now() + Duration::from_secs_f64(args.start_delay_s.unwrap_or(0.0));
             let mut options = ScriptOptions::default();
             if let Some(depth_mm) = args.depth_mm {
                 options.depth_mm = depth_mm;
@@ -181,15 +224,20 @@ fn build_device(args: &Args) -> Result<Box<dyn Device>> {
             if let Some(at_mm) = args.at_mm {
                 options.at_mm = at_mm;
             }
+            options.approach_mm = args.approach_mm.unwrap_or(options.approach_mm);
+            options.descend_s = args.descend_s.unwrap_or(options.descend_s);
+            options.stroke_mm = args.stroke_mm.unwrap_or(options.stroke_mm);
+            options.settle_s = args.settle_s.unwrap_or(options.settle_s);
+            options.pull_mm = args.pull_mm.or(options.pull_mm);
+            options.hold_s = args.hold_s.unwrap_or(options.hold_s);
             let script = args
                 .script
                 .build(&options)
                 .with_context(|| format!("building the `{}` script", args.script))?;
-            Ok(Box::new(SimDevice::with_params(
-                script,
-                args.hand.params(),
-                sim_device_model(),
-            )))
+            Ok(Box::new(
+                SimDevice::with_params(script, args.hand.params(), sim_device_model())
+                    .with_start_at(start_at),
+            ))
         }
     }
 }

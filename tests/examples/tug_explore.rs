@@ -46,6 +46,17 @@ fn main() {
             m
         };
         for d in 0..2 {
+            let peak = |tr: &[hapticserver::TraceSample]| {
+                tr.iter()
+                    .map(|s| (s.force_n.iter().map(|f| f * f).sum::<f32>().sqrt(), s.t_s))
+                    .fold((0.0f32, 0.0f64), |m, x| if x.0 > m.0 { x } else { m })
+            };
+            let (p, pt) = peak(&t.traces[d]);
+            let (z, zt) = peak(&zero.traces[d]);
+            println!(
+                "  device {d}: peak {p:.3} N at {pt:.3} s, zero delay {z:.3} N at {zt:.3} s ({:+.1}%)",
+                100.0 * (p / z - 1.0)
+            );
             let (a, b) = (mean_pos(&t.traces[d]), mean_pos(&zero.traces[d]));
             println!(
                 "  device {d}: hold at {:+.3} {:+.3} {:+.3}, zero delay {:+.3} {:+.3} {:+.3}",

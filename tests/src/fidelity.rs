@@ -102,7 +102,8 @@ fn magnitude(f: [f32; 3]) -> f32 {
     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
 }
 
-fn peak_and_rms(trace: &[TraceSample]) -> (f32, f32) {
+/// Peak and RMS of the force magnitude over a whole trace, N.
+pub fn peak_and_rms(trace: &[TraceSample]) -> (f32, f32) {
     let peak = trace
         .iter()
         .map(|s| magnitude(s.force_n))
@@ -300,15 +301,10 @@ pub fn tug_of_war(
                 .unwrap_or_default();
         }
     })?;
-    let felt = |trace: &[TraceSample]| {
-        let before = mean_force_vector_n(trace, TUG_BEFORE_S.0, TUG_BEFORE_S.1);
-        let after = mean_force_vector_n(trace, TUG_HOLD_S.0, TUG_HOLD_S.1);
-        magnitude(std::array::from_fn(|i| after[i] - before[i]))
-    };
     let max_force_n = hapticserver::sim_device::sim_device_model().max_force_n;
     Ok(TugOfWar {
-        left_feels_n: felt(&result.traces[0]),
-        right_feels_n: felt(&result.traces[1]),
+        left_feels_n: tug_felt_n(&result.traces[0]),
+        right_feels_n: tug_felt_n(&result.traces[1]),
         hold: result
             .traces
             .iter()
@@ -329,6 +325,14 @@ pub fn tug_of_war(
         sheet_mm,
         traces: result.traces,
     })
+}
+
+/// What a tug-of-war trace felt of the pull (script time): the change of the mean force vector from
+/// [`TUG_BEFORE_S`] to [`TUG_HOLD_S`], N.
+pub fn tug_felt_n(trace: &[TraceSample]) -> f32 {
+    let before = mean_force_vector_n(trace, TUG_BEFORE_S.0, TUG_BEFORE_S.1);
+    let after = mean_force_vector_n(trace, TUG_HOLD_S.0, TUG_HOLD_S.1);
+    magnitude(std::array::from_fn(|i| after[i] - before[i]))
 }
 
 /// Largest distance between two snapshots of the same sheet, mm.

@@ -6,7 +6,8 @@
 //! `sinew::loopback`, re-exported), [`drill`] (latency drills on virtual time: the real server tick and device
 //! loops joined by emulated links), [`scenarios`] (the latency-moderated mode's acceptance runs on the drill,
 //! shared by the tests and the `latency_table` bench), [`netns`] (a lab of network namespaces joined by a real
-//! path with delay, jitter and loss), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
+//! path with delay, jitter and loss), [`lab_run`] (roles as processes in that lab, and reading what they print
+//! and trace), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
 //! [`fuzz`] (generated bad input for the decoders, the world loader and the recording reader) and [`hertz`] (a
 //! sphere pressed into a block, against Hertz's answer).
 //! Must not: contain role logic; everything here calls the role crates' and the application's public APIs.
@@ -17,6 +18,7 @@ pub mod fidelity;
 pub mod fuzz;
 pub mod harness;
 pub mod hertz;
+pub mod lab_run;
 pub mod netem;
 pub mod netns;
 pub mod scenarios;

@@ -8,29 +8,15 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code
 
-use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
+use hapticserver::Trace;
 use sinew_testkit::harness::serial;
+use sinew_testkit::lab_run::{
+    assert_namespaces_gone, relay_loss, require_lab, shipped_world, start_lab_server, status_number,
+};
 use sinew_testkit::netns::{LabConfig, NetnsLab, Side, role_binary, wait_output};
-
-/// The build saw a usable lab: it must still be there.
-fn require_lab() {
-    if let Err(reason) = NetnsLab::available() {
-        panic!("the network-namespace lab is not usable: {reason}");
-    }
-}
-
-fn assert_gone(namespaces: &[String]) {
-    let left = NetnsLab::existing_lab_namespaces();
-    for ns in namespaces {
-        assert!(
-            !left.contains(ns),
-            "namespace {ns} still exists after the lab was dropped"
-        );
-    }
-}
 
 fn ping_rtts_ms(output: &str) -> Vec<f64> {
     output
@@ -45,27 +31,6 @@ fn median(values: &mut [f64]) -> f64 {
     values[values.len() / 2]
 }
 
-/// `key N` in a status line, e.g. `forces_rx 5123`.
-fn number_after(line: &str, key: &str) -> Option<f64> {
-    line.split(key)
-        .nth(1)?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
-}
-
-/// (lost, forwarded) summed over both directions of the relay's report.
-fn relay_loss(report: &str) -> (u64, u64) {
-    report
-        .lines()
-        .filter(|l| l.contains("forwarded"))
-        .fold((0, 0), |(lost, forwarded), line| {
-            let n = |key| number_after(line, key).unwrap_or(0.0) as u64;
-            (lost + n(" lost "), forwarded + n(" forwarded "))
-        })
-}
-
 #[test]
 #[cfg_attr(
     not(netns_lab),
@@ -77,7 +42,7 @@ fn a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes() {
     require_lab();
     let server_bin = role_binary("sinew-server").unwrap();
     let haptic_bin = role_binary("hapticserver").unwrap();
-    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let world = shipped_world("pad");
     let mut lab = NetnsLab::new(LabConfig::symmetric(20.0, 0.0, 0.05, 42)).unwrap();
     let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
     let server_ip = lab.server_ip().to_string();
@@ -149,8 +114,8 @@ fn a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes() {
             )
         });
     println!("{final_line}");
-    let forces = number_after(final_line, "forces_rx ").unwrap();
-    let rtt_p50_us = number_after(final_line, "rtt p50 ").unwrap();
+    let forces = status_number(final_line, "forces_rx ").unwrap();
+    let rtt_p50_us = status_number(final_line, "rtt p50 ").unwrap();
     assert!(forces > 0.0, "no force arrived: {final_line}");
     assert!(
         rtt_p50_us >= 40_000.0,
@@ -167,7 +132,7 @@ fn a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes() {
         lost + forwarded
     );
     drop(lab);
-    assert_gone(&namespaces);
+    assert_namespaces_gone(&namespaces);
 }
 
 #[test]
@@ -194,20 +159,7 @@ fn namespaces_are_removed_even_when_the_test_panics() {
         .expect("the lab's drop ends the children it started");
     assert!(!ended.status.success(), "{}", ended.status);
     assert_eq!(names.len(), 3);
-    assert_gone(&names);
-}
-
-/// One tick of a hapticserver's `--trace-csv`: (t_s, force N, stale).
-fn trace_rows(csv: &str) -> Vec<(f64, [f32; 3], bool)> {
-    csv.lines()
-        .skip(1)
-        .filter_map(|line| {
-            let fields: Vec<&str> = line.split(',').collect();
-            let t = fields.first()?.parse().ok()?;
-            let f = |i: usize| fields.get(i)?.parse::<f32>().ok();
-            Some((t, [f(7)?, f(8)?, f(9)?], fields.get(11)? == &"1"))
-        })
-        .collect()
+    assert_namespaces_gone(&names);
 }
 
 fn magnitude(f: [f32; 3]) -> f32 {
@@ -266,54 +218,54 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
     let report = lab.stop_relay().unwrap();
     println!("{report}");
     drop(lab);
-    assert_gone(&namespaces);
+    assert_namespaces_gone(&namespaces);
 
     assert!(
         final_line.contains(": moderated "),
         "not in moderated mode: {final_line}"
     );
     assert_eq!(
-        number_after(final_line, "rejects "),
+        status_number(final_line, "rejects "),
         Some(0.0),
         "{final_line}"
     );
     assert!(
-        number_after(final_line, "rtt p50 ").unwrap() >= 100_000.0,
+        status_number(final_line, "rtt p50 ").unwrap() >= 100_000.0,
         "round trip below the path's 100 ms: {final_line}"
     );
     // One silence, the kill's: none while the server lived, through 5% loss.
     assert_eq!(
-        number_after(final_line, "stale "),
+        status_number(final_line, "stale "),
         Some(1.0),
         "silences other than the kill's reached the device: {final_line}"
     );
-    let rows = trace_rows(&csv);
+    let rows = Trace::parse_csv(&csv).unwrap_or_default();
     assert!(rows.len() > 5000, "trace has {} ticks", rows.len());
     let first_contact = rows
         .iter()
-        .position(|r| magnitude(r.1) > 0.3)
+        .position(|r| magnitude(r.force_n) > 0.3)
         .unwrap_or_else(|| panic!("never pressed: {final_line}"));
     let silence = first_contact
         + rows[first_contact..]
             .iter()
-            .position(|r| r.2)
+            .position(|r| r.stale)
             .expect("the kill never made the stream stale");
-    let silence_t = rows[silence].0;
+    let silence_t = rows[silence].t_s;
     // The hold: the 2 s that end 100 ms before the silence started.
     let hold: Vec<_> = rows
         .iter()
-        .filter(|r| r.0 >= silence_t - 2.15 && r.0 < silence_t - 0.15)
+        .filter(|r| r.t_s >= silence_t - 2.15 && r.t_s < silence_t - 0.15)
         .collect();
     assert!(hold.len() > 1500, "only {} ticks of hold", hold.len());
     let p2p = (0..3)
         .map(|axis| {
             let (lo, hi) = hold.iter().fold((f32::MAX, f32::MIN), |(lo, hi), r| {
-                (lo.min(r.1[axis]), hi.max(r.1[axis]))
+                (lo.min(r.force_n[axis]), hi.max(r.force_n[axis]))
             });
             hi - lo
         })
         .fold(0.0f32, f32::max);
-    let mean = hold.iter().map(|r| magnitude(r.1)).sum::<f32>() / hold.len() as f32;
+    let mean = hold.iter().map(|r| magnitude(r.force_n)).sum::<f32>() / hold.len() as f32;
     println!("hold: {mean:.2} N, peak-to-peak {p2p:.4} N");
     assert!(mean > 0.3, "not pressing while holding: {mean:.3} N");
     assert!(p2p < 0.1, "force peak-to-peak {p2p:.4} N while holding");
@@ -321,17 +273,17 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
     let zero = silence
         + rows[silence..]
             .iter()
-            .position(|r| magnitude(r.1) == 0.0)
+            .position(|r| magnitude(r.force_n) == 0.0)
             .expect("the force never reached zero after the kill");
-    let ramp_ms = (rows[zero].0 - silence_t) * 1e3;
+    let ramp_ms = (rows[zero].t_s - silence_t) * 1e3;
     assert!(
         ramp_ms <= 70.0,
         "zero {ramp_ms:.1} ms after the silence began"
     );
-    if let Some(r) = rows[zero..].iter().find(|r| magnitude(r.1) != 0.0) {
+    if let Some(r) = rows[zero..].iter().find(|r| magnitude(r.force_n) != 0.0) {
         panic!(
             "{:.3} s: {:?} N rendered after the force had reached zero",
-            r.0, r.1
+            r.t_s, r.force_n
         );
     }
     assert!(rows.len() - zero > 1000, "too little trace after the kill");
@@ -345,20 +297,9 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
     let _ = std::fs::remove_file(&csv_path);
 }
 
-/// `sinew-server` on worlds/pad.toml in the lab's server namespace, listening on TCP and UDP at port 7447,
-/// given 1.5 s to come up; with the two endpoints a device connects to.
+/// `sinew-server` on worlds/pad.toml in the lab's server namespace ([`start_lab_server`]).
 fn start_lab_pad_server(lab: &mut NetnsLab) -> (std::process::Child, String, String) {
-    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
-    let ip = lab.server_ip().to_string();
-    let (tcp, udp) = (format!("tcp/{ip}:7447"), format!("udp/{ip}:7447"));
-    let mut server = Command::new(role_binary("sinew-server").unwrap());
-    server
-        .arg("--world")
-        .arg(&world)
-        .args(["--listen", &tcp, "--listen", &udp]);
-    let server = lab.spawn_in_server_ns(&server).unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
-    (server, tcp, udp)
+    start_lab_server(lab, &shipped_world("pad"), &[]).unwrap()
 }
 
 /// Wait for `child` to exit, up to `limit`; how long it took (None: still running, then killed).
@@ -421,7 +362,7 @@ fn every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_fo
         "exit after SIGTERM during a partition: hapticserver {haptic_exit:?}, server {server_exit:?}, viewer {viewer_exit:?}"
     );
     drop(lab);
-    assert_gone(&namespaces);
+    assert_namespaces_gone(&namespaces);
     // The old behaviour: the hapticserver hung 10 s on zenoh's close and exited 1; the server ran 15 s on.
     for (role, exit) in [
         ("hapticserver", haptic_exit),
@@ -464,7 +405,7 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     require_lab();
     let server_bin = role_binary("sinew-server").unwrap();
     let haptic_bin = role_binary("hapticserver").unwrap();
-    let world = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
+    let world = shipped_world("pad");
     let mut lab = NetnsLab::new(LabConfig::symmetric(10.0, 0.0, 0.0, 7)).unwrap();
     let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
     let server_ip = lab.server_ip().to_string();
@@ -556,7 +497,7 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     );
     // 20 ms round trip: left renders the server's local models (moderated), sent at their own rate.
     assert!(
-        number_after(&left_final, "forces_rx ").unwrap() > 300.0,
+        status_number(&left_final, "forces_rx ").unwrap() > 300.0,
         "{left_final}"
     );
     assert!(
@@ -565,7 +506,7 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     );
     // The intruder hears the server (reading is allowed) but never drives: its poses were refused.
     assert_eq!(
-        number_after(&intruder_final, "forces_rx ").unwrap(),
+        status_number(&intruder_final, "forces_rx ").unwrap(),
         0.0,
         "{intruder_final}"
     );
@@ -575,10 +516,10 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
         .unwrap_or_else(|| panic!("no status line from the server:\n{server_out}"));
     println!("server: {last_status}");
     assert!(
-        number_after(last_status, "rejected ").unwrap() > 1000.0,
+        status_number(last_status, "rejected ").unwrap() > 1000.0,
         "the intruder's poses were not refused: {last_status}"
     );
     drop(lab);
-    assert_gone(&namespaces);
+    assert_namespaces_gone(&namespaces);
     let _ = std::fs::remove_dir_all(&certs_dir);
 }

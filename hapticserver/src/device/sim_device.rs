@@ -3,7 +3,9 @@
 //! Owns: script time, the current hand target and the force last written, and a [`HandModel`]. Each
 //! [`Device::read`] advances script time by `dt_s`, samples the [`HandScript`] and integrates the stylus under
 //! the hand and the last written force, so a force field resists the scripted motion exactly as it would
-//! resist a surgeon's hand.
+//! resist a surgeon's hand. A start time ([`SimDevice::with_start_at`]) holds the hand still at the
+//! script's start, jaws open, until the wall clock reaches it (script time starts there), as a surgeon waits
+//! for the scene to come up before moving; devices in several processes given one start time move together.
 //!
 //! Must not: filter or clamp forces beyond refusing non-finite ones (that is [`crate::safety`]); it renders
 //! what it is given, like a motor.
@@ -35,6 +37,7 @@ pub struct SimDevice {
     target: HandTarget,
     script_time_s: f64,
     force_n: [f32; 3],
+    start_at: Option<std::time::Instant>,
 }
 
 impl SimDevice {
@@ -54,10 +57,18 @@ impl SimDevice {
             target: HandTarget::at_rest(start_mm),
             script_time_s: 0.0,
             force_n: [0.0; 3],
+            start_at: None,
         }
     }
 
-    /// Script time, s.
+    /// Hold the hand still at the script's start, jaws open, until `start_at`; script time starts at the
+    /// first read at or after it.
+    pub fn with_start_at(mut self, start_at: std::time::Instant) -> Self {
+        self.start_at = Some(start_at);
+        self
+    }
+
+    /// Script time, s (zero while waiting for the start time).
     pub fn script_time_s(&self) -> f64 {
         self.script_time_s
     }
@@ -80,8 +91,25 @@ impl Device for SimDevice {
 
     /// Advance script time and the stylus by `dt_s`. Real-time: no allocation, never panics.
     fn read(&mut self, dt_s: f32) -> Result<DeviceReading, DeviceError> {
-        if dt_s.is_finite() && dt_s > 0.0 {
+        if let Some(start_at) = self.start_at {
+            if std::time::Instant::now() >= start_at {
+                self.start_at = None;
+            }
+        } else if dt_s.is_finite() && dt_s > 0.0 {
             self.script_time_s += f64::from(dt_s);
+        }
+        if self.start_at.is_some() {
+            // Waiting for the start time: still at the start, jaws open.
+            self.target = HandTarget::at_rest(self.script.start_mm());
+            self.hand.step(dt_s, &self.target, self.force_n);
+            self.hand
+                .confine(self.model.workspace_min_mm, self.model.workspace_max_mm);
+            return Ok(DeviceReading {
+                position_mm: self.hand.position_mm(),
+                linear_velocity_mm_s: self.hand.velocity_mm_s(),
+                jaw_angle_rad: crate::hand_script::SCRIPT_JAW_OPEN_RAD,
+                ..DeviceReading::default()
+            });
         }
         if let Some(target) = self.script.target(self.script_time_s) {
             self.target = target;
@@ -131,6 +159,40 @@ mod tests {
         }
         assert!((reading.position_mm[2] + 5.0).abs() < 0.05, "{reading:?}");
         assert!((device.script_time_s() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_start_time_holds_the_hand_at_the_start_then_runs_the_script_from_zero() {
+        let options = ScriptOptions {
+            descend_s: 0.5,
+            ..ScriptOptions::default()
+        };
+        let script = ScriptKind::GraspPull.build(&options).unwrap();
+        let start_at = std::time::Instant::now() + std::time::Duration::from_millis(30);
+        let mut delayed = SimDevice::new(script.clone()).with_start_at(start_at);
+        let mut plain = SimDevice::new(script);
+        let mut held = 0;
+        while std::time::Instant::now() < start_at {
+            let reading = delayed.read(0.001).unwrap();
+            assert_eq!(reading.position_mm, [0.0, 0.0, 20.0]);
+            assert_eq!(reading.buttons, 0);
+            assert_eq!(delayed.script_time_s(), 0.0);
+            held += 1;
+        }
+        assert!(held > 0);
+        // The first read past the start time is the script's time zero (one tick behind a device that never
+        // waited, whose first read is at 1 ms).
+        for _ in 0..1500 {
+            // Past the close (0.8 s): the same motion and grip as the device that never waited.
+            let (a, b) = (delayed.read(0.001).unwrap(), plain.read(0.001).unwrap());
+            for axis in 0..3 {
+                let d = (a.position_mm[axis] - b.position_mm[axis]).abs();
+                // One tick of the descent (50 mm/s) at most.
+                assert!(d < 0.06, "{d} mm apart: {a:?} {b:?}");
+            }
+        }
+        assert!((delayed.script_time_s() - 1.499).abs() < 1e-6);
+        assert_eq!(delayed.read(0.001).unwrap().buttons, 1);
     }
 
     #[test]

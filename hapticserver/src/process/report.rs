@@ -153,7 +153,7 @@ impl fmt::Display for HapticReport {
         write!(
             f,
             "{id}: {mode} ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
-             forces_rx {rx} longest gap {gap:.1} ms overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ \
+             forces_rx {rx} longest gap {gap:.1} ms overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ withheld {withheld:.2} mJ \
              udp {udp} server {server} ({standing})",
             id = self.device_id,
             mode = if self.moderated {
@@ -176,6 +176,7 @@ impl fmt::Display for HapticReport {
             clamped = self.safety.clamped,
             rej = self.decode_rejects.total(),
             energy = self.passivity.energy_mj,
+            withheld = self.passivity.withheld_mj,
             udp = match self.udp_link_wait_ms {
                 None => "not asked".to_owned(),
                 Some(None) => "none (TCP alone)".to_owned(),

@@ -99,10 +99,10 @@ impl ScriptKind {
                 depth_mm: o.depth_mm,
                 approach_mm: o.approach_mm,
                 descend_s: o.descend_s,
-                settle_s: 0.3,
-                pull_mm: [0.0, 0.0, o.depth_mm + 5.0],
+                settle_s: o.settle_s,
+                pull_mm: o.pull_mm.unwrap_or([0.0, 0.0, o.depth_mm + 5.0]),
                 pull_s: 1.0,
-                hold_s: 2.0,
+                hold_s: o.hold_s,
             },
             ScriptKind::Cauterize => HandScript::Cauterize {
                 at_mm: o.at_mm,
@@ -170,10 +170,17 @@ pub struct ScriptOptions {
     pub stroke_mm: f32,
     /// Stroke period, s.
     pub stroke_period_s: f32,
+    /// `grasp-pull`: time at depth before the jaws close, s.
+    pub settle_s: f32,
+    /// `grasp-pull`: the pull, mm (`None`: straight up by `depth_mm + 5`).
+    pub pull_mm: Option<[f32; 3]>,
+    /// `grasp-pull`: time held after the pull before the jaws open, s.
+    pub hold_s: f32,
 }
 
 impl Default for ScriptOptions {
-    /// Press 5 mm at the device origin from 20 mm above over 2 s; stroke +/- 10 mm every 2 s.
+    /// Press 5 mm at the device origin from 20 mm above over 2 s; stroke +/- 10 mm every 2 s; a grasp settles
+    /// 0.3 s, pulls straight up and holds 2 s.
     fn default() -> Self {
         Self {
             at_mm: [0.0; 3],
@@ -182,6 +189,9 @@ impl Default for ScriptOptions {
             descend_s: 2.0,
             stroke_mm: 10.0,
             stroke_period_s: 2.0,
+            settle_s: 0.3,
+            pull_mm: None,
+            hold_s: 2.0,
         }
     }
 }
@@ -189,10 +199,12 @@ impl Default for ScriptOptions {
 impl ScriptOptions {
     /// Check every option's domain.
     pub fn validate(&self) -> Result<(), ScriptError> {
-        if !self.at_mm.iter().all(|c| c.is_finite()) {
-            return Err(ScriptError::BadVector(format!("{:?}", self.at_mm)));
+        for vector in std::iter::once(self.at_mm).chain(self.pull_mm) {
+            if !vector.iter().all(|c| c.is_finite()) {
+                return Err(ScriptError::BadVector(format!("{vector:?}")));
+            }
         }
-        let checks: [(&'static str, f32, bool, &'static str); 5] = [
+        let checks: [(&'static str, f32, bool, &'static str); 7] = [
             (
                 "depth_mm",
                 self.depth_mm,
@@ -223,6 +235,13 @@ impl ScriptOptions {
                 self.stroke_period_s > 0.0,
                 "must be > 0",
             ),
+            (
+                "settle_s",
+                self.settle_s,
+                self.settle_s >= 0.0,
+                "must be >= 0",
+            ),
+            ("hold_s", self.hold_s, self.hold_s >= 0.0, "must be >= 0"),
         ];
         for (option, value, ok, reason) in checks {
             if !(ok && value.is_finite()) {
@@ -285,5 +304,48 @@ mod tests {
             })
             .unwrap_err();
         assert!(err.to_string().contains("depth_mm"));
+        let err = ScriptKind::GraspPull
+            .build(&ScriptOptions {
+                hold_s: f32::NAN,
+                ..ScriptOptions::default()
+            })
+            .unwrap_err();
+        assert!(err.to_string().contains("hold_s"));
+        let err = ScriptKind::GraspPull
+            .build(&ScriptOptions {
+                pull_mm: Some([1.0, f32::INFINITY, 0.0]),
+                ..ScriptOptions::default()
+            })
+            .unwrap_err();
+        assert!(matches!(err, ScriptError::BadVector(_)), "{err}");
+    }
+
+    #[test]
+    fn a_grasp_pull_takes_its_pull_settle_and_hold_from_the_options() {
+        let script = ScriptKind::GraspPull
+            .build(&ScriptOptions {
+                settle_s: 0.8,
+                pull_mm: Some([-6.0, 0.0, 8.0]),
+                hold_s: 4.0,
+                ..ScriptOptions::default()
+            })
+            .unwrap();
+        let HandScript::GraspPull {
+            settle_s,
+            pull_mm,
+            hold_s,
+            ..
+        } = script
+        else {
+            panic!("{script:?}");
+        };
+        assert_eq!((settle_s, pull_mm, hold_s), (0.8, [-6.0, 0.0, 8.0], 4.0));
+        let HandScript::GraspPull { pull_mm, .. } = ScriptKind::GraspPull
+            .build(&ScriptOptions::default())
+            .unwrap()
+        else {
+            panic!("not a grasp");
+        };
+        assert_eq!(pull_mm, [0.0, 0.0, 10.0]);
     }
 }

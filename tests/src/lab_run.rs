@@ -1,0 +1,119 @@
+//! Running the roles as processes in a [`NetnsLab`] and reading what they leave: a server on a shipped world,
+//! numbers out of a role's status line, the relay's loss count, and a hapticserver's `--trace-csv`.
+//!
+//! Owns: [`require_lab`], [`assert_namespaces_gone`], [`start_lab_server`], [`status_number`],
+//! [`relay_loss`], [`read_trace`], [`final_line`], [`shipped_world`].
+//! Must not: build or tear down the lab itself (that is [`crate::netns`]) or judge a run (the tests do).
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command};
+use std::time::Duration;
+
+use hapticserver::{Trace, TraceSample};
+
+use crate::netns::{NetnsLab, role_binary};
+
+/// The zenoh port a lab server listens on, TCP and UDP.
+pub const LAB_SERVER_PORT: u16 = 7447;
+
+/// How long [`start_lab_server`] gives the server to load its world and open its session.
+pub const LAB_SERVER_START: Duration = Duration::from_millis(1500);
+
+/// Panic unless a lab can be built here (for tests compiled with `cfg(netns_lab)`: the build saw a usable
+/// lab, so it must still be there).
+pub fn require_lab() {
+    if let Err(reason) = NetnsLab::available() {
+        panic!("the network-namespace lab is not usable: {reason}");
+    }
+}
+
+/// Panic if any of `namespaces` still exists (after the lab that made them was dropped).
+pub fn assert_namespaces_gone(namespaces: &[String]) {
+    let left = NetnsLab::existing_lab_namespaces();
+    for ns in namespaces {
+        assert!(
+            !left.contains(ns),
+            "namespace {ns} still exists after the lab was dropped"
+        );
+    }
+}
+
+/// A shipped world's file: `worlds/<name>.toml`.
+pub fn shipped_world(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../worlds")
+        .join(format!("{name}.toml"))
+}
+
+/// `sinew-server` on `world` in the lab's server namespace, listening on TCP and UDP at
+/// [`LAB_SERVER_PORT`], given [`LAB_SERVER_START`] to come up; with the two endpoints a device connects to
+/// (TCP, UDP). `extra` is appended to the server's arguments.
+pub fn start_lab_server(
+    lab: &mut NetnsLab,
+    world: &Path,
+    extra: &[&str],
+) -> anyhow::Result<(Child, String, String)> {
+    let ip = lab.server_ip().to_string();
+    let tcp = format!("tcp/{ip}:{LAB_SERVER_PORT}");
+    let udp = format!("udp/{ip}:{LAB_SERVER_PORT}");
+    let mut server = Command::new(role_binary("sinew-server")?);
+    server
+        .arg("--world")
+        .arg(world)
+        .args(["--listen", &tcp, "--listen", &udp])
+        .args(extra);
+    let server = lab.spawn_in_server_ns(&server)?;
+    std::thread::sleep(LAB_SERVER_START);
+    Ok((server, tcp, udp))
+}
+
+/// `key N` in a status line, e.g. `forces_rx 5123` for key `"forces_rx "`.
+pub fn status_number(line: &str, key: &str) -> Option<f64> {
+    line.split(key)
+        .nth(1)?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// (lost, forwarded) frames summed over both directions of the relay's report ([`NetnsLab::stop_relay`]).
+pub fn relay_loss(report: &str) -> (u64, u64) {
+    report
+        .lines()
+        .filter(|l| l.contains("forwarded"))
+        .fold((0, 0), |(lost, forwarded), line| {
+            let n = |key| status_number(line, key).unwrap_or(0.0) as u64;
+            (lost + n(" lost "), forwarded + n(" forwarded "))
+        })
+}
+
+/// Read a hapticserver's `--trace-csv` file; the error names the file and the line.
+pub fn read_trace(path: &Path) -> anyhow::Result<Vec<TraceSample>> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow::anyhow!("reading the trace {}: {e}", path.display()))?;
+    Trace::parse_csv(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// The last line of a role's output that starts with `final:` (a hapticserver's closing report).
+pub fn final_line(stdout: &str) -> Option<&str> {
+    stdout.lines().rev().find(|l| l.starts_with("final:"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn status_numbers_and_relay_loss_are_read_from_the_lines_roles_print() {
+        let line = "final: left: moderated ticks 8000 rtt p50 201000 us p99 203000 us (n=7900) force 0.12 N \
+                    forces_rx 7800 longest gap 12.0 ms overruns 0 stale 0 clamped 0 rejects 0";
+        assert_eq!(status_number(line, "rtt p50 "), Some(201_000.0));
+        assert_eq!(status_number(line, "stale "), Some(0.0));
+        assert_eq!(status_number(line, "absent "), None);
+        let report = "tosrv [delay=100]: received 920 forwarded 900 (tcp 9 udp 891) lost 20 oversize 0\n\
+                      todev [delay=100]: received 1122 forwarded 1100 (tcp 9 udp 1091) lost 22 oversize 0\nbridging";
+        assert_eq!(relay_loss(report), (42, 2000));
+        assert_eq!(final_line("a\nfinal: x\nb"), Some("final: x"));
+    }
+}
