@@ -1,6 +1,6 @@
 //! Exploratory: what the server's local model for the tug of war's right grasper carries around its touch-down
 //! (0.6-1.3 s): in contact?, `K` along z, the nearest plane's stiffness, `f0`, at zero delay and 200 ms.
-//! `cargo run --release -p sinew-testkit --example touchdown_model -- [rtt_ms]`
+//! `cargo run --release -p sinew-testkit --example touchdown_model -- [rtt_ms] [device print step, ticks]`
 //!
 //! At 200 ms it shows the touch-down overshoot of BENCHMARKS.md: the plane the device meets first carries the
 //! 0.2 N/mm prior, while the sheet answers 0.001-0.04 N/mm as the contact grows, so the device renders up to
@@ -53,14 +53,15 @@ fn main() {
         }
     })
     .unwrap();
+    let step: usize = std::env::args().nth(2).map_or(20, |a| a.parse().unwrap());
     for s in result.traces[1]
         .iter()
         .filter(|s| (0.6..1.3).contains(&s.t_s))
-        .step_by(20)
+        .step_by(step)
     {
         println!(
-            "device t {:.3}: z {:.2} fz {:.3}",
-            s.t_s, s.position_mm[2], s.force_n[2]
+            "device t {:.3}: z {:.2} fz {:.3} model weight {:.2} blend {:.3}",
+            s.t_s, s.position_mm[2], s.force_n[2], s.model_weight, s.blend_offset_n[2]
         );
     }
 }

@@ -2,8 +2,10 @@
 //!
 //! Owns: [`nearest_surface_plane`]: for one object, the surface point nearest the tool (among the nodes of the
 //! triangles within the look-ahead box) and its current normal, turned into a plane for the tool's origin
-//! (shifted out by the tool's reach along the normal). A device renders it at once, so a hand meets a surface
-//! even before the server has seen the contact and answered with a model.
+//! (shifted out by the tool's reach along the normal), and the surface node it passes through (whose
+//! footprint's touch-down stiffness the plane carries before the tool's first contact: `sim::tool_output`). A
+//! device renders it at once, so a hand meets a surface even before the server has seen the contact and
+//! answered with a model.
 //!
 //! Must not: move anything, or allocate beyond the candidate buffer's capacity.
 
@@ -23,6 +25,8 @@ pub struct WorldPlane {
     pub stiffness_n_per_mm: f32,
     /// Damping of the approach, N s/mm.
     pub damping_n_s_per_mm: f32,
+    /// The surface node the plane passes through (where the tool will touch first).
+    pub node: u32,
 }
 
 /// The current outward normal at node `i`: area-weighted over its triangles (the rest normal if it has none
@@ -78,5 +82,6 @@ pub fn nearest_surface_plane(
         offset_mm,
         stiffness_n_per_mm: 0.0,
         damping_n_s_per_mm: 0.0,
+        node: nearest as u32,
     })
 }

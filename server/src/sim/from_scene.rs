@@ -163,6 +163,17 @@ impl Sim {
                     contact_k: Matrix3::zeros(),
                     plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,
                     plane_damping_n_s_per_mm: 0.0,
+                    plane_measured: false,
+                    touchdown_due: vec![None; objects.len()],
+                    touchdown_node: vec![None; objects.len()],
+                    touchdown_active: vec![false; objects.len()],
+                    touchdown_plane: None,
+                    touchdown_held: (0..objects.len())
+                        .map(|_| Vec::with_capacity(crate::sim::TOUCHDOWN_MAX_NODES))
+                        .collect(),
+                    touchdown_normals: (0..objects.len())
+                        .map(|_| Vec::with_capacity(crate::sim::TOUCHDOWN_MAX_NODES))
+                        .collect(),
                     plane_candidates: Vec::with_capacity(8192),
                     estimate: NormalStiffnessEstimate::default(),
                     friction: KineticFrictionEstimate::default(),

@@ -125,7 +125,13 @@ impl Sim {
                 }
             }
             if contacts.held.is_empty() && grasped.is_empty() {
-                solver.forget();
+                // Before a tool's first contact its planes carry the stiffness of a touch-down at the plane's
+                // node (the solver's result for that node alone); a multi-rate object's state is its own
+                // thread's, so its planes keep the prior.
+                let touchdown = !tool.haptic.plane_measured && object.lane.is_none();
+                if !touchdown {
+                    solver.forget();
+                }
                 if plane_count < MAX_PLANES
                     && let Some(plane) = nearest_surface_plane(
                         &tool.body.collider,
@@ -139,14 +145,75 @@ impl Sim {
                         &mut tool.haptic.plane_candidates,
                     )
                 {
+                    let along =
+                        |m: &Matrix3<f32>| (plane.normal.transpose() * m * plane.normal)[(0, 0)];
+                    let (stiffness_n_per_mm, damping_n_s_per_mm) = match solver.response() {
+                        Some(r) if touchdown => {
+                            let kd = (
+                                along(&r.stiffness_n_per_mm).max(0.0),
+                                along(&r.damping_n_s_per_mm).max(0.0),
+                            );
+                            tool.haptic.touchdown_plane = Some(kd);
+                            kd
+                        }
+                        _ => (
+                            tool.haptic.plane_stiffness_n_per_mm,
+                            tool.haptic.plane_damping_n_s_per_mm,
+                        ),
+                    };
+                    if touchdown
+                        && (tool.haptic.touchdown_node[o] != Some(plane.node)
+                            || solver.response().is_none())
+                    {
+                        tool.haptic.touchdown_due[o] = Some((plane.node, plane.normal));
+                        tool.haptic.touchdown_active[o] = true;
+                        self.tail_due = true;
+                        let x = &object.state.positions_mm;
+                        let centre = x.get(plane.node as usize).copied().unwrap_or(plane.normal);
+                        let held = &mut tool.haptic.touchdown_held[o];
+                        let normals = &mut tool.haptic.touchdown_normals[o];
+                        held.clear();
+                        normals.clear();
+                        held.push(plane.node);
+                        normals.push(-plane.normal);
+                        for &i in &tool.haptic.plane_candidates {
+                            if held.len() == held.capacity() {
+                                break;
+                            }
+                            if i != plane.node
+                                && x.get(i as usize).is_some_and(|p| {
+                                    (p - centre).norm() <= crate::sim::TOUCHDOWN_FOOTPRINT_MM
+                                })
+                            {
+                                held.push(i);
+                                normals.push(-plane.normal);
+                            }
+                        }
+                    }
                     planes[plane_count] = WorldPlane {
-                        stiffness_n_per_mm: tool.haptic.plane_stiffness_n_per_mm,
-                        damping_n_s_per_mm: tool.haptic.plane_damping_n_s_per_mm,
+                        stiffness_n_per_mm,
+                        damping_n_s_per_mm,
                         ..plane
                     };
                     plane_count += 1;
+                } else if touchdown {
+                    solver.forget();
                 }
                 continue;
+            }
+            if std::mem::take(&mut tool.haptic.touchdown_active[o]) {
+                // The contact's own solve starts afresh; until it finishes, the contact renders (and the
+                // coupling uses) the touch-down's stiffness, which the plane carried (a fixed prior stood
+                // for 1-3 ticks and sent the device a model of 0.2 N/mm on a 0.02 N/mm sheet).
+                solver.forget();
+                tool.haptic.touchdown_node[o] = None;
+                if let Some((k, d)) = tool.haptic.touchdown_plane.take()
+                    && !tool.haptic.plane_measured
+                    && k > 0.0
+                {
+                    tool.haptic.plane_stiffness_n_per_mm = k;
+                    tool.haptic.plane_damping_n_s_per_mm = d;
+                }
             }
             let first = contacts
                 .held
@@ -213,6 +280,7 @@ impl Sim {
             let dn = (n.transpose() * d * n)[(0, 0)].max(0.0);
             d = n * n.transpose() * dn;
             if kn.is_finite() && kn > 0.0 {
+                tool.haptic.plane_measured = true;
                 tool.haptic.plane_stiffness_n_per_mm = kn;
                 tool.haptic.plane_damping_n_s_per_mm = (n.transpose() * d * n)[(0, 0)].max(0.0);
             }
