@@ -2,9 +2,9 @@
 //! (0.6-1.3 s): in contact?, `K` along z, the nearest plane's stiffness, `f0`, at zero delay and 200 ms.
 //! `cargo run --release -p sinew-testkit --example touchdown_model -- [rtt_ms] [device print step, ticks]`
 //!
-//! At 200 ms it shows the touch-down overshoot of BENCHMARKS.md: the plane the device meets first carries the
-//! 0.2 N/mm prior, while the sheet answers 0.001-0.04 N/mm as the contact grows, so the device renders up to
-//! 0.3 N before the server's contact models arrive.
+//! It found the touch-down overshoot of BENCHMARKS.md (a first plane carried a fixed 0.2 N/mm prior while the
+//! sheet answers 0.001-0.04 N/mm as the contact grows: up to 0.3 N at the device before the contact's models
+//! arrived); now the plane carries the touch-down solve of the tool's footprint (about 0.02 N/mm here).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 use hapticserver::{HandPreset, ModePolicy};
 use sinew_protocol::ForceMode;
