@@ -4,7 +4,7 @@
 //! stiffness and damping at a contact ([`contact_stiffness`], with its normal stiffness fitted to the tissue's
 //! answer by [`stiffness_estimate`], and its sliding friction measured by [`friction_estimate`]), nearby
 //! untouched surfaces as unilateral planes
-//! ([`surface_planes`]) and the energy budget across ports ([`energy_budget`]). The per-device stream of
+//! ([`surface_planes`], with the stiffness of a first touch-down: [`touchdown`]) and the energy budget across ports ([`energy_budget`]). The per-device stream of
 //! force commands and its deadband sit one layer up, with the tick that feeds them
 //! (`crate::server_tick::model_stream`): this layer never reads the sim's output.
 //!
@@ -16,6 +16,7 @@ pub mod energy_budget;
 pub mod friction_estimate;
 pub mod stiffness_estimate;
 pub mod surface_planes;
+pub mod touchdown;
 
 pub use contact_stiffness::{ContactResponse, ContactStiffness};
 pub use coupling::{CouplingParams, VirtualCoupling};
@@ -23,6 +24,7 @@ pub use energy_budget::EnergyBudget;
 pub use friction_estimate::KineticFrictionEstimate;
 pub use stiffness_estimate::NormalStiffnessEstimate;
 pub use surface_planes::{WorldPlane, nearest_surface_plane};
+pub use touchdown::{TOUCHDOWN_FOOTPRINT_MM, Touchdown};
 
 /// Planes a local model carries (the wire's limit).
 pub const MAX_PLANES: usize = sinew_protocol::MAX_CONTACT_PLANES;

@@ -86,20 +86,9 @@ pub const PLANE_LOOK_AHEAD_MM: f32 = 20.0;
 const BITE_TOLERANCE_MM: f32 = 1e-3;
 
 /// Plane stiffness before a tool has touched anything and before its touch-down solve has finished, and on
-/// multi-rate objects, N/mm (see [`TOUCHDOWN_FOOTPRINT_MM`]; after a contact, the last measured contact's
+/// multi-rate objects, N/mm (see [`crate::haptics::TOUCHDOWN_FOOTPRINT_MM`]; after a contact, the last measured contact's
 /// normal stiffness): the pad's contact stiffness at a few mm.
 pub const PLANE_STIFFNESS_PRIOR_N_PER_MM: f32 = 0.2;
-
-/// A touch-down's footprint: the surface nodes within this distance of the plane's node, mm. Before a tool's
-/// first contact, each plane carries the contact-stiffness solve of this footprint held (the tool's normal
-/// into the tissue), in the tick's tail: the stiffness the tissue will show at first touch, where a fixed
-/// prior was six times too stiff on a loosely held sheet (0.021 N/mm solved, 0.036 N/mm measured once
-/// pressed, 0.2 prior; the pad: 0.168 solved, 0.191 measured). The contact then starts its own solve afresh,
-/// so the server's coupling and tissue are as without it.
-pub const TOUCHDOWN_FOOTPRINT_MM: f32 = 2.5;
-
-/// Most nodes in a touch-down's footprint.
-pub const TOUCHDOWN_MAX_NODES: usize = 64;
 
 /// The whole simulated scene.
 #[derive(Debug)]
@@ -362,7 +351,7 @@ impl Sim {
             for_chunks_mut(model.chunk_runner(), &mut self.tools, 1, |_, tools| {
                 for tool in tools {
                     let due = tool.haptic.stiffness_due.get_mut(o).and_then(Option::take);
-                    let touchdown = tool.haptic.touchdown_due.get_mut(o).and_then(Option::take);
+                    let touchdown = tool.haptic.touchdown.get_mut(o);
                     let (Some(solver), Some(contacts)) =
                         (tool.haptic.stiffness.get_mut(o), tool.contacts.get(o))
                     else {
@@ -381,20 +370,21 @@ impl Sim {
                             grasped,
                             &normal,
                         );
-                    } else if let Some((node, normal)) = touchdown {
+                    } else if let Some(touchdown) = touchdown
+                        && let Some((node, normal)) = touchdown.due.take()
+                    {
                         // A touch-down at the plane's node: its footprint held, the tool's normal there
                         // into the tissue. (A solve under way for the node before finishes first; the
                         // next one starts on this node.)
-                        let (Some(held), Some(normals)) = (
-                            tool.haptic.touchdown_held.get(o),
-                            tool.haptic.touchdown_normals.get(o),
-                        ) else {
-                            continue;
-                        };
-                        if solver.advance(model, state, held, normals, &[], &normal)
-                            && let Some(slot) = tool.haptic.touchdown_node.get_mut(o)
-                        {
-                            *slot = Some(node);
+                        if solver.advance(
+                            model,
+                            state,
+                            &touchdown.held,
+                            &touchdown.normals,
+                            &[],
+                            &normal,
+                        ) {
+                            touchdown.node = Some(node);
                         }
                     }
                 }

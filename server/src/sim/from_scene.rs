@@ -164,16 +164,11 @@ impl Sim {
                     plane_stiffness_n_per_mm: PLANE_STIFFNESS_PRIOR_N_PER_MM,
                     plane_damping_n_s_per_mm: 0.0,
                     plane_measured: false,
-                    touchdown_due: vec![None; objects.len()],
-                    touchdown_node: vec![None; objects.len()],
-                    touchdown_active: vec![false; objects.len()],
+                    // Each built on its own (a clone of an empty Vec drops its capacity).
+                    touchdown: (0..objects.len())
+                        .map(|_| crate::haptics::Touchdown::default())
+                        .collect(),
                     touchdown_plane: None,
-                    touchdown_held: (0..objects.len())
-                        .map(|_| Vec::with_capacity(crate::sim::TOUCHDOWN_MAX_NODES))
-                        .collect(),
-                    touchdown_normals: (0..objects.len())
-                        .map(|_| Vec::with_capacity(crate::sim::TOUCHDOWN_MAX_NODES))
-                        .collect(),
                     plane_candidates: Vec::with_capacity(8192),
                     estimate: NormalStiffnessEstimate::default(),
                     friction: KineticFrictionEstimate::default(),

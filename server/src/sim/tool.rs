@@ -106,20 +106,11 @@ pub(super) struct ToolHaptics {
     /// This tool has measured a contact: its planes carry that contact's stiffness. Before, each plane
     /// carries the stiffness of a touch-down at the plane's node (below).
     pub(super) plane_measured: bool,
-    /// Per object, before the first contact: the plane's node and normal whose touch-down stiffness the
-    /// solver should work on in the tick's tail, if it should.
-    pub(super) touchdown_due: Vec<Option<(u32, Vec3)>>,
-    /// Per object: the node of the last finished touch-down solve.
-    pub(super) touchdown_node: Vec<Option<u32>>,
-    /// Per object: the solver works on (or holds) a touch-down; a contact starts its own solve afresh.
-    pub(super) touchdown_active: Vec<bool>,
+    /// Per object, before the first contact: the touch-down the planes' stiffness comes from.
+    pub(super) touchdown: Vec<crate::haptics::Touchdown>,
     /// The normal stiffness and damping the last touch-down plane carried: a first contact's ticks before its
     /// own solve finishes use them (as later contacts use the last measured one).
     pub(super) touchdown_plane: Option<(f32, f32)>,
-    /// Per object: the nodes a touch-down at the plane's node holds (its footprint), and the tool's normals
-    /// there (all into the tissue). Capacity fixed at construction.
-    pub(super) touchdown_held: Vec<Vec<u32>>,
-    pub(super) touchdown_normals: Vec<Vec<Vec3>>,
     /// Broad-phase scratch of the plane search.
     pub(super) plane_candidates: Vec<u32>,
     /// The contact's normal stiffness fitted to the tissue's answer.

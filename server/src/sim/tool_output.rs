@@ -161,34 +161,15 @@ impl Sim {
                             tool.haptic.plane_damping_n_s_per_mm,
                         ),
                     };
-                    if touchdown
-                        && (tool.haptic.touchdown_node[o] != Some(plane.node)
-                            || solver.response().is_none())
-                    {
-                        tool.haptic.touchdown_due[o] = Some((plane.node, plane.normal));
-                        tool.haptic.touchdown_active[o] = true;
+                    let queue = &mut tool.haptic.touchdown[o];
+                    if touchdown && queue.wants(plane.node, solver.response().is_some()) {
+                        queue.queue(
+                            plane.node,
+                            plane.normal,
+                            &tool.haptic.plane_candidates,
+                            &object.state.positions_mm,
+                        );
                         self.tail_due = true;
-                        let x = &object.state.positions_mm;
-                        let centre = x.get(plane.node as usize).copied().unwrap_or(plane.normal);
-                        let held = &mut tool.haptic.touchdown_held[o];
-                        let normals = &mut tool.haptic.touchdown_normals[o];
-                        held.clear();
-                        normals.clear();
-                        held.push(plane.node);
-                        normals.push(-plane.normal);
-                        for &i in &tool.haptic.plane_candidates {
-                            if held.len() == held.capacity() {
-                                break;
-                            }
-                            if i != plane.node
-                                && x.get(i as usize).is_some_and(|p| {
-                                    (p - centre).norm() <= crate::sim::TOUCHDOWN_FOOTPRINT_MM
-                                })
-                            {
-                                held.push(i);
-                                normals.push(-plane.normal);
-                            }
-                        }
                     }
                     planes[plane_count] = WorldPlane {
                         stiffness_n_per_mm,
@@ -201,12 +182,11 @@ impl Sim {
                 }
                 continue;
             }
-            if std::mem::take(&mut tool.haptic.touchdown_active[o]) {
+            if tool.haptic.touchdown[o].end() {
                 // The contact's own solve starts afresh; until it finishes, the contact renders (and the
                 // coupling uses) the touch-down's stiffness, which the plane carried (a fixed prior stood
                 // for 1-3 ticks and sent the device a model of 0.2 N/mm on a 0.02 N/mm sheet).
                 solver.forget();
-                tool.haptic.touchdown_node[o] = None;
                 if let Some((k, d)) = tool.haptic.touchdown_plane.take()
                     && !tool.haptic.plane_measured
                     && k > 0.0
