@@ -24,7 +24,7 @@ pub use energy_budget::EnergyBudget;
 pub use friction_estimate::KineticFrictionEstimate;
 pub use stiffness_estimate::NormalStiffnessEstimate;
 pub use surface_planes::{WorldPlane, nearest_surface_plane};
-pub use touchdown::{TOUCHDOWN_FOOTPRINT_MM, Touchdown};
+pub use touchdown::{TOUCHDOWN_DEPTH_PER_REACH, Touchdown};
 
 /// Planes a local model carries (the wire's limit).
 pub const MAX_PLANES: usize = sinew_protocol::MAX_CONTACT_PLANES;

@@ -86,7 +86,7 @@ pub const PLANE_LOOK_AHEAD_MM: f32 = 20.0;
 const BITE_TOLERANCE_MM: f32 = 1e-3;
 
 /// Plane stiffness before a tool has touched anything and before its touch-down solve has finished, and on
-/// multi-rate objects, N/mm (see [`crate::haptics::TOUCHDOWN_FOOTPRINT_MM`]; after a contact, the last measured contact's
+/// multi-rate objects, N/mm (see [`crate::haptics::TOUCHDOWN_DEPTH_PER_REACH`]; after a contact, the last measured contact's
 /// normal stiffness): the pad's contact stiffness at a few mm.
 pub const PLANE_STIFFNESS_PRIOR_N_PER_MM: f32 = 0.2;
 

@@ -163,11 +163,20 @@ impl Sim {
                     };
                     let queue = &mut tool.haptic.touchdown[o];
                     if touchdown && queue.wants(plane.node, solver.response().is_some()) {
+                        // The tool moved down the plane's normal until it presses a quarter of its
+                        // reach past the plane (TOUCHDOWN_DEPTH_PER_REACH).
+                        let n = plane.normal;
+                        let reach_mm = tool.body.collider.reach_along_mm(&tool.rotation, &(-n));
+                        let depth_mm = crate::haptics::TOUCHDOWN_DEPTH_PER_REACH * reach_mm;
+                        let pressed_mm = tool.position_mm
+                            - n * (n.dot(&tool.position_mm) - plane.offset_mm + depth_mm);
+                        let (collider, rotation) = (&tool.body.collider, &tool.rotation);
                         queue.queue(
                             plane.node,
-                            plane.normal,
+                            n,
                             &tool.haptic.plane_candidates,
                             &object.state.positions_mm,
+                            |p| collider.distance_mm(&pressed_mm, rotation, p) <= 1e-4,
                         );
                         self.tail_due = true;
                     }
