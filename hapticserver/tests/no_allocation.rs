@@ -53,6 +53,7 @@ fn command(k: u64, moderated: bool) -> Vec<u8> {
         cut_drag_n: 0.15,
         friction_coefficient: 0.5,
         stick_stiffness_n_per_mm: 1.5,
+        cut_facet_mm: 1.0,
     };
     let command = ForceCommand {
         seq: k + 1,

@@ -12,7 +12,7 @@ mod tools;
 pub use force::{ForceCommand, ForceMode};
 pub use hello::{ParticipantHello, Role};
 pub use local_model::{
-    CUT_DRAG_SMOOTHING_MM_S, ContactPlane, LocalModel, MAX_CONTACT_PLANES,
+    CUT_DRAG_SMOOTHING_MM_S, CUT_DRAG_TAU_S, ContactPlane, LocalModel, MAX_CONTACT_PLANES,
     MAX_FRICTION_COEFFICIENT, Sym3,
 };
 pub use mesh_delta::{MeshDelta, TopologyDelta};

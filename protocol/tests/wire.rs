@@ -75,6 +75,7 @@ fn local_model(rng: &mut fastrand::Rng) -> LocalModel {
         cut_drag_n: rng.f32() * 0.5,
         friction_coefficient: rng.f32() * 2.0,
         stick_stiffness_n_per_mm: rng.f32() * 3.0,
+        cut_facet_mm: if rng.bool() { rng.f32() * 2.0 } else { 0.0 },
     }
 }
 
@@ -671,6 +672,12 @@ fn local_model_fields_out_of_domain_are_refused_by_name() {
     let mut m = good;
     m.cut_drag_n = f32::INFINITY;
     refused(m);
+    // A negative or non-finite facet spacing.
+    for bad in [-0.5, f32::NAN, f32::INFINITY] {
+        let mut m = good;
+        m.cut_facet_mm = bad;
+        assert_eq!(refused(m), "local_model.cut_facet_mm");
+    }
     // A friction coefficient out of 0..=2, or not finite; a negative stick spring.
     for bad in [-0.1, 2.5, f32::NAN] {
         let mut m = good;

@@ -63,6 +63,7 @@ fn force_local_model() -> ForceCommand {
             cut_drag_n: 0.0,
             friction_coefficient: 0.0,
             stick_stiffness_n_per_mm: 0.0,
+            cut_facet_mm: 0.0,
         }),
         ..force_direct()
     }

@@ -51,8 +51,9 @@ fn a_grasped_pull_is_felt_at_a_distance_as_at_zero_delay() {
 }
 
 /// The scalpel's drag, felt while it cuts (cut.toml's demo: 40 mm along +y at 20 mm/s), within 10% of zero
-/// delay for the nominal and firm hands. Before the model carried the drag of cutting, nothing was felt at
-/// 200 ms. (The light hand feels 6-10% less than at zero delay: BENCHMARKS.md.)
+/// delay for the nominal and firm hands, and the whole run's peak and RMS within 10%: the peak is the drag as
+/// a facet is cut, which the device's own sawtooth reproduces (with the model's mean drag it was 20% low).
+/// Before the model carried the drag of cutting, nothing was felt at 200 ms. (The light hand: BENCHMARKS.md.)
 #[test]
 fn the_drag_of_cutting_is_felt_at_a_distance_as_at_zero_delay() {
     let world = load_shipped_world("cut.toml").unwrap();
@@ -73,7 +74,13 @@ fn the_drag_of_cutting_is_felt_at_a_distance_as_at_zero_delay() {
                 (felt / reference - 1.0).abs() <= 0.10,
                 "drag outside 10%: {rows:?}"
             );
-            assert!(f.devices[0].withheld_mj < 1.0 && !f.devices[0].clamped);
+            let d = &f.devices[0];
+            rows.push(format!(
+                "  peak {:+.1}%, RMS {:+.1}%",
+                100.0 * d.peak_error(),
+                100.0 * d.rms_error()
+            ));
+            assert!(d.faithful_within(0.10), "{rows:?}");
         }
     }
     println!("{}", rows.join("\n"));

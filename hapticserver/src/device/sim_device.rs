@@ -61,6 +61,11 @@ impl SimDevice {
         }
     }
 
+    /// The script has started: no start time was set, or it has passed (read by [`DeviceBackend::read`]).
+    pub fn started(&self) -> bool {
+        self.start_at.is_none()
+    }
+
     /// Hold the hand still at the script's start, jaws open, until `start_at`; script time starts at the
     /// first read at or after it.
     pub fn with_start_at(mut self, start_at: std::time::Instant) -> Self {
@@ -171,17 +176,23 @@ mod tests {
         let start_at = std::time::Instant::now() + std::time::Duration::from_millis(30);
         let mut delayed = SimDevice::new(script.clone()).with_start_at(start_at);
         let mut plain = SimDevice::new(script);
+        // Read until the script starts (the clock is read inside `read`, so the loop cannot ask first without
+        // racing it): every read before is the start pose, and the start is not before `start_at`.
         let mut held = 0;
-        while std::time::Instant::now() < start_at {
+        loop {
             let reading = delayed.read(0.001).unwrap();
+            assert_eq!(delayed.script_time_s(), 0.0);
+            if delayed.started() {
+                assert!(std::time::Instant::now() >= start_at);
+                break;
+            }
             assert_eq!(reading.position_mm, [0.0, 0.0, 20.0]);
             assert_eq!(reading.buttons, 0);
-            assert_eq!(delayed.script_time_s(), 0.0);
             held += 1;
         }
         assert!(held > 0);
-        // The first read past the start time is the script's time zero (one tick behind a device that never
-        // waited, whose first read is at 1 ms).
+        // The first read past the start time was the script's time zero: from here the delayed device runs a
+        // tick behind one that never waited (whose first read is at 1 ms).
         for _ in 0..1500 {
             // Past the close (0.8 s): the same motion and grip as the device that never waited.
             let (a, b) = (delayed.read(0.001).unwrap(), plain.read(0.001).unwrap());
@@ -191,7 +202,7 @@ mod tests {
                 assert!(d < 0.06, "{d} mm apart: {a:?} {b:?}");
             }
         }
-        assert!((delayed.script_time_s() - 1.499).abs() < 1e-6);
+        assert!((delayed.script_time_s() - 1.5).abs() < 1e-6);
         assert_eq!(delayed.read(0.001).unwrap().buttons, 1);
     }
 

@@ -1,7 +1,8 @@
 //! Latency-moderated rendering: the newest [`LocalModel`] evaluated at the current device position every tick.
 //!
 //! Owns: the evaluation of a local model, split into its linear part ([`local_model`]: `f0 - K (x - x0) - D v`,
-//! one-sided along the contact normal and faded out towards its radius, and the drag of cutting), its friction
+//! one-sided along the contact normal and faded out towards its radius), the drag of cutting with the sawtooth
+//! of the facets the device's own travel cuts ([`cut_texture`]), its friction
 //! about a stick point the device keeps ([`friction_stick`]), its unilateral planes rendered through
 //! a god-object proxy ([`plane_proxy`], after Zilles and Salisbury, 1995) and the renderer that keeps the force
 //! continuous when models are swapped ([`blend`]: [`ModelRenderer`]).
@@ -13,17 +14,19 @@
 //! and at release.
 //!
 //! Must not: clamp, rate-limit or ramp forces for staleness (that is [`crate::safety`]), account energy
-//! ([`crate::passivity`]), read the clock, the network or the device (time, model and reading are passed in),
+//! ([`crate::passivity`]), read the clock (time is passed in), the network or the device (time, model and reading are passed in),
 //! allocate, or panic.
 //!
 //! [`LocalModel`]: sinew_protocol::LocalModel
 
 pub mod blend;
+pub mod cut_texture;
 pub mod friction_stick;
 pub mod local_model;
 pub mod plane_proxy;
 
 pub use blend::{ModelRenderer, RenderConfig, RenderConfigError};
+pub use cut_texture::CutTexture;
 pub use friction_stick::StickPoint;
 pub use local_model::linear_force_n;
 pub use plane_proxy::PlaneProxy;

@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 11
+PROTOCOL_VERSION = 12
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -234,6 +234,8 @@ class LocalModel:
     # Coulomb friction the device renders about its own stick point: the cone and the stick spring (v11).
     friction_coefficient: float = wire_field("f32", default=0.0)
     stick_stiffness_n_per_mm: float = wire_field("f32", default=0.0)
+    # How far the blade's edge travels between the facets it cuts, mm: the drag's sawtooth (v12).
+    cut_facet_mm: float = wire_field("f32", default=0.0)
 
 
 @dataclass

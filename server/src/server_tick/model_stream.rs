@@ -243,6 +243,11 @@ impl ModelStream {
             } else {
                 0.0
             },
+            cut_facet_mm: if out.cut_facet_mm.is_finite() && out.cut_drag_n > 0.0 {
+                out.cut_facet_mm.max(0.0)
+            } else {
+                0.0
+            },
         }
     }
 
@@ -319,6 +324,9 @@ impl ModelStream {
                 > p.force_floor_n.max(p.weber_fraction * model.cut_drag_n)
             || last.plane_count != model.plane_count
             || (last.energy_allowance_mj - model.energy_allowance_mj).abs() > p.allowance_mj
+            || (last.cut_facet_mm > 0.0) != (model.cut_facet_mm > 0.0)
+            || (last.cut_facet_mm - model.cut_facet_mm).abs()
+                > p.stiffness_fraction * last.cut_facet_mm
             || last.friction_coefficient != model.friction_coefficient
             || (last.stick_stiffness_n_per_mm - model.stick_stiffness_n_per_mm).abs()
                 > p.stiffness_fraction * last.stick_stiffness_n_per_mm.max(0.01)

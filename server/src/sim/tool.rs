@@ -225,6 +225,9 @@ pub struct ToolOutput {
     /// The drag of cutting the local model carries, N (>= 0; 0 when the blade has not cut lately): the
     /// tissue's cutting resistance times how recently the edge cut.
     pub cut_drag_n: f32,
+    /// How far the edge travels between the facets it cuts, mm (0: unknown, and `cut_drag_n` is the drag's
+    /// mean; positive: `cut_drag_n` is the drag at a facet cut, and a distant device makes the sawtooth).
+    pub cut_facet_mm: f32,
     /// The drag of cutting inside `force_world_n`, world frame, N (the model renders it from `cut_drag_n`
     /// against the device's own motion, so its `f0` leaves it out).
     pub cut_drag_world_n: Vec3,

@@ -17,8 +17,9 @@ use sinew_protocol::LocalModel;
 use thiserror::Error;
 
 use super::all_finite;
+use super::cut_texture::CutTexture;
 use super::friction_stick::StickPoint;
-use super::local_model::{cut_drag_force_n, linear_force_n};
+use super::local_model::linear_force_n;
 use super::plane_proxy::PlaneProxy;
 
 /// A [`RenderConfig`] value out of its domain.
@@ -97,22 +98,41 @@ fn add3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     std::array::from_fn(|i| a[i] + b[i])
 }
 
-/// The force of `model` at the device state: linear part, friction (moving `stick`), planes (moving `proxy`)
-/// and the drag of cutting.
-fn model_force_n(
-    model: &LocalModel,
-    proxy: &mut PlaneProxy,
-    stick: &mut StickPoint,
-    position_mm: [f32; 3],
-    velocity_mm_s: [f32; 3],
-) -> [f32; 3] {
-    let linear_n = linear_force_n(model, position_mm, velocity_mm_s);
-    let friction_n = stick.step(model, linear_n, position_mm);
-    let planes_n = proxy.step(model.active_planes(), position_mm, velocity_mm_s);
-    add3(
-        add3(add3(linear_n, friction_n), planes_n),
-        cut_drag_force_n(model, velocity_mm_s),
-    )
+/// What a model's rendering keeps between ticks besides the model: the planes' proxy, the friction's stick
+/// point and the cutting drag's texture.
+#[derive(Debug, Clone, Copy)]
+struct RenderState {
+    proxy: PlaneProxy,
+    stick: StickPoint,
+    texture: CutTexture,
+}
+
+impl RenderState {
+    fn reset(&mut self) {
+        self.proxy.reset();
+        self.stick.reset();
+        self.texture.reset();
+    }
+
+    /// The force of `model` at `now_s` and the device state: linear part, friction (moving the stick point),
+    /// planes (moving the proxy) and the drag of cutting (moving its texture).
+    fn force_n(
+        &mut self,
+        model: &LocalModel,
+        now_s: f64,
+        position_mm: [f32; 3],
+        velocity_mm_s: [f32; 3],
+    ) -> [f32; 3] {
+        let linear_n = linear_force_n(model, position_mm, velocity_mm_s);
+        let friction_n = self.stick.step(model, linear_n, position_mm);
+        let planes_n = self
+            .proxy
+            .step(model.active_planes(), position_mm, velocity_mm_s);
+        add3(
+            add3(add3(linear_n, friction_n), planes_n),
+            self.texture.step(model, now_s, position_mm, velocity_mm_s),
+        )
+    }
 }
 
 /// Renders the newest local model against the current device state every tick, continuously across swaps.
@@ -123,8 +143,7 @@ fn model_force_n(
 pub struct ModelRenderer {
     config: RenderConfig,
     model: Option<LocalModel>,
-    proxy: PlaneProxy,
-    stick: StickPoint,
+    state: RenderState,
     blend: ForceBlend,
 }
 
@@ -133,8 +152,11 @@ impl Default for ModelRenderer {
         Self {
             config: RenderConfig::default(),
             model: None,
-            proxy: PlaneProxy::new(),
-            stick: StickPoint::default(),
+            state: RenderState {
+                proxy: PlaneProxy::new(),
+                stick: StickPoint::default(),
+                texture: CutTexture::default(),
+            },
             blend: ForceBlend::default(),
         }
     }
@@ -179,12 +201,12 @@ impl ModelRenderer {
 
     /// The god-object proxy of the planes, mm, if there is one.
     pub fn proxy_position_mm(&self) -> Option<[f32; 3]> {
-        self.proxy.position_mm()
+        self.state.proxy.position_mm()
     }
 
     /// The friction's stick point, mm, while the tool pushes on frictional tissue.
     pub fn stick_point_mm(&self) -> Option<[f32; 3]> {
-        self.stick.anchor_mm()
+        self.state.stick.anchor_mm()
     }
 
     /// The blend offset rendered on top of the model at `now_s`, N (zero once a blend is over).
@@ -210,22 +232,21 @@ impl ModelRenderer {
     ) {
         if !(now_s.is_finite() && all_finite(position_mm) && all_finite(velocity_mm_s)) {
             self.model = Some(*model);
-            self.proxy.reset();
-            self.stick.reset();
+            self.state.reset();
             self.blend = ForceBlend::FROM_ZERO_NEXT;
             return;
         }
         let before_n = match &self.model {
             Some(old) if !self.blend.from_zero_next => {
-                let (mut proxy, mut stick) = (self.proxy, self.stick);
-                let old_n = model_force_n(old, &mut proxy, &mut stick, position_mm, velocity_mm_s);
+                let mut state = self.state;
+                let old_n = state.force_n(old, now_s, position_mm, velocity_mm_s);
                 add3(old_n, self.blend.offset_at(now_s, self.config.blend_s))
             }
             _ => [0.0; 3],
         };
         self.model = Some(*model);
-        let (mut proxy, mut stick) = (self.proxy, self.stick);
-        let after_n = model_force_n(model, &mut proxy, &mut stick, position_mm, velocity_mm_s);
+        let mut state = self.state;
+        let after_n = state.force_n(model, now_s, position_mm, velocity_mm_s);
         let offset_n: [f32; 3] = std::array::from_fn(|i| before_n[i] - after_n[i]);
         self.blend = if all_finite(offset_n) {
             ForceBlend {
@@ -234,8 +255,7 @@ impl ModelRenderer {
                 from_zero_next: false,
             }
         } else {
-            self.proxy.reset();
-            self.stick.reset();
+            self.state.reset();
             ForceBlend::FROM_ZERO_NEXT
         };
     }
@@ -254,21 +274,14 @@ impl ModelRenderer {
     ) -> [f32; 3] {
         const ZERO: [f32; 3] = [0.0; 3];
         if !(now_s.is_finite() && all_finite(position_mm) && all_finite(velocity_mm_s)) {
-            self.proxy.reset();
-            self.stick.reset();
+            self.state.reset();
             self.blend = ForceBlend::FROM_ZERO_NEXT;
             return ZERO;
         }
         let Some(model) = &self.model else {
             return ZERO;
         };
-        let model_n = model_force_n(
-            model,
-            &mut self.proxy,
-            &mut self.stick,
-            position_mm,
-            velocity_mm_s,
-        );
+        let model_n = self.state.force_n(model, now_s, position_mm, velocity_mm_s);
         if self.blend.from_zero_next {
             self.blend = ForceBlend {
                 offset_n: model_n.map(|c| -c),
@@ -280,8 +293,7 @@ impl ModelRenderer {
         if all_finite(force_n) {
             force_n
         } else {
-            self.proxy.reset();
-            self.stick.reset();
+            self.state.reset();
             self.blend = ForceBlend::FROM_ZERO_NEXT;
             ZERO
         }
@@ -291,8 +303,7 @@ impl ModelRenderer {
     /// next model blends in from zero.
     pub fn clear(&mut self) {
         self.model = None;
-        self.proxy.reset();
-        self.stick.reset();
+        self.state.reset();
         self.blend = ForceBlend::default();
     }
 }

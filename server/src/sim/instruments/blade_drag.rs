@@ -9,9 +9,16 @@ use crate::tissue::Vec3;
 
 use super::super::*;
 
-/// How long the drag of cutting lasts after the edge last cut a facet, s (time constant of its decay): at a
-/// steady 10-20 mm/s the edge crosses a 1 mm mesh's facets every 50-100 ms, and the drag holds in between.
-pub(super) const CUT_DRAG_TAU_S: f32 = 0.1;
+/// How long the drag of cutting lasts after the edge last cut a facet, s (time constant of its decay): the
+/// wire's, since a distant device renders the same decay.
+pub(super) const CUT_DRAG_TAU_S: f32 = sinew_protocol::CUT_DRAG_TAU_S;
+
+/// Weight of a new interval between facet cuts in the running spacing the model carries.
+const FACET_SMOOTHING: f32 = 0.3;
+
+/// A facet cut extends the cut only while the drag of the last one is still above this level (it cut within
+/// about 0.3 s); otherwise the edge's travel since is an approach, not a spacing.
+const SAME_CUT_LEVEL: f32 = 0.05;
 
 /// Below this mean drag the local model carries none, N (a step this small is below what a hand detects).
 pub(super) const MIN_MODEL_DRAG_N: f32 = 0.005;
@@ -37,10 +44,14 @@ pub(super) struct BladeDrag {
     pub(super) level: f32,
     /// The blade moved this tick.
     pub(super) moving: bool,
-    /// The drag's size averaged over [`CUT_DRAG_TAU_S`], N: what the local model carries. The drag itself
-    /// is a sawtooth (1 at each facet cut, decaying between), which a model sent on change would render
-    /// high by the deadband.
+    /// The drag's size averaged over [`CUT_DRAG_TAU_S`], N. The drag itself is a sawtooth (1 at each facet
+    /// cut, decaying between): a distant device makes it from [`BladeDrag::facet_mm`] and its own travel;
+    /// until a spacing is known the model carries this mean.
     mean_n: f32,
+    /// How far the edge travelled since it last cut a facet, mm.
+    travel_since_cut_mm: f32,
+    /// The edge's travel between facet cuts, running, mm (0 until two cuts in a row have been seen).
+    facet_mm: f32,
 }
 
 impl BladeDrag {
@@ -56,20 +67,45 @@ impl BladeDrag {
         self.moving = false;
     }
 
+    /// The edge travelled `travel_mm` this tick and cut `facets` facets: the running spacing between cuts
+    /// takes the travel since the last one (shared among this tick's), while the cut goes on.
+    pub(super) fn advance(&mut self, travel_mm: f32, facets: u32) {
+        if !(travel_mm.is_finite() && travel_mm >= 0.0) {
+            return;
+        }
+        self.travel_since_cut_mm += travel_mm;
+        if facets == 0 {
+            return;
+        }
+        if self.level > SAME_CUT_LEVEL {
+            let interval_mm = self.travel_since_cut_mm / facets as f32;
+            self.facet_mm = if self.facet_mm > 0.0 {
+                self.facet_mm + (interval_mm - self.facet_mm) * FACET_SMOOTHING
+            } else {
+                interval_mm
+            };
+        }
+        self.travel_since_cut_mm = 0.0;
+        self.level = 1.0;
+    }
+
     /// The blade is cutting: moving, and cut recently.
     pub(super) fn cutting(&self) -> bool {
         self.moving && self.level > 0.5
     }
 
-    /// Mark `out` with the drag of cutting: for the local model its mean size (zero below
-    /// [`MIN_MODEL_DRAG_N`]), and the drag inside the tool's force this tick.
+    /// Mark `out` with the drag of cutting: for the local model (none while its mean is below
+    /// [`MIN_MODEL_DRAG_N`]) the drag at a facet cut and the spacing of the facets once that is known, its
+    /// mean before; and the drag inside the tool's force this tick.
     pub(super) fn mark(&self, out: &mut ToolOutput) {
         out.cutting = self.cutting();
         out.cut_drag_world_n = self.force_n;
-        out.cut_drag_n = if self.mean_n >= MIN_MODEL_DRAG_N {
-            self.mean_n
-        } else {
-            0.0
+        let sawtooth =
+            self.facet_mm > 0.0 && self.resistance_n.is_finite() && self.resistance_n > 0.0;
+        (out.cut_drag_n, out.cut_facet_mm) = match (self.mean_n >= MIN_MODEL_DRAG_N, sawtooth) {
+            (false, _) => (0.0, 0.0),
+            (true, true) => (self.resistance_n, self.facet_mm),
+            (true, false) => (self.mean_n, 0.0),
         };
     }
 }

@@ -56,10 +56,8 @@ impl Instrument for Scalpel {
             to_mm: edge_now,
         };
         let severed = cut_everything(sim, &sweep, &mut self.drag, report);
-        if severed > 0 {
-            self.drag.level = 1.0;
-        }
         let motion = (edge_now[0] + edge_now[1] - edge_before[0] - edge_before[1]) * 0.5;
+        self.drag.advance(motion.norm(), severed);
         if let Some(direction) = motion.try_normalize(MIN_CUT_SPEED_MM_S * dt_s) {
             self.drag.moving = true;
             self.drag.force_n = -direction * self.drag.resistance_n * self.drag.level;

@@ -93,6 +93,11 @@ fn random_model(rng: &mut fastrand::Rng, near_mm: [f32; 3], normals: &[[f32; 3]]
         cut_drag_n: if rng.bool() { rng.f32() * 0.3 } else { 0.0 },
         friction_coefficient: if rng.bool() { rng.f32() } else { 0.0 },
         stick_stiffness_n_per_mm: rng.f32() * 3.0,
+        cut_facet_mm: if rng.bool() {
+            0.2 + rng.f32() * 2.0
+        } else {
+            0.0
+        },
     };
     assert!(model.validate().is_ok(), "{model:?}");
     model
@@ -242,7 +247,17 @@ fn random_models_and_motion_render_finite_and_lipschitz_forces() {
                 0.0
             };
             let slack_n = 1e-4 + 1e-5 * (norm(f) + norm(previous_f));
-            let bound_n = l_x * dx_mm + l_v * dv_mm_s + decay_n + slack_n;
+            // The cutting drag's texture: its level rises by at most dt / CUT_RISE_S a tick at a facet and
+            // decays by at most dt / CUT_DRAG_TAU_S between.
+            let texture_n = bound_model
+                .filter(|m| m.cut_facet_mm > 0.0)
+                .map_or(0.0, |m| {
+                    m.cut_drag_n
+                        * (DT_S as f32)
+                        * (1.0 / super::super::cut_texture::CUT_RISE_S
+                            + 1.0 / sinew_protocol::CUT_DRAG_TAU_S)
+                });
+            let bound_n = l_x * dx_mm + l_v * dv_mm_s + decay_n + texture_n + slack_n;
             let step_n = norm(sub(f, previous_f));
             assert!(
                 step_n <= bound_n,
