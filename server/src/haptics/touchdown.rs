@@ -2,7 +2,7 @@
 //! it approaches (its footprint), and the bookkeeping of the contact-stiffness solve run on them.
 //!
 //! Owns: [`Touchdown`] (per tool and object: the footprint, the solve due in the tick's tail, the node of the
-//! last finished one, whether the solver holds a touch-down) and [`TOUCHDOWN_DEPTH_MM`]. The plane carries
+//! last finished one, whether the solver holds a touch-down) and [`TOUCHDOWN_DEPTH_PER_REACH`]. The plane carries
 //! the solve's normal stiffness (`sim::tool_output`), so a distant hand meets the tissue's own stiffness at
 //! first touch rather than a fixed prior.
 //!
@@ -62,7 +62,7 @@ impl Touchdown {
 
     /// Queue a solve for the plane through `node` with outward `normal`: its footprint is `node` and the
     /// `candidates` (`positions_mm` indexed by node) for which `in_footprint` holds (the caller's test: inside
-    /// the tool pressed [`TOUCHDOWN_DEPTH_MM`] past the plane), up to the capacity. No allocation.
+    /// the tool pressed [`TOUCHDOWN_DEPTH_PER_REACH`] of its reach past the plane), up to the capacity. No allocation.
     pub fn queue(
         &mut self,
         node: u32,

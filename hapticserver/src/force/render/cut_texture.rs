@@ -19,8 +19,8 @@
 
 use sinew_protocol::{CUT_DRAG_TAU_S, LocalModel};
 
-use super::all_finite;
 use super::local_model::cut_drag_force_n;
+use super::{all_finite, dot3};
 
 /// How long a facet's drag takes to rise to its full size, s: five ticks at 1 kHz, so a facet's rise is a
 /// ramp of at most a fifth of the drag a tick instead of a step.
@@ -99,9 +99,8 @@ impl CutTexture {
             }
             Some((last_s, last_mm)) => {
                 let dt_s = (now_s - last_s).clamp(0.0, MAX_STEP_S) as f32;
-                let moved_mm = std::array::from_fn::<f32, 3, _>(|i| position_mm[i] - last_mm[i]);
-                let moved_mm = moved_mm.iter().map(|c| c * c).sum::<f32>().sqrt();
-                self.travel_mm += moved_mm;
+                let moved: [f32; 3] = std::array::from_fn(|i| position_mm[i] - last_mm[i]);
+                self.travel_mm += dot3(moved, moved).sqrt();
                 if self.travel_mm >= self.spacing_mm {
                     self.travel_mm = (self.travel_mm - self.spacing_mm).min(facet_mm);
                     self.spacing_mm = facet_mm;
