@@ -7,6 +7,11 @@ use sinew_server::world::{ShaftSpec, ToolShapeSpec, load_world};
 
 /// The pad with tool 0 a 1 mm tip, with or without a 40 mm shaft of radius 3 mm.
 fn pad(shaft: bool) -> Sim {
+    pad_with(1.0, shaft)
+}
+
+/// The pad with tool 0 a tip of `tip_radius_mm`, with or without a 40 mm shaft of radius 3 mm.
+fn pad_with(tip_radius_mm: f32, shaft: bool) -> Sim {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let mut world = load_world(&path).unwrap();
     // Tool 0 is the left probe: a 4 mm sphere at world x = -18, with no shaft.
@@ -16,7 +21,9 @@ fn pad(shaft: bool) -> Sim {
             && tool.device_origin_in_world_mm[0] == -18.0
             && tool.shaft.is_none()
     );
-    tool.shape = ToolShapeSpec::Sphere { radius_mm: 1.0 };
+    tool.shape = ToolShapeSpec::Sphere {
+        radius_mm: tip_radius_mm,
+    };
     if shaft {
         tool.shaft = Some(ShaftSpec {
             radius_mm: 3.0,
@@ -95,4 +102,66 @@ fn a_shaft_laid_on_the_pad_pushes_it_and_is_never_passed_through() {
         "without a shaft the sheet should stay where it was: {through} mm"
     );
     assert!(deep.force_world_n.z > with.force_world_n.z);
+}
+
+/// The most restrictive plane along world +z among the output's planes: the height (mm) below which the
+/// tool's origin would be pushed back, or None without an upward plane.
+fn floor_mm(out: &ToolOutput) -> Option<f32> {
+    out.planes[..usize::from(out.plane_count)]
+        .iter()
+        .filter(|p| p.normal.z > 0.999)
+        .map(|p| p.offset_mm / p.normal.z)
+        .reduce(f32::max)
+}
+
+#[test]
+fn a_shaft_over_the_tissue_sends_its_own_plane_so_a_distant_hand_meets_it_in_time() {
+    // Laid flat 4 mm over the pad and held there, out of contact: the shaft (radius 3 mm) is 1 mm clear of the
+    // surface, the 1 mm tip 3 mm clear. A distant device renders the planes against its hand before the
+    // server sees a contact: the tip's alone would let the shaft sink 2 mm into the pad first.
+    let hover = |shaft| {
+        let mut sim = pad(shaft);
+        let mut out = [ToolOutput::default(); 2];
+        for _ in 0..300 {
+            sim.step(0.001, &laid_flat(4.0), &mut out);
+        }
+        assert!(!out[0].in_contact, "{:?}", out[0]);
+        out[0]
+    };
+    let (with, without) = (hover(true), hover(false));
+    let (with_floor, without_floor) = (floor_mm(&with).unwrap(), floor_mm(&without).unwrap());
+    println!(
+        "origin's floor with the shaft {with_floor:.3} mm ({} planes), tip alone {without_floor:.3} mm",
+        with.plane_count
+    );
+    // The pad's rest surface is z = 0 (a hovering tool does not move it).
+    assert!((with_floor - 3.0).abs() < 0.05, "{with_floor}");
+    assert!((without_floor - 1.0).abs() < 0.05, "{without_floor}");
+    // Every plane is finite and unit.
+    for p in &with.planes[..usize::from(with.plane_count)] {
+        assert!(p.offset_mm.is_finite() && (p.normal.norm() - 1.0).abs() < 1e-4);
+        assert!(p.stiffness_n_per_mm > 0.0 && p.stiffness_n_per_mm.is_finite());
+    }
+    // Upright: the shaft's lower end sits at the origin, its 3 mm radius past the 1 mm tip, so the floor is
+    // the shaft's there too; under a 4 mm tip it adds nothing the tip's plane does not already keep out.
+    let upright = |tip_radius_mm| {
+        let mut sim = pad_with(tip_radius_mm, true);
+        let mut out = [ToolOutput::default(); 2];
+        let command = ToolCommand {
+            active: true,
+            position_device_mm: [-10.0, 0.0, 8.0],
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            ..ToolCommand::default()
+        };
+        for _ in 0..300 {
+            sim.step(0.001, &[command], &mut out);
+        }
+        assert!(!out[0].in_contact);
+        out[0]
+    };
+    let thin_tip = upright(1.0);
+    assert!((floor_mm(&thin_tip).unwrap() - 3.0).abs() < 0.05);
+    let probe = upright(4.0);
+    assert!((floor_mm(&probe).unwrap() - 4.0).abs() < 0.05);
+    assert_eq!(probe.plane_count, 1, "{:?}", probe.planes);
 }

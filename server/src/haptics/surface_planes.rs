@@ -5,11 +5,14 @@
 //! (shifted out by the tool's reach along the normal), and the surface node it passes through (whose
 //! footprint's touch-down stiffness the plane carries before the tool's first contact: `sim::tool_output`). A
 //! device renders it at once, so a hand meets a surface even before the server has seen the contact and
-//! answered with a model.
+//! answered with a model. [`nearest_shaft_plane`] does the same for an instrument's shaft: the surface nearest
+//! the shaft, as a plane for the tool's origin (the device renders the origin; the tool is rigid, so a plane
+//! that keeps the shaft out is a plane on its origin, shifted by where the shaft sits from it).
 //!
 //! Must not: move anything, or allocate beyond the candidate buffer's capacity.
 
 use nalgebra::UnitQuaternion;
+use parry3d::bounding_volume::Aabb;
 
 use crate::collision::{NodeMarks, SurfaceCollider, ToolCollider};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -47,6 +50,45 @@ fn current_normal(model: &MassSpringModel, x: &[Vec3], i: usize) -> Vec3 {
     }
 }
 
+/// The surface node within `aabb` (through the collider's leaves) with the least `distance`, or None.
+/// `candidates` is scratch.
+fn nearest_node(
+    aabb: &Aabb,
+    x: &[Vec3],
+    collider: &SurfaceCollider,
+    marks: &mut NodeMarks,
+    candidates: &mut Vec<u32>,
+    distance: impl Fn(&Vec3) -> f32,
+) -> Option<usize> {
+    candidates.clear();
+    collider.nodes_near(aabb, marks, candidates);
+    candidates
+        .iter()
+        .map(|&i| i as usize)
+        .filter(|&i| i < x.len())
+        .min_by(|&a, &b| distance(&x[a]).total_cmp(&distance(&x[b])))
+}
+
+/// The plane through `node` with its current normal, for a point whose reach along the normal's inward
+/// direction is `reach_mm`, shifted by `shift_mm` along the normal; None if not finite.
+fn plane_through(
+    model: &MassSpringModel,
+    x: &[Vec3],
+    node: usize,
+    reach_along: impl Fn(&Vec3) -> f32,
+    shift_along: impl Fn(&Vec3) -> f32,
+) -> Option<WorldPlane> {
+    let normal = current_normal(model, x, node);
+    let offset_mm = normal.dot(&x[node]) + reach_along(&(-normal)) - shift_along(&normal);
+    (normal.iter().all(|c| c.is_finite()) && offset_mm.is_finite()).then_some(WorldPlane {
+        normal,
+        offset_mm,
+        stiffness_n_per_mm: 0.0,
+        damping_n_s_per_mm: 0.0,
+        node: node as u32,
+    })
+}
+
 /// The plane of `object`'s surface nearest the tool at `position_mm`, within `look_ahead_mm` of the tool's
 /// box, or None. `candidates` is scratch. Stiffness and damping are filled in by the caller.
 #[allow(clippy::too_many_arguments)]
@@ -61,27 +103,49 @@ pub fn nearest_surface_plane(
     marks: &mut NodeMarks,
     candidates: &mut Vec<u32>,
 ) -> Option<WorldPlane> {
-    candidates.clear();
     let aabb = tool.aabb(position_mm, rotation, look_ahead_mm);
-    collider.nodes_near(&aabb, marks, candidates);
     let x = &state.positions_mm;
-    let nearest = candidates
-        .iter()
-        .map(|&i| i as usize)
-        .filter(|&i| i < x.len())
-        .min_by(|&a, &b| {
-            let da = (x[a] - position_mm).norm_squared();
-            let db = (x[b] - position_mm).norm_squared();
-            da.total_cmp(&db)
-        })?;
-    let normal = current_normal(model, x, nearest);
-    let reach_mm = tool.reach_along_mm(rotation, &(-normal));
-    let offset_mm = normal.dot(&x[nearest]) + reach_mm;
-    (normal.iter().all(|c| c.is_finite()) && offset_mm.is_finite()).then_some(WorldPlane {
-        normal,
-        offset_mm,
-        stiffness_n_per_mm: 0.0,
-        damping_n_s_per_mm: 0.0,
-        node: nearest as u32,
-    })
+    let nearest = nearest_node(&aabb, x, collider, marks, candidates, |p| {
+        (p - position_mm).norm_squared()
+    })?;
+    plane_through(
+        model,
+        x,
+        nearest,
+        |inward| tool.reach_along_mm(rotation, inward),
+        |_| 0.0,
+    )
+}
+
+/// The plane of `object`'s surface nearest an instrument's `shaft` (centred at `shaft_centre_mm`), within
+/// `look_ahead_mm` of its box, for the tool's origin at `position_mm` (the shaft's reach along the plane's
+/// inward normal, less how far the shaft's centre sits out along it from the origin), or None. Nearest to
+/// the shaft's surface, not its centre: a shaft is long. `candidates` is scratch. Stiffness and damping are
+/// filled in by the caller.
+#[allow(clippy::too_many_arguments)]
+pub fn nearest_shaft_plane(
+    shaft: &ToolCollider,
+    shaft_centre_mm: &Vec3,
+    position_mm: &Vec3,
+    rotation: &UnitQuaternion<f32>,
+    look_ahead_mm: f32,
+    model: &MassSpringModel,
+    state: &TissueState,
+    collider: &SurfaceCollider,
+    marks: &mut NodeMarks,
+    candidates: &mut Vec<u32>,
+) -> Option<WorldPlane> {
+    let aabb = shaft.aabb(shaft_centre_mm, rotation, look_ahead_mm);
+    let x = &state.positions_mm;
+    let nearest = nearest_node(&aabb, x, collider, marks, candidates, |p| {
+        shaft.distance_mm(shaft_centre_mm, rotation, p)
+    })?;
+    let out = shaft_centre_mm - position_mm;
+    plane_through(
+        model,
+        x,
+        nearest,
+        |inward| shaft.reach_along_mm(rotation, inward),
+        |normal| normal.dot(&out),
+    )
 }

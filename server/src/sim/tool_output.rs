@@ -5,7 +5,7 @@
 
 use nalgebra::Matrix3;
 
-use crate::haptics::{MAX_PLANES, WorldPlane, nearest_surface_plane};
+use crate::haptics::{MAX_PLANES, WorldPlane, nearest_shaft_plane, nearest_surface_plane};
 use crate::tissue::Vec3;
 
 use super::*;
@@ -78,8 +78,9 @@ impl Sim {
         // The contact's push without its friction: the friction is rendered from the device's stick point,
         // so the normal, the solve's direction and the measured stiffness are the push's.
         let push_n = out.force_world_n - out.friction_world_n;
-        // The tissue's surface normal under a frictional tool: the mean of its held nodes' outward normals
-        // (a frictionless tool's push is along it already: 0.004 rad off on the stroked pad).
+        // The tissue's surface normal under the tool: the mean of its held nodes' outward rest normals. The
+        // push's own direction tilts as the tool ploughs (a frictional tool) or rides the mesh's relief (a
+        // 1.5 mm cautery tip: 0.05 rad as it crosses a node).
         let mut surface_normal = Vec3::zeros();
         // A tool that holds tissue renders it bilaterally, with the full 3x3 stiffness of what it holds.
         let attached = tool.active
@@ -115,14 +116,12 @@ impl Sim {
                 }
                 continue;
             }
-            if object.friction > 0.0 {
-                let normals = object.model.rest_normals();
-                for &node in &contacts.held {
-                    surface_normal += normals
-                        .get(node as usize)
-                        .copied()
-                        .unwrap_or_else(Vec3::zeros);
-                }
+            let normals = object.model.rest_normals();
+            for &node in &contacts.held {
+                surface_normal += normals
+                    .get(node as usize)
+                    .copied()
+                    .unwrap_or_else(Vec3::zeros);
             }
             if contacts.held.is_empty() && grasped.is_empty() {
                 // Before a tool's first contact its planes carry the stiffness of a touch-down at the plane's
@@ -189,6 +188,34 @@ impl Sim {
                 } else if touchdown {
                     solver.forget();
                 }
+                // The shaft's own plane, where it would meet a surface the tip's plane does not keep it
+                // out of (a tool laid low over the tissue, its shaft lower than its tip's reach): at the
+                // tool's measured stiffness (or the prior), as the shaft's contact is answered by the same
+                // tissue.
+                let centre_mm = tool.shaft_centre_mm();
+                if plane_count < MAX_PLANES
+                    && let Some(shaft) = &tool.body.shaft
+                    && let Some(plane) = nearest_shaft_plane(
+                        shaft,
+                        &centre_mm,
+                        &tool.position_mm,
+                        &tool.rotation,
+                        PLANE_LOOK_AHEAD_MM,
+                        &object.model,
+                        &object.state,
+                        &object.collider,
+                        &mut object.marks,
+                        &mut tool.haptic.plane_candidates,
+                    )
+                    && !planes[..plane_count].iter().any(|p| keeps_out(p, &plane))
+                {
+                    planes[plane_count] = WorldPlane {
+                        stiffness_n_per_mm: tool.haptic.plane_stiffness_n_per_mm,
+                        damping_n_s_per_mm: tool.haptic.plane_damping_n_s_per_mm,
+                        ..plane
+                    };
+                    plane_count += 1;
+                }
                 continue;
             }
             if tool.haptic.touchdown[o].end() {
@@ -253,7 +280,8 @@ impl Sim {
             // where the push's direction turns with the stroke (a frictional tool ploughs: 0.1 rad each way
             // on the pad), and 20 mm out a turn of 0.1 rad moved `-n . p` by 2 mm: the fit saw a force that
             // did not change with a depth that did, and the model lost its normal stiffness (0.04 against
-            // 0.2 N/mm), so the hand bobbed by 2 mm at 100 ms.
+            // 0.2 N/mm), so the hand bobbed by 2 mm at 100 ms; the cautery's tip, frictionless, tilts its push
+            // 0.05 rad crossing a node and lost its 0.034 N/mm the same way.
             let s = surface_normal.try_normalize(1e-6).unwrap_or(n);
             tool.haptic
                 .estimate
@@ -333,6 +361,12 @@ impl Sim {
         out.plane_count = plane_count as u8;
         out.energy_allowance_mj = self.budget.allowance_mj(t) as f32;
     }
+}
+
+/// Whether plane `a` already keeps the tool out of where plane `b` would: their normals within 1 degree and
+/// `b`'s offset at most 0.05 mm past `a`'s (the deadband's tolerances for a plane). Pure.
+fn keeps_out(a: &WorldPlane, b: &WorldPlane) -> bool {
+    a.normal.dot(&b.normal) >= 1.0f32.to_radians().cos() && b.offset_mm <= a.offset_mm + 0.05
 }
 
 /// Tangential over normal stiffness of a stuck contact on an elastic half-space, Mindlin (1949):
