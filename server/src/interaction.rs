@@ -1,4 +1,4 @@
-//! Tool-tissue interactions: probing, jaws, grasping, cutting and tearing.
+//! Tool-tissue interactions: probing, jaws, grasping, cutting and tearing, and suturing's pieces ([`suture`]).
 //!
 //! Owns: turning tool contacts into node corrections and the force each tool feels ([`ProbeContacts`]), the
 //! articulation of an instrument's jaws from its device's buttons or jaw angle ([`Jaws`]), and the attachments
@@ -11,6 +11,7 @@ mod grasp;
 mod instrument;
 mod jaws;
 mod probe;
+pub mod suture;
 
 pub use cut::{BladeSweep, CutScratch, swept_seams, torn_seams};
 pub use grasp::{Attachment, Grasp, GraspEvent, MAX_ATTACHMENTS};
