@@ -2,7 +2,7 @@
 //! flat presses the pad with its shaft, and a sheet that only the shaft touches is never passed through.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::sim::{PLANE_STIFFNESS_PRIOR_N_PER_MM, Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{ShaftSpec, ToolShapeSpec, load_world};
 
 /// The pad with tool 0 a 1 mm tip, with or without a 40 mm shaft of radius 3 mm.
@@ -137,11 +137,15 @@ fn a_shaft_over_the_tissue_sends_its_own_plane_so_a_distant_hand_meets_it_in_tim
     // The pad's rest surface is z = 0 (a hovering tool does not move it).
     assert!((with_floor - 3.0).abs() < 0.05, "{with_floor}");
     assert!((without_floor - 1.0).abs() < 0.05, "{without_floor}");
-    // Every plane is finite and unit.
+    // Every plane is finite and unit; the shaft's carries the tip's touch-down stiffness (the same tissue,
+    // not the fixed prior, which is several times a loose sheet's).
+    assert_eq!(with.plane_count, 2, "{:?}", with.planes);
     for p in &with.planes[..usize::from(with.plane_count)] {
         assert!(p.offset_mm.is_finite() && (p.normal.norm() - 1.0).abs() < 1e-4);
         assert!(p.stiffness_n_per_mm > 0.0 && p.stiffness_n_per_mm.is_finite());
+        assert_eq!(p.stiffness_n_per_mm, with.planes[0].stiffness_n_per_mm);
     }
+    assert!(with.planes[1].stiffness_n_per_mm < PLANE_STIFFNESS_PRIOR_N_PER_MM);
     // Upright: the shaft's lower end sits at the origin, its 3 mm radius past the 1 mm tip, so the floor is
     // the shaft's there too; under a 4 mm tip it adds nothing the tip's plane does not already keep out.
     let upright = |tip_radius_mm| {

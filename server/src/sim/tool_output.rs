@@ -131,6 +131,7 @@ impl Sim {
                 if !touchdown {
                     solver.forget();
                 }
+                let tip_plane = plane_count;
                 if plane_count < MAX_PLANES
                     && let Some(plane) = nearest_surface_plane(
                         &tool.body.collider,
@@ -189,9 +190,21 @@ impl Sim {
                     solver.forget();
                 }
                 // The shaft's own plane, where it would meet a surface the tip's plane does not keep it
-                // out of (a tool laid low over the tissue, its shaft lower than its tip's reach): at the
-                // tool's measured stiffness (or the prior), as the shaft's contact is answered by the same
-                // tissue.
+                // out of (a tool laid low over the tissue, its shaft lower than its tip's reach): at the tip's
+                // plane's stiffness on this object (before a first contact, its touch-down's: the same
+                // tissue, under a footprint no larger than the shaft's, so softer, never stiffer), else the
+                // tool's measured stiffness or the prior.
+                let (shaft_k, shaft_d) = if plane_count > tip_plane {
+                    (
+                        planes[tip_plane].stiffness_n_per_mm,
+                        planes[tip_plane].damping_n_s_per_mm,
+                    )
+                } else {
+                    (
+                        tool.haptic.plane_stiffness_n_per_mm,
+                        tool.haptic.plane_damping_n_s_per_mm,
+                    )
+                };
                 let centre_mm = tool.shaft_centre_mm();
                 if plane_count < MAX_PLANES
                     && let Some(shaft) = &tool.body.shaft
@@ -210,8 +223,8 @@ impl Sim {
                     && !planes[..plane_count].iter().any(|p| keeps_out(p, &plane))
                 {
                     planes[plane_count] = WorldPlane {
-                        stiffness_n_per_mm: tool.haptic.plane_stiffness_n_per_mm,
-                        damping_n_s_per_mm: tool.haptic.plane_damping_n_s_per_mm,
+                        stiffness_n_per_mm: shaft_k,
+                        damping_n_s_per_mm: shaft_d,
                         ..plane
                     };
                     plane_count += 1;
