@@ -23,7 +23,7 @@ pub use coupling::{CouplingParams, VirtualCoupling};
 pub use energy_budget::EnergyBudget;
 pub use friction_estimate::KineticFrictionEstimate;
 pub use stiffness_estimate::NormalStiffnessEstimate;
-pub use surface_planes::{WorldPlane, nearest_shaft_plane, nearest_surface_plane};
+pub use surface_planes::{Surface, WorldPlane, nearest_shaft_plane, nearest_surface_plane};
 pub use touchdown::{TOUCHDOWN_DEPTH_PER_REACH, Touchdown};
 
 /// Planes a local model carries (the wire's limit).

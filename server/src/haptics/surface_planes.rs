@@ -32,6 +32,27 @@ pub struct WorldPlane {
     pub node: u32,
 }
 
+/// One object's surface as the plane queries read it: its model, its current state, and the collider over
+/// its triangles.
+#[derive(Debug, Clone, Copy)]
+pub struct Surface<'a> {
+    /// The object's model (triangles, rest normals).
+    pub model: &'a MassSpringModel,
+    /// Its current state.
+    pub state: &'a TissueState,
+    /// The bounding-volume tree over its triangles.
+    pub collider: &'a SurfaceCollider,
+}
+
+impl WorldPlane {
+    /// Whether this plane already keeps the tool out of where `other` would: their normals within 1 degree
+    /// and `other`'s offset at most 0.05 mm past this one's (the deadband's tolerances for a plane). Pure.
+    pub fn keeps_out(&self, other: &WorldPlane) -> bool {
+        self.normal.dot(&other.normal) >= 1.0f32.to_radians().cos()
+            && other.offset_mm <= self.offset_mm + 0.05
+    }
+}
+
 /// The current outward normal at node `i`: area-weighted over its triangles (the rest normal if it has none
 /// or they are degenerate).
 fn current_normal(model: &MassSpringModel, x: &[Vec3], i: usize) -> Vec3 {
@@ -54,14 +75,14 @@ fn current_normal(model: &MassSpringModel, x: &[Vec3], i: usize) -> Vec3 {
 /// `candidates` is scratch.
 fn nearest_node(
     aabb: &Aabb,
-    x: &[Vec3],
-    collider: &SurfaceCollider,
+    surface: &Surface,
     marks: &mut NodeMarks,
     candidates: &mut Vec<u32>,
     distance: impl Fn(&Vec3) -> f32,
 ) -> Option<usize> {
     candidates.clear();
-    collider.nodes_near(aabb, marks, candidates);
+    surface.collider.nodes_near(aabb, marks, candidates);
+    let x = &surface.state.positions_mm;
     candidates
         .iter()
         .map(|&i| i as usize)
@@ -72,13 +93,13 @@ fn nearest_node(
 /// The plane through `node` with its current normal, for a point whose reach along the normal's inward
 /// direction is `reach_mm`, shifted by `shift_mm` along the normal; None if not finite.
 fn plane_through(
-    model: &MassSpringModel,
-    x: &[Vec3],
+    surface: &Surface,
     node: usize,
     reach_along: impl Fn(&Vec3) -> f32,
     shift_along: impl Fn(&Vec3) -> f32,
 ) -> Option<WorldPlane> {
-    let normal = current_normal(model, x, node);
+    let x = &surface.state.positions_mm;
+    let normal = current_normal(surface.model, x, node);
     let offset_mm = normal.dot(&x[node]) + reach_along(&(-normal)) - shift_along(&normal);
     (normal.iter().all(|c| c.is_finite()) && offset_mm.is_finite()).then_some(WorldPlane {
         normal,
@@ -89,35 +110,30 @@ fn plane_through(
     })
 }
 
-/// The plane of `object`'s surface nearest the tool at `position_mm`, within `look_ahead_mm` of the tool's
-/// box, or None. `candidates` is scratch. Stiffness and damping are filled in by the caller.
-#[allow(clippy::too_many_arguments)]
+/// The plane of `surface` nearest the tool at `position_mm`, within `look_ahead_mm` of the tool's box, or
+/// None. `candidates` is scratch. Stiffness and damping are filled in by the caller.
 pub fn nearest_surface_plane(
     tool: &ToolCollider,
     position_mm: &Vec3,
     rotation: &UnitQuaternion<f32>,
     look_ahead_mm: f32,
-    model: &MassSpringModel,
-    state: &TissueState,
-    collider: &SurfaceCollider,
+    surface: &Surface,
     marks: &mut NodeMarks,
     candidates: &mut Vec<u32>,
 ) -> Option<WorldPlane> {
     let aabb = tool.aabb(position_mm, rotation, look_ahead_mm);
-    let x = &state.positions_mm;
-    let nearest = nearest_node(&aabb, x, collider, marks, candidates, |p| {
+    let nearest = nearest_node(&aabb, surface, marks, candidates, |p| {
         (p - position_mm).norm_squared()
     })?;
     plane_through(
-        model,
-        x,
+        surface,
         nearest,
         |inward| tool.reach_along_mm(rotation, inward),
         |_| 0.0,
     )
 }
 
-/// The plane of `object`'s surface nearest an instrument's `shaft` (centred at `shaft_centre_mm`), within
+/// The plane of `surface` nearest an instrument's `shaft` (centred at `shaft_centre_mm`), within
 /// `look_ahead_mm` of its box, for the tool's origin at `position_mm` (the shaft's reach along the plane's
 /// inward normal, less how far the shaft's centre sits out along it from the origin), or None. Nearest to
 /// the shaft's surface, not its centre: a shaft is long. `candidates` is scratch. Stiffness and damping are
@@ -129,21 +145,17 @@ pub fn nearest_shaft_plane(
     position_mm: &Vec3,
     rotation: &UnitQuaternion<f32>,
     look_ahead_mm: f32,
-    model: &MassSpringModel,
-    state: &TissueState,
-    collider: &SurfaceCollider,
+    surface: &Surface,
     marks: &mut NodeMarks,
     candidates: &mut Vec<u32>,
 ) -> Option<WorldPlane> {
     let aabb = shaft.aabb(shaft_centre_mm, rotation, look_ahead_mm);
-    let x = &state.positions_mm;
-    let nearest = nearest_node(&aabb, x, collider, marks, candidates, |p| {
+    let nearest = nearest_node(&aabb, surface, marks, candidates, |p| {
         shaft.distance_mm(shaft_centre_mm, rotation, p)
     })?;
     let out = shaft_centre_mm - position_mm;
     plane_through(
-        model,
-        x,
+        surface,
         nearest,
         |inward| shaft.reach_along_mm(rotation, inward),
         |normal| normal.dot(&out),

@@ -5,7 +5,7 @@
 
 use nalgebra::Matrix3;
 
-use crate::haptics::{MAX_PLANES, WorldPlane, nearest_shaft_plane, nearest_surface_plane};
+use crate::haptics::{MAX_PLANES, Surface, WorldPlane, nearest_shaft_plane, nearest_surface_plane};
 use crate::tissue::Vec3;
 
 use super::*;
@@ -132,15 +132,18 @@ impl Sim {
                     solver.forget();
                 }
                 let tip_plane = plane_count;
+                let surface = Surface {
+                    model: &object.model,
+                    state: &object.state,
+                    collider: &object.collider,
+                };
                 if plane_count < MAX_PLANES
                     && let Some(plane) = nearest_surface_plane(
                         &tool.body.collider,
                         &tool.position_mm,
                         &tool.rotation,
                         PLANE_LOOK_AHEAD_MM,
-                        &object.model,
-                        &object.state,
-                        &object.collider,
+                        &surface,
                         &mut object.marks,
                         &mut tool.haptic.plane_candidates,
                     )
@@ -214,13 +217,11 @@ impl Sim {
                         &tool.position_mm,
                         &tool.rotation,
                         PLANE_LOOK_AHEAD_MM,
-                        &object.model,
-                        &object.state,
-                        &object.collider,
+                        &surface,
                         &mut object.marks,
                         &mut tool.haptic.plane_candidates,
                     )
-                    && !planes[..plane_count].iter().any(|p| keeps_out(p, &plane))
+                    && !planes[..plane_count].iter().any(|p| p.keeps_out(&plane))
                 {
                     planes[plane_count] = WorldPlane {
                         stiffness_n_per_mm: shaft_k,
@@ -374,12 +375,6 @@ impl Sim {
         out.plane_count = plane_count as u8;
         out.energy_allowance_mj = self.budget.allowance_mj(t) as f32;
     }
-}
-
-/// Whether plane `a` already keeps the tool out of where plane `b` would: their normals within 1 degree and
-/// `b`'s offset at most 0.05 mm past `a`'s (the deadband's tolerances for a plane). Pure.
-fn keeps_out(a: &WorldPlane, b: &WorldPlane) -> bool {
-    a.normal.dot(&b.normal) >= 1.0f32.to_radians().cos() && b.offset_mm <= a.offset_mm + 0.05
 }
 
 /// Tangential over normal stiffness of a stuck contact on an elastic half-space, Mindlin (1949):
