@@ -4,6 +4,7 @@ mod force;
 mod hello;
 pub mod local_model;
 mod mesh_delta;
+mod needle_geometry;
 mod pose;
 mod snapshot;
 mod stats;
@@ -16,6 +17,7 @@ pub use local_model::{
     MAX_FRICTION_COEFFICIENT, Sym3,
 };
 pub use mesh_delta::{MeshDelta, TopologyDelta};
+pub use needle_geometry::needle_point_in_tool_mm;
 pub use pose::{DevicePose, RenderMode};
 pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShaft, ToolShape};
 pub use stats::{DeviceStats, ExerciseStats, RejectCounts, ServerStats, TrainingStats};

@@ -19,6 +19,7 @@ pub mod integrators;
 mod kuhn;
 mod mass_spring;
 mod object_desc;
+mod puncture_material;
 pub mod region;
 mod rod;
 pub mod seams;
@@ -40,6 +41,7 @@ pub use integrators::{
 pub use kuhn::KUHN;
 pub use mass_spring::{MassSpringModel, ModelParts};
 pub use object_desc::{FixedSelection, MassSpec, MaterialSpec, ObjectSpec, SpringCalibration};
+pub use puncture_material::PunctureSpec;
 pub use region::{RegionParams, RegionTracker, RegionUpdate};
 pub use rod::{RodError, RodSpec};
 pub use spring_law::SpringLaw;

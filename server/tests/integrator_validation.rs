@@ -222,6 +222,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             cut_resistance_n: MaterialSpec::DEFAULT_CUT_RESISTANCE_N,
             burn_shrink: 0.0,
             friction_coefficient: 0.0,
+            puncture: sinew_server::tissue::PunctureSpec::DEFAULT,
             fem: None,
             calibrated: None,
         },

@@ -768,41 +768,35 @@ fn a_cut_resistance_burn_shrink_or_friction_out_of_range_is_refused_by_key_and_l
     assert_eq!(world.objects[0].material.cut_resistance_n, 0.4);
     assert_eq!(world.objects[0].material.burn_shrink, 0.2);
     assert_eq!(world.objects[0].material.friction_coefficient, 0.3);
-    for (from, to, key, says) in [
-        (
-            "cut_resistance_n = 0.4",
-            "cut_resistance_n = -1.0",
-            "objects[0].material.cut_resistance_n",
-            "0 to 5 N",
-        ),
-        (
-            "burn_shrink = 0.2",
-            "burn_shrink = 0.9",
-            "objects[0].material.burn_shrink",
-            "0 to 0.5",
-        ),
-        (
-            "burn_shrink = 0.2",
-            "burn_shrink = nan",
-            "objects[0].material.burn_shrink",
-            "0 to 0.5",
-        ),
-        (
-            "friction_coefficient = 0.3",
-            "friction_coefficient = 3.0",
-            "objects[0].material.friction_coefficient",
-            "0 to 2",
-        ),
-    ] {
-        let bad = good.replace(from, to);
-        let (error, message, _) = refused(&bad, None);
-        assert_eq!(
-            invalid_key_and_line(&error),
-            (key, line_of(&bad, to)),
-            "{message}"
-        );
-        assert!(message.contains(says), "{message}");
-    }
+    assert_refused_on_its_line(
+        &good,
+        &[
+            (
+                "cut_resistance_n = 0.4",
+                "cut_resistance_n = -1.0",
+                "objects[0].material.cut_resistance_n",
+                "0 to 5 N",
+            ),
+            (
+                "burn_shrink = 0.2",
+                "burn_shrink = 0.9",
+                "objects[0].material.burn_shrink",
+                "0 to 0.5",
+            ),
+            (
+                "burn_shrink = 0.2",
+                "burn_shrink = nan",
+                "objects[0].material.burn_shrink",
+                "0 to 0.5",
+            ),
+            (
+                "friction_coefficient = 0.3",
+                "friction_coefficient = 3.0",
+                "objects[0].material.friction_coefficient",
+                "0 to 2",
+            ),
+        ],
+    );
 }
 
 /// Each case `(from, to, key, line_text, says)` replaces `from` with `to` in `good` (the sheet mesh beside it);
@@ -1093,4 +1087,119 @@ fn a_multi_rate_object_is_checked_by_key_and_line() {
         ),
     ];
     assert_refused_by_key_and_line(&good, &cases);
+}
+
+/// A needle driver loads with its needle; each bad key is refused by key and line; the material's puncture keys
+/// load and are refused out of range the same way.
+#[test]
+fn a_needle_driver_and_the_puncture_keys_load_and_bad_ones_name_the_key_and_line() {
+    let tool_line = "shape = { kind = \"sphere\", radius_mm = 1.0 }";
+    let with = |instrument: &str| {
+        good_world().replace(
+            tool_line,
+            &format!("{tool_line}\ninstrument = {instrument}"),
+        )
+    };
+    let world = load_world(&write_world(
+        &with("{ kind = \"needle_driver\", needle_radius_mm = 8.0, needle_sweep_deg = 135.0, grasp_at_deg = 60.0 }"),
+        None,
+    ))
+    .unwrap();
+    let driver = *world.tools[0].instrument.needle_driver().unwrap();
+    assert_eq!(driver.arc.radius_mm(), 8.0);
+    assert!((driver.arc.sweep_rad() - 135f32.to_radians()).abs() < 1e-6);
+    assert!((driver.grasp_at_rad - 60f32.to_radians()).abs() < 1e-6);
+    assert_eq!(driver.diameter_mm, 0.5);
+    // Without grasp_at_deg, a third of the way from the tail of the needle given.
+    let world = load_world(&write_world(
+        &with("{ kind = \"needle_driver\", needle_sweep_deg = 180.0 }"),
+        None,
+    ))
+    .unwrap();
+    let driver = *world.tools[0].instrument.needle_driver().unwrap();
+    assert!((driver.grasp_at_rad - 60f32.to_radians()).abs() < 1e-6);
+    for (instrument, key, says) in [
+        (
+            "{ kind = \"needle_driver\", needle_radius_mm = 0.5 }",
+            "tools[0].instrument.needle_radius_mm",
+            "2 to 50 mm",
+        ),
+        (
+            "{ kind = \"needle_driver\", needle_sweep_deg = 300.0 }",
+            "tools[0].instrument.needle_sweep_deg",
+            "30 to 270",
+        ),
+        (
+            "{ kind = \"needle_driver\", needle_diameter_mm = 4.0 }",
+            "tools[0].instrument.needle_diameter_mm",
+            "at most 3 mm",
+        ),
+        (
+            "{ kind = \"needle_driver\", needle_sweep_deg = 120.0, grasp_at_deg = 100.0 }",
+            "tools[0].instrument.grasp_at_deg",
+            "behind its point",
+        ),
+        (
+            "{ kind = \"needle_driver\", slip_force_n = 0.5 }",
+            "tools[0].instrument.slip_force_n",
+            "a needle driver takes",
+        ),
+    ] {
+        let world = with(instrument);
+        let (error, message, _) = refused(&world, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&world, "instrument =")),
+            "{instrument}: {message}"
+        );
+        assert!(message.contains(says), "{instrument}: {message}");
+    }
+    let good = good_world().replace(
+        "anchor_stiffness_n_per_mm = 0.001",
+        "anchor_stiffness_n_per_mm = 0.001\npuncture_force_n = 3.0\npuncture_max_angle_deg = 30.0\nneedle_friction = 0.3",
+    );
+    let world = load_world(&write_world(&good, None)).unwrap();
+    let puncture = world.objects[0].material.puncture;
+    assert_eq!(puncture.force_n, 3.0);
+    assert!((puncture.max_angle_rad - 30f32.to_radians()).abs() < 1e-6);
+    assert_eq!(puncture.needle_friction, 0.3);
+    assert_refused_on_its_line(
+        &good,
+        &[
+            (
+                "puncture_force_n = 3.0",
+                "puncture_force_n = 0.0",
+                "objects[0].material.puncture_force_n",
+                "0.05 to 50 N",
+            ),
+            (
+                "puncture_max_angle_deg = 30.0",
+                "puncture_max_angle_deg = 90.0",
+                "objects[0].material.puncture_max_angle_deg",
+                "1 to 89 degrees",
+            ),
+            (
+                "needle_friction = 0.3",
+                "needle_friction = nan",
+                "objects[0].material.needle_friction",
+                "0 to 2",
+            ),
+        ],
+    );
+}
+
+/// Each case `(from, to, key, says)` replaces `from` with `to` in `good`: the world is refused naming `key` on
+/// the line of `to`, with a message containing `says`.
+fn assert_refused_on_its_line(good: &str, cases: &[(&str, &str, &str, &str)]) {
+    for &(from, to, key, says) in cases {
+        assert!(good.contains(from), "{from}");
+        let bad = good.replace(from, to);
+        let (error, message, _) = refused(&bad, None);
+        assert_eq!(
+            invalid_key_and_line(&error),
+            (key, line_of(&bad, to)),
+            "{message}"
+        );
+        assert!(message.contains(says), "{message}");
+    }
 }

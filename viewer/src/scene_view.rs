@@ -135,6 +135,8 @@ struct ToolNode {
     blade: Option<Blade>,
     /// An instrument's shaft.
     shaft: Option<Blade>,
+    /// A needle driver's needle, as straight pieces along its arc (empty for other tools).
+    needle: Vec<Blade>,
 }
 
 /// A scalpel's edge or an instrument's shaft as drawn: a capsule from one point to another, in the tool frame.
@@ -166,6 +168,42 @@ impl Blade {
             Self::RADIUS_MM,
             BLADE_STEEL,
         )
+    }
+
+    /// Pieces a needle's arc is drawn in.
+    const NEEDLE_PIECES: usize = 12;
+
+    /// A needle driver's needle: its arc in pieces, placed in the tool frame by the protocol's own map.
+    fn needle(group: &mut SceneNode3d, info: &ToolInfo) -> Vec<Self> {
+        let sinew_protocol::InstrumentInfo::NeedleDriver {
+            needle_radius_mm,
+            needle_sweep_rad,
+            needle_diameter_mm,
+            grasp_at_rad,
+            ..
+        } = info.instrument
+        else {
+            return Vec::new();
+        };
+        let at = |k: usize| {
+            let theta = needle_sweep_rad * k as f32 / Self::NEEDLE_PIECES as f32;
+            Vec3::from(sinew_protocol::needle_point_in_tool_mm(
+                needle_radius_mm,
+                grasp_at_rad,
+                theta,
+            ))
+        };
+        (0..Self::NEEDLE_PIECES)
+            .filter_map(|k| {
+                Self::rod(
+                    group,
+                    at(k),
+                    at(k + 1),
+                    0.5 * needle_diameter_mm,
+                    BLADE_STEEL,
+                )
+            })
+            .collect()
     }
 
     /// An instrument's shaft: from the tool origin up its local z.
@@ -240,6 +278,13 @@ impl Jaws {
         let (hinge_mm, length_mm, radius_mm, colour) = match info.instrument {
             sinew_protocol::InstrumentInfo::Grasper { jaw_length_mm, .. } => (
                 Vec3::new(0.0, 0.0, info.shape.bounding_radius_mm()),
+                jaw_length_mm,
+                Self::RADIUS_MM,
+                None,
+            ),
+            // Closed on the needle at the tool origin.
+            sinew_protocol::InstrumentInfo::NeedleDriver { jaw_length_mm, .. } => (
+                Vec3::new(0.0, 0.0, jaw_length_mm),
                 jaw_length_mm,
                 Self::RADIUS_MM,
                 None,
@@ -401,6 +446,7 @@ impl SceneView {
                 jaws: Jaws::add(&mut group, info),
                 blade: Blade::add(&mut group, info),
                 shaft: Blade::shaft(&mut group, info),
+                needle: Blade::needle(&mut group, info),
                 tool_from_node: match info.shape {
                     ToolShape::Capsule { .. } => Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
                     ToolShape::Sphere { .. } | ToolShape::Mesh { .. } => Quat::IDENTITY,
@@ -462,6 +508,9 @@ impl SceneView {
                     if let Some(shaft) = &mut tool.shaft {
                         shaft.place(state);
                     }
+                    for piece in &mut tool.needle {
+                        piece.place(state);
+                    }
                 }
                 None => {
                     tool.node.set_visible(false);
@@ -473,6 +522,9 @@ impl SceneView {
                     }
                     if let Some(blade) = &mut tool.blade {
                         blade.hide();
+                    }
+                    for piece in &mut tool.needle {
+                        piece.hide();
                     }
                 }
             }

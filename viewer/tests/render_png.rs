@@ -211,3 +211,31 @@ fn draws_a_mesh_tool_where_the_server_says_it_is() {
         "moving the mesh tool 40 mm changed only {changed} pixels"
     );
 }
+
+#[test]
+fn draws_a_needle_drivers_needle_in_its_jaws() {
+    let n = 20;
+    let flat_q = quantize_all(&sheet_positions_mm(n));
+    let mut probe = sheet_snapshot(flat_q, n, 1, [0.0, 0.0, 6.0]);
+    probe.tools[0].shape = sinew_protocol::ToolShape::Sphere { radius_mm: 0.5 };
+    let mut driver = probe.clone();
+    driver.tools[0].instrument = sinew_protocol::InstrumentInfo::NeedleDriver {
+        jaw_length_mm: 10.0,
+        needle_radius_mm: 10.7,
+        needle_sweep_rad: 116f32.to_radians(),
+        needle_diameter_mm: 1.0,
+        grasp_at_rad: 40f32.to_radians(),
+    };
+    // One viewpoint (the sheet's) for both: only the instrument differs.
+    let framing = frame_replica(&SceneReplica::from_snapshot(probe.clone()));
+    let without = render(&SceneReplica::from_snapshot(probe), &framing);
+    let with = render(&SceneReplica::from_snapshot(driver), &framing);
+    let steel = |image: &RgbImage| image.pixels().filter(|p| tool_like(p)).count();
+    let (before, after) = (steel(&without), steel(&with));
+    println!("tool pixels: {before} as a probe, {after} holding a needle");
+    assert!(
+        after > before + 150,
+        "the needle and jaws added only {} tool pixels",
+        after - before
+    );
+}

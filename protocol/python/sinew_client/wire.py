@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 12
+PROTOCOL_VERSION = 13
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -359,6 +359,16 @@ INSTRUMENT = (
         ("cautery", []),
         ("scalpel", [("edge_from_mm", V3), ("edge_to_mm", V3)]),
         ("scissors", [("hinge_mm", V3), ("blade_length_mm", "f32"), ("open_angle_rad", "f32")]),
+        (
+            "needle_driver",
+            [
+                ("jaw_length_mm", "f32"),
+                ("needle_radius_mm", "f32"),
+                ("needle_sweep_rad", "f32"),
+                ("needle_diameter_mm", "f32"),
+                ("grasp_at_rad", "f32"),
+            ],
+        ),
     ],
 )
 

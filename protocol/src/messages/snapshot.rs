@@ -83,6 +83,23 @@ pub enum InstrumentInfo {
         /// Opening of the open blades, rad.
         open_angle_rad: f32,
     },
+    /// Jaws (each `jaw_length_mm` along the tool's -z) holding a curved suture needle: an arc of
+    /// `needle_radius_mm` sweeping `needle_sweep_rad` from its tail to its sharp tip, `needle_diameter_mm`
+    /// thick, held `grasp_at_rad` from its tail at the tool origin, square to the jaws, its plane square to
+    /// the tool's z ([`crate::needle_point_in_tool_mm`] places it). The shape (the jaws) probes; the tip
+    /// punctures tissue. Protocol 13.
+    NeedleDriver {
+        /// Length of each jaw, mm.
+        jaw_length_mm: f32,
+        /// The needle's arc radius, mm.
+        needle_radius_mm: f32,
+        /// The needle's sweep, tail to tip, rad.
+        needle_sweep_rad: f32,
+        /// The needle's wire diameter, mm.
+        needle_diameter_mm: f32,
+        /// Where the jaws hold it: the angle from the tail, rad.
+        grasp_at_rad: f32,
+    },
 }
 
 /// Static description of a tool.
@@ -236,6 +253,36 @@ impl Message for SceneSnapshot {
             {
                 check::finite("tools.instrument", &edge_from_mm)?;
                 check::finite("tools.instrument", &edge_to_mm)?;
+            }
+            if let InstrumentInfo::NeedleDriver {
+                jaw_length_mm,
+                needle_radius_mm,
+                needle_sweep_rad,
+                needle_diameter_mm,
+                grasp_at_rad,
+            } = tool.instrument
+            {
+                check::finite(
+                    "tools.instrument",
+                    &[
+                        jaw_length_mm,
+                        needle_radius_mm,
+                        needle_sweep_rad,
+                        needle_diameter_mm,
+                        grasp_at_rad,
+                    ],
+                )?;
+                if jaw_length_mm <= 0.0
+                    || needle_radius_mm <= 0.0
+                    || needle_diameter_mm <= 0.0
+                    || !(needle_sweep_rad > 0.0 && needle_sweep_rad < std::f32::consts::TAU)
+                    || !(0.0..=needle_sweep_rad).contains(&grasp_at_rad)
+                {
+                    return Err((
+                        "tools.instrument",
+                        "needle driver: a length not positive, a sweep outside 0 to 2 pi, or a grasp off the needle",
+                    ));
+                }
             }
             if let Some(shaft) = tool.shaft {
                 check::finite("tools.shaft", &[shaft.radius_mm, shaft.length_mm])?;

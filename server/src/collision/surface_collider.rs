@@ -361,6 +361,12 @@ impl SurfaceCollider {
         kept
     }
 
+    /// The triangles whose boxes overlap `aabb` (conservative: up to the refit margin beyond it). No
+    /// allocation.
+    pub fn triangles_near<'a>(&'a self, aabb: &'a Aabb) -> impl Iterator<Item = u32> + 'a {
+        self.bvh.intersect_aabb(aabb)
+    }
+
     /// Append to `out` every node of every triangle whose box overlaps `aabb` (each node once).
     /// No allocation once `out` has grown to the contact size.
     pub fn nodes_near(&self, aabb: &Aabb, marks: &mut NodeMarks, out: &mut Vec<u32>) {

@@ -16,7 +16,8 @@
 //! running along its local -z and opening in its local y-z plane: as the jaws close, each blade sweeps the
 //! part of the opening it passes through and cuts what it sweeps (the blades shear past each other by
 //! [`ScissorsSpec::CROSSING_RAD`] when closed, so tissue between them is cut when they meet). Moving open
-//! scissors cuts nothing; the body (`shape`) probes.
+//! scissors cuts nothing; the body (`shape`) probes. A needle driver's jaws hold a curved needle at a fixed
+//! pose (`interaction::suture::NeedleDriverSpec` says where); the body is the jaws and probes.
 
 /// What a tool is.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,6 +32,9 @@ pub enum InstrumentSpec {
     Scalpel(ScalpelSpec),
     /// Two sharp blades that cut what lies between them as they close; the body probes.
     Scissors(ScissorsSpec),
+    /// Jaws holding a curved needle whose sharp tip punctures tissue (`interaction::suture`); the body (the
+    /// jaws) probes.
+    NeedleDriver(super::suture::NeedleDriverSpec),
 }
 
 impl InstrumentSpec {
@@ -42,6 +46,7 @@ impl InstrumentSpec {
             InstrumentSpec::Cautery(_) => "cautery",
             InstrumentSpec::Scalpel(_) => "scalpel",
             InstrumentSpec::Scissors(_) => "scissors",
+            InstrumentSpec::NeedleDriver(_) => "needle_driver",
         }
     }
 
@@ -50,7 +55,10 @@ impl InstrumentSpec {
         match self {
             InstrumentSpec::Grasper(g) => Some((g.activation, g.open_angle_rad)),
             InstrumentSpec::Scissors(s) => Some((s.activation, s.open_angle_rad)),
-            InstrumentSpec::Probe | InstrumentSpec::Cautery(_) | InstrumentSpec::Scalpel(_) => None,
+            InstrumentSpec::Probe
+            | InstrumentSpec::Cautery(_)
+            | InstrumentSpec::Scalpel(_)
+            | InstrumentSpec::NeedleDriver(_) => None,
         }
     }
 
@@ -67,6 +75,7 @@ impl InstrumentSpec {
                 .flatten()
                 .map(norm)
                 .fold(body_reach_mm, f32::max),
+            InstrumentSpec::NeedleDriver(n) => n.reach_mm().max(body_reach_mm),
             InstrumentSpec::Probe | InstrumentSpec::Grasper(_) | InstrumentSpec::Cautery(_) => {
                 body_reach_mm
             }
@@ -93,6 +102,14 @@ impl InstrumentSpec {
     pub fn scalpel(&self) -> Option<&ScalpelSpec> {
         match self {
             InstrumentSpec::Scalpel(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The driver and its needle, for a needle driver.
+    pub fn needle_driver(&self) -> Option<&super::suture::NeedleDriverSpec> {
+        match self {
+            InstrumentSpec::NeedleDriver(n) => Some(n),
             _ => None,
         }
     }

@@ -1,12 +1,26 @@
 //! Suturing: a curved needle, its path through tissue, the thread and the stitches (issue 32).
 //!
-//! Owns, so far: the needle's rigid geometry ([`NeedleArc`]: the arc in the needle's frame, its tip and
-//! tangent, the nearest point on it to any point, and how far a point lies off the arc's path). The needle's
-//! puncture, its anchors along the path, the thread and the stitches come next, each in its own file here,
-//! behind the tick's instrument extension point (`sim/instrument.rs`); `docs/suturing.md` is the design.
+//! Owns, so far:
+//! - the needle's rigid geometry ([`NeedleArc`]: the arc in the needle's own frame, its tip and tangent, how
+//!   far a point lies off the arc's path);
+//! - the needle driver and where the needle sits in its jaws ([`NeedleDriverSpec`]);
+//! - a sharp tip pressing a surface ([`TipContact`], on a [`SurfacePoint`]: the surface tents under it);
+//! - the needle against the tissue ([`NeedleTissue`]: tenting, puncture on force and angle, the holes it
+//!   passes through; a material's [`PunctureSpec`]).
 //!
-//! Must not: move tissue or hold tick state (geometry here is pure and allocation-free).
+//! The path constraint, the thread and the stitches come next, each in its own file here, behind the tick's
+//! instrument extension point (`sim/instrument.rs`; the needle driver is `sim/instruments/needle_driver.rs`);
+//! `docs/suturing.md` is the design.
+//!
+//! Must not: hold tick state beyond what each type owns, or allocate in a tick without a topology change.
 
+mod needle;
 mod needle_arc;
+mod puncture;
+mod tip_contact;
 
+pub use crate::tissue::PunctureSpec;
+pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
+pub use puncture::{Hole, MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
+pub use tip_contact::{SurfacePoint, TipContact};

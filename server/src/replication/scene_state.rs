@@ -127,6 +127,15 @@ pub fn instrument_info(
                 open_angle_rad: s.open_angle_rad,
             }
         }
+        crate::interaction::InstrumentSpec::NeedleDriver(n) => {
+            sinew_protocol::InstrumentInfo::NeedleDriver {
+                jaw_length_mm: n.jaw_length_mm,
+                needle_radius_mm: n.arc.radius_mm(),
+                needle_sweep_rad: n.arc.sweep_rad(),
+                needle_diameter_mm: n.diameter_mm,
+                grasp_at_rad: n.grasp_at_rad,
+            }
+        }
         crate::interaction::InstrumentSpec::Scalpel(s) => sinew_protocol::InstrumentInfo::Scalpel {
             edge_from_mm: s.edge_mm[0],
             edge_to_mm: s.edge_mm[1],

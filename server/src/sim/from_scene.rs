@@ -76,6 +76,7 @@ impl Sim {
                 cut_resistance_n: spec.material.cut_resistance_n,
                 burn_shrink: spec.material.burn_shrink,
                 friction: spec.material.friction_coefficient,
+                puncture: spec.material.puncture,
                 torn: Vec::new(),
                 lane: None,
                 pins_held: spec.integrator == IntegratorName::ImplicitEuler,

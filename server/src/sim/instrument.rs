@@ -18,10 +18,11 @@ use std::fmt::Debug;
 
 use nalgebra::UnitQuaternion;
 
+use crate::interaction::suture::NeedleTissue;
 use crate::interaction::{Grasp, InstrumentSpec, Jaws};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
-use super::instruments::{CauteryTip, Grasper, Scalpel, Scissors};
+use super::instruments::{CauteryTip, Grasper, NeedleDriver, Scalpel, Scissors};
 use super::*;
 
 /// A tool's instrument: its state between ticks and what it does in each stage of [`Sim::step`]. Every
@@ -94,6 +95,11 @@ pub(crate) trait Instrument: Debug + Send + Sync {
     fn grasp(&self) -> Option<&Grasp> {
         None
     }
+
+    /// The needle against the tissue, for a needle driver.
+    fn needle(&self) -> Option<&NeedleTissue> {
+        None
+    }
 }
 
 /// The implementation of an instrument descriptor, for a scene of `objects` objects (`None`: a probe, the
@@ -108,6 +114,7 @@ pub(crate) fn build_instrument(
         InstrumentSpec::Cautery(c) => Some(Box::new(CauteryTip::new(*c))),
         InstrumentSpec::Scalpel(s) => Some(Box::new(Scalpel::new(*s))),
         InstrumentSpec::Scissors(s) => Some(Box::new(Scissors::new(*s))),
+        InstrumentSpec::NeedleDriver(n) => Some(Box::new(NeedleDriver::new(*n))),
     }
 }
 

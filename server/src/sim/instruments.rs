@@ -6,10 +6,12 @@
 mod blade_drag;
 mod cautery_tip;
 mod grasper;
+mod needle_driver;
 mod scalpel;
 mod scissors;
 
 pub(super) use cautery_tip::CauteryTip;
 pub(super) use grasper::Grasper;
+pub(super) use needle_driver::NeedleDriver;
 pub(super) use scalpel::Scalpel;
 pub(super) use scissors::Scissors;

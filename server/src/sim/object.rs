@@ -49,6 +49,8 @@ pub struct SimObject {
     pub(super) burn_shrink: f32,
     /// Coulomb friction between a tool and this tissue (0: frictionless).
     pub(super) friction: f32,
+    /// How it answers a suture needle.
+    pub(super) puncture: crate::tissue::PunctureSpec,
     /// Scratch of a topology change: the parts the model is rebuilt from.
     pub(super) parts: ModelParts,
     /// Scratch of the tear test: the facets torn this tick.

@@ -34,4 +34,8 @@ pub struct StepReport {
     pub seams_torn: u32,
     /// Vertices split off by cuts and tears this tick.
     pub vertices_split: u32,
+    /// Surfaces a needle's tip punctured this tick.
+    pub punctures: u32,
+    /// Holes a needle left this tick (drawn back through them, or pulled through past its tail).
+    pub needle_holes_closed: u32,
 }

@@ -146,6 +146,11 @@ impl SimTool {
         self.instrument_state.as_ref().and_then(|i| i.grasp())
     }
 
+    /// A needle driver's needle against the tissue (None for another instrument).
+    pub fn needle(&self) -> Option<&crate::interaction::suture::NeedleTissue> {
+        self.instrument_state.as_ref().and_then(|i| i.needle())
+    }
+
     /// The nodes of object `object` the tool's instrument holds (sorted; none for most instruments).
     pub(super) fn attached_nodes(&self, object: usize) -> &[u32] {
         self.instrument_state

@@ -89,6 +89,8 @@ pub struct MaterialSpec {
     pub burn_shrink: f32,
     /// Coulomb friction coefficient between a tool and this tissue (0: frictionless).
     pub friction_coefficient: f32,
+    /// How the tissue answers a suture needle (puncture force and angle, needle friction).
+    pub puncture: super::PunctureSpec,
     /// Corotational finite elements (`model = "fem-corotational"`); the springs then carry no stiffness.
     pub fem: Option<super::fem::FemMaterial>,
     /// Springs calibrated from Young's modulus and Poisson's ratio (a mass-spring object given

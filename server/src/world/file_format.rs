@@ -296,6 +296,15 @@ pub(crate) struct MaterialSection {
     /// Coulomb friction coefficient between tools and this tissue (0: frictionless).
     #[serde(default)]
     pub friction_coefficient: Option<Spanned<f32>>,
+    /// A suture needle's tip punctures the surface past this force along its direction, N.
+    #[serde(default)]
+    pub puncture_force_n: Option<Spanned<f32>>,
+    /// ... and only within this angle of the surface's normal, degrees.
+    #[serde(default)]
+    pub puncture_max_angle_deg: Option<Spanned<f32>>,
+    /// Coulomb friction of a needle sliding through this tissue.
+    #[serde(default)]
+    pub needle_friction: Option<Spanned<f32>>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -387,6 +396,14 @@ pub(crate) struct InstrumentSection {
     pub blade_length_mm: Option<f32>,
     /// Scissors: the hinge in the tool frame, mm.
     pub hinge_mm: Option<[f32; 3]>,
+    /// Needle driver: the needle's arc radius, mm.
+    pub needle_radius_mm: Option<f32>,
+    /// Needle driver: the needle's sweep, degrees.
+    pub needle_sweep_deg: Option<f32>,
+    /// Needle driver: the needle's wire diameter, mm.
+    pub needle_diameter_mm: Option<f32>,
+    /// Needle driver: where along the needle the jaws hold it, degrees from the tail.
+    pub grasp_at_deg: Option<f32>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -397,6 +414,8 @@ pub(crate) enum InstrumentKindName {
     Cautery,
     Scalpel,
     Scissors,
+    #[serde(rename = "needle_driver")]
+    NeedleDriver,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]

@@ -9,6 +9,7 @@
 mod exercise;
 mod fixed_and_ties;
 mod material;
+mod needle_driver;
 mod object;
 mod tool;
 

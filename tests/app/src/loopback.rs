@@ -234,7 +234,9 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
             Some(InstrumentSpec::Cautery(_)) => burn.clone(),
             Some(InstrumentSpec::Scalpel(_)) => cut.clone(),
             Some(InstrumentSpec::Scissors(_)) => snip.clone(),
-            Some(InstrumentSpec::Probe) | None => otherwise,
+            // The scripted stitch comes with the suture world (docs/suturing.md, step 7); until then a needle
+            // driver presses as a probe does.
+            Some(InstrumentSpec::Probe) | Some(InstrumentSpec::NeedleDriver(_)) | None => otherwise,
         }
     };
     (pick("left", -6.0, left), pick("right", 6.0, right))

@@ -74,6 +74,12 @@ impl PathOffset {
 }
 
 impl NeedleArc {
+    /// iMSTK's default needle: 10.7 mm radius, 116 degrees.
+    pub const IMSTK_DEFAULT: NeedleArc = NeedleArc {
+        radius_mm: 10.7,
+        sweep_rad: 116.0 * std::f32::consts::PI / 180.0,
+    };
+
     /// The arc of `radius_mm` sweeping `sweep_deg` degrees.
     pub fn new(radius_mm: f32, sweep_deg: f32) -> Result<Self, NeedleArcError> {
         if !(radius_mm.is_finite() && radius_mm > 0.0) {

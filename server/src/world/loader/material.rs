@@ -254,6 +254,31 @@ impl Context<'_> {
                 0.0,
                 "must be 0 to 2 (Coulomb's coefficient; 0 is frictionless)",
             )?,
+            puncture: crate::tissue::PunctureSpec {
+                force_n: self.optional_in(
+                    &m.puncture_force_n,
+                    &key("puncture_force_n"),
+                    0.05..=50.0,
+                    crate::tissue::PunctureSpec::DEFAULT.force_n,
+                    "must be 0.05 to 50 N (skin-like tissue takes 1-4 N)",
+                )?,
+                max_angle_rad: self
+                    .optional_in(
+                        &m.puncture_max_angle_deg,
+                        &key("puncture_max_angle_deg"),
+                        1.0..=89.0,
+                        crate::tissue::PunctureSpec::DEFAULT.max_angle_rad.to_degrees(),
+                        "must be 1 to 89 degrees from the surface's normal",
+                    )?
+                    .to_radians(),
+                needle_friction: self.optional_in(
+                    &m.needle_friction,
+                    &key("needle_friction"),
+                    0.0..=2.0,
+                    crate::tissue::PunctureSpec::DEFAULT.needle_friction,
+                    "must be 0 to 2 (Coulomb's coefficient; published needle-tissue values are 0.12-0.34)",
+                )?,
+            },
         })
     }
 

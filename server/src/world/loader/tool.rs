@@ -1,4 +1,5 @@
-//! A tool's section: shape, shaft, coupling, limits, and its instrument (grasper, cautery, scalpel, scissors).
+//! A tool's section: shape, shaft, coupling, limits, and its instrument (grasper, cautery, scalpel, scissors;
+//! a needle driver's keys are read in `needle_driver.rs`).
 
 use std::path::Path;
 
@@ -287,6 +288,10 @@ impl Context<'_> {
             ("cut_resistance_n", section.cut_resistance_n.is_some()),
             ("blade_length_mm", section.blade_length_mm.is_some()),
             ("hinge_mm", section.hinge_mm.is_some()),
+            ("needle_radius_mm", section.needle_radius_mm.is_some()),
+            ("needle_sweep_deg", section.needle_sweep_deg.is_some()),
+            ("needle_diameter_mm", section.needle_diameter_mm.is_some()),
+            ("grasp_at_deg", section.grasp_at_deg.is_some()),
         ];
         let (takes, kind_says): (&[&str], &str) = match section.kind {
             InstrumentKindName::Probe => (
@@ -329,6 +334,17 @@ impl Context<'_> {
                 "scissors take activation, button_mask, close_below_deg, open_above_deg, open_angle_deg, \
                  blade_length_mm and hinge_mm",
             ),
+            InstrumentKindName::NeedleDriver => (
+                &[
+                    "jaw_length_mm",
+                    "needle_radius_mm",
+                    "needle_sweep_deg",
+                    "needle_diameter_mm",
+                    "grasp_at_deg",
+                ],
+                "a needle driver takes jaw_length_mm, needle_radius_mm, needle_sweep_deg, \
+                 needle_diameter_mm and grasp_at_deg",
+            ),
         };
         if let Some((name, _)) = given
             .iter()
@@ -338,6 +354,7 @@ impl Context<'_> {
         }
         match section.kind {
             InstrumentKindName::Probe => Ok(InstrumentSpec::Probe),
+            InstrumentKindName::NeedleDriver => self.needle_driver(i, at),
             InstrumentKindName::Scalpel => {
                 let mut scalpel = crate::world::ScalpelSpec::DEFAULT;
                 for (k, (name, value)) in [

@@ -1,0 +1,124 @@
+//! A needle driver: jaws holding a curved needle whose tip tents tissue, punctures it and passes through it.
+//!
+//! Owns: [`NeedleDriver`] (the needle's pose on the tool and its relation to the tissue,
+//! [`NeedleTissue`]). The body (the jaws, the tool's `shape`) probes as any body does; the needle's tip is
+//! a point that presses a surface point, and the needle's own body does not push tissue (the holes it passes
+//! through will hold it, `docs/suturing.md` step 4).
+//!
+//! Stages: before the contacts, the tip's path since the last tick is tested against the surfaces (a free tip
+//! meets one, a tip inside an object reaches its far wall) and the holes slide along the needle; each substep
+//! the pressed point is held at the tip; after the substeps the load is read and the tip punctures, slides or
+//! lifts off.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+use crate::interaction::suture::{NeedleDriverSpec, NeedleTissue, TipPhase};
+use crate::tissue::{MassSpringModel, TissueState, Vec3};
+
+use super::super::instrument::Instrument;
+use super::super::*;
+
+/// A needle driver's state between ticks.
+#[derive(Debug)]
+pub(in crate::sim) struct NeedleDriver {
+    tool_from_needle: Isometry3<f32>,
+    needle: NeedleTissue,
+}
+
+impl NeedleDriver {
+    /// Jaws holding the needle, touching nothing.
+    pub(in crate::sim) fn new(spec: NeedleDriverSpec) -> Self {
+        Self {
+            tool_from_needle: spec.tool_from_needle(),
+            needle: NeedleTissue::new(spec.arc),
+        }
+    }
+
+    fn world_from_needle(
+        &self,
+        position_mm: &Vec3,
+        rotation: &UnitQuaternion<f32>,
+    ) -> Isometry3<f32> {
+        Isometry3::from_parts(Translation3::from(*position_mm), *rotation) * self.tool_from_needle
+    }
+}
+
+/// The objects a needle meets, as [`NeedleTissue`] asks for them (multi-rate objects step on their own
+/// thread and are not met).
+fn needle_objects<'a>(
+    sim: &'a Sim,
+) -> impl Fn(
+    usize,
+) -> Option<(
+    &'a crate::collision::SurfaceCollider,
+    &'a MassSpringModel,
+    &'a TissueState,
+)> + 'a {
+    |o| {
+        let object = sim.objects.get(o).filter(|o| o.lane.is_none())?;
+        Some((&object.collider, &object.model, &object.state))
+    }
+}
+
+impl Instrument for NeedleDriver {
+    fn before_contacts(&mut self, sim: &mut Sim, t: usize, _dt_s: f32, report: &mut StepReport) {
+        let tool = &sim.tools[t];
+        if !tool.active {
+            report.attachments_released += self.needle.release();
+            return;
+        }
+        let pose = self.world_from_needle(&tool.position_mm, &tool.rotation);
+        let events = self
+            .needle
+            .before_substeps(&pose, sim.objects.len(), needle_objects(sim));
+        report.needle_holes_closed += events.holes_closed;
+    }
+
+    fn after_substeps(&mut self, sim: &mut Sim, t: usize, _dt_s: f32, report: &mut StepReport) {
+        let tool = &sim.tools[t];
+        if !tool.active {
+            return;
+        }
+        let pose = self.world_from_needle(&tool.position_mm, &tool.rotation);
+        let events = self
+            .needle
+            .after_substeps(&pose, needle_objects(sim), |o| sim.objects[o].puncture);
+        report.punctures += events.punctures;
+    }
+
+    fn attached_nodes(&self, object: usize) -> &[u32] {
+        self.needle.pressed_nodes(object)
+    }
+
+    fn hold(
+        &self,
+        object: usize,
+        position_mm: &Vec3,
+        rotation: &UnitQuaternion<f32>,
+        model: &MassSpringModel,
+        state: &mut TissueState,
+    ) {
+        let pose = self.world_from_needle(position_mm, rotation);
+        self.needle.hold(object, &pose, model, state);
+    }
+
+    fn object_reset(&mut self, object: usize) -> u32 {
+        self.needle.object_reset(object)
+    }
+
+    fn topology_changed(&mut self, object: usize, model: &MassSpringModel) {
+        self.needle.topology_changed(object, model);
+    }
+
+    fn force_on_tool_n(&self) -> Vec3 {
+        self.needle.force_on_needle_n()
+    }
+
+    fn held_points(&self) -> u16 {
+        u16::from(matches!(self.needle.phase(), TipPhase::Pressing { .. }))
+    }
+
+    fn needle(&self) -> Option<&NeedleTissue> {
+        Some(&self.needle)
+    }
+}

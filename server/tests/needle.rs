@@ -1,0 +1,318 @@
+//! A needle driver's curved needle against the shipped suture world's skin, on virtual time: the tip tents the
+//! surface and punctures it past the material's force and within its angle, not below the force and not at a
+//! glancing angle; the pop drops the force at once; a needle driven on through the block tents its floor from
+//! inside and punctures it too (a through-bite's second peak).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use sinew_server::interaction::suture::{NeedleArc, TipPhase};
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::world::{InstrumentSpec, load_world};
+
+const DT_S: f32 = 0.001;
+
+fn suture_world() -> sinew_server::scene::World {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
+    load_world(&path).unwrap()
+}
+
+/// The suture world's needle driver (tool 0) held with its shaft along world +y and the needle's curve turned
+/// down, tilted `tilt_rad` about the world's x axis from that (0: the tip 14 degrees off straight down, in the
+/// x-z plane). Tool 1 (the grasper) stays away.
+struct Driver {
+    sim: Sim,
+    rotation: UnitQuaternion<f32>,
+    /// The tip and its direction in the tool frame.
+    tip_tool_mm: Vector3<f32>,
+    tip_dir_tool: Vector3<f32>,
+    device_origin_mm: Vector3<f32>,
+    puncture_force_n: f32,
+}
+
+impl Driver {
+    fn new(tilt_about_y_rad: f32) -> Self {
+        Self::with(suture_world(), tilt_about_y_rad)
+    }
+
+    fn with(world: sinew_server::scene::World, tilt_about_y_rad: f32) -> Self {
+        let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
+            panic!("tool 0 of the suture world is not a needle driver");
+        };
+        let tool_from_needle = spec.tool_from_needle();
+        let tip = spec.arc.tip();
+        let level =
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f32::consts::FRAC_PI_2);
+        let tilt = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), tilt_about_y_rad);
+        Self {
+            puncture_force_n: world.objects[0].material.puncture.force_n,
+            device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
+            sim: Sim::new(&world).unwrap(),
+            rotation: tilt * level,
+            tip_tool_mm: (tool_from_needle * Point3::from(tip.point_mm)).coords,
+            tip_dir_tool: tool_from_needle * tip.tangent,
+        }
+    }
+
+    /// The tip's direction in the world.
+    fn tip_dir(&self) -> Vector3<f32> {
+        self.rotation * self.tip_dir_tool
+    }
+
+    /// The device pose that puts the tip at `tip_mm` (world).
+    fn command(&self, tip_mm: &Vector3<f32>) -> [ToolCommand; 2] {
+        let origin = tip_mm - self.rotation * self.tip_tool_mm;
+        self.pose_command(&self.rotation, &origin)
+    }
+
+    /// The device pose that puts the tool at `rotation`, its origin at `origin_mm` (world).
+    fn pose_command(
+        &self,
+        rotation: &UnitQuaternion<f32>,
+        origin_mm: &Vector3<f32>,
+    ) -> [ToolCommand; 2] {
+        let p = origin_mm - self.device_origin_mm;
+        let q = rotation.as_ref().coords;
+        [
+            ToolCommand {
+                active: true,
+                position_device_mm: [p.x, p.y, p.z],
+                orientation_xyzw: [q.x, q.y, q.z, q.w],
+                ..ToolCommand::default()
+            },
+            ToolCommand::default(),
+        ]
+    }
+
+    /// Where the tool's tip is now (world).
+    fn tip_now(&self) -> Vector3<f32> {
+        let tool = &self.sim.tools[0];
+        let pose = Isometry3::from_parts(Translation3::from(tool.position_mm), tool.rotation);
+        (pose * Point3::from(self.tip_tool_mm)).coords
+    }
+
+    /// One tick with the device's tip aimed at `tip_mm`.
+    fn step(&mut self, tip_mm: &Vector3<f32>) -> ToolOutput {
+        let mut out = [ToolOutput::default(); 2];
+        let command = self.command(tip_mm);
+        let report = self.sim.step(DT_S, &command, &mut out);
+        assert_eq!(report.faults, 0, "the guard reset the tissue");
+        assert!(out[0].force_world_n.iter().all(|c| c.is_finite()));
+        out[0]
+    }
+
+    /// The force the tissue presses the tip back with, along the tip's direction, N.
+    fn along_tip_n(&self, out: &ToolOutput) -> f32 {
+        -out.force_world_n.dot(&self.tip_dir())
+    }
+
+    fn punctures(&self) -> u32 {
+        self.sim.tools[0].needle().unwrap().punctures()
+    }
+
+    fn phase(&self) -> TipPhase {
+        *self.sim.tools[0].needle().unwrap().phase()
+    }
+
+    /// Bring the tip from 6 mm above `at_mm` (on the rest surface) down its own direction until it presses
+    /// with `target_n` along it, then hold that force for `hold_s`: a slow integral controller on the device's
+    /// depth. Returns the outputs of the hold.
+    fn press_to(&mut self, at_mm: &Vector3<f32>, target_n: f32, hold_s: f32) -> Vec<ToolOutput> {
+        let dir = self.tip_dir();
+        let mut depth_mm = -6.0f32;
+        // Settle the tool at the start (a taken tool enters from its entry point).
+        for _ in 0..1500 {
+            self.step(&(at_mm + dir * depth_mm));
+        }
+        let mut held = Vec::new();
+        let mut reached_at = None;
+        for k in 0..20_000 {
+            let out = self.step(&(at_mm + dir * depth_mm));
+            let f = self.along_tip_n(&out);
+            // 4 mm/s at most, slower as the force nears its target.
+            depth_mm += ((target_n - f) * 0.004).clamp(-0.004, 0.004);
+            if reached_at.is_none() && (f - target_n).abs() < 0.02 * target_n {
+                reached_at = Some(k);
+            }
+            if let Some(start) = reached_at {
+                held.push(out);
+                if (k - start) as f32 * DT_S >= hold_s {
+                    return held;
+                }
+            }
+            if self.punctures() > 0 {
+                return held;
+            }
+        }
+        panic!("the tip never pressed with {target_n} N");
+    }
+}
+
+#[test]
+fn the_tip_tents_the_skin_below_the_puncture_force_and_punctures_past_it() {
+    let mut driver = Driver::new(0.0);
+    let threshold = driver.puncture_force_n;
+    let at = Vector3::new(1.0, 1.0, 0.0);
+    // 0.9 of the threshold along the tip, held 2 s: the skin tents, nothing punctures.
+    let held = driver.press_to(&at, 0.9 * threshold, 2.0);
+    assert_eq!(driver.punctures(), 0, "punctured below the threshold");
+    assert!(matches!(
+        driver.phase(),
+        TipPhase::Pressing { exit: false, .. }
+    ));
+    let tent_mm = -driver.tip_now().z;
+    let last = held.last().unwrap();
+    println!(
+        "held {:.3} N along the tip for 2 s, tip {tent_mm:.2} mm below the rest surface",
+        driver.along_tip_n(last)
+    );
+    assert!(tent_mm > 0.5, "the skin did not tent: {tent_mm} mm");
+    for out in &held {
+        assert!((driver.along_tip_n(out) - 0.9 * threshold).abs() < 0.1 * threshold);
+    }
+    // Past the threshold: it punctures, and the force drops at once.
+    let before = driver.punctures();
+    let mut peak = 0.0f32;
+    let mut after = None;
+    let dir = driver.tip_dir();
+    let mut depth = driver.tip_now().dot(&dir) - at.dot(&dir);
+    for _ in 0..3000 {
+        depth += 0.002;
+        let out = driver.step(&(at + dir * depth));
+        if driver.punctures() > before {
+            after = Some(out);
+            break;
+        }
+        peak = peak.max(driver.along_tip_n(&out));
+    }
+    let after = after.expect("pressed past the threshold, the tip never punctured");
+    println!(
+        "punctured at {peak:.3} N along the tip; the tick after, {:.3} N",
+        driver.along_tip_n(&after)
+    );
+    assert!(
+        peak >= threshold * 0.98 && peak < threshold * 1.15,
+        "{peak}"
+    );
+    assert!(
+        driver.along_tip_n(&after) < 0.1 * threshold,
+        "the pop did not drop the force"
+    );
+    assert!(matches!(driver.phase(), TipPhase::Inside { object: 0 }));
+    let needle = driver.sim.tools[0].needle().unwrap();
+    assert_eq!(needle.holes().len(), 1);
+    assert!(!needle.holes()[0].exit);
+}
+
+#[test]
+fn a_tip_meeting_the_skin_at_a_glancing_angle_slides_instead_of_puncturing() {
+    // Tilted 50 degrees further about y: the tip meets the surface 64 degrees off its normal.
+    let mut driver = Driver::new(-50f32.to_radians());
+    let dir = driver.tip_dir();
+    let square = dir.dot(&-Vector3::z());
+    assert!(square < 37f32.to_radians().cos(), "{square}");
+    let threshold = driver.puncture_force_n;
+    // Driven along its own direction from 6 mm before the surface to 14 mm past it, at 5 mm/s.
+    let at = Vector3::new(-4.0, 1.0, 0.0);
+    for _ in 0..1500 {
+        driver.step(&(at - dir * 6.0));
+    }
+    let mut most_along_n = 0.0f32;
+    for k in 0..4000 {
+        driver.step(&(at + dir * (-6.0 + 0.005 * k as f32)));
+        if let TipPhase::Pressing { contact, .. } = driver.phase() {
+            most_along_n = most_along_n.max(-contact.force_n.dot(&dir));
+        }
+    }
+    println!("the glancing tip pressed with up to {most_along_n:.3} N along itself");
+    assert!(
+        most_along_n > threshold,
+        "the tip never pressed past the threshold: the test proves nothing"
+    );
+    assert_eq!(driver.punctures(), 0, "punctured at a glancing angle");
+}
+
+#[test]
+fn a_needle_driven_along_its_curve_through_a_bite_pops_in_and_pops_out() {
+    // A half circle held 10 degrees from its tail, so 170 degrees of it lie ahead of the jaws.
+    let mut world = suture_world();
+    let InstrumentSpec::NeedleDriver(spec) = &mut world.tools[0].instrument else {
+        panic!("tool 0 is not a needle driver");
+    };
+    spec.arc = NeedleArc::new(10.7, 180.0).unwrap();
+    spec.grasp_at_rad = 10f32.to_radians();
+    let spec = *spec;
+    let mut driver = Driver::with(world, 0.0);
+    let tool_from_needle = spec.tool_from_needle();
+    // The needle's centre 3 mm over the skin at x = 0: its arc dips 7.7 mm into it, entering and leaving 10.3
+    // mm either side, its tangent 16 degrees off the normal there. The tool turns about the needle's axis
+    // (world y, through the centre), driving the needle along its own curve.
+    let centre = Vector3::new(0.0, 1.0, 3.0);
+    let base = driver.rotation;
+    let centre_tool = (tool_from_needle * Point3::origin()).coords;
+    let pose_at = |turn_rad: f32| {
+        let rotation = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn_rad) * base;
+        (rotation, centre - rotation * centre_tool)
+    };
+    // Where is the tip at no turn, and which way does a turn take it? Start with the tip 8 degrees short of
+    // the skin, and turn the needle along its curve at 20 degrees a second.
+    let tip_at = |turn: f32| {
+        let (rotation, origin) = pose_at(turn);
+        origin + rotation * driver.tip_tool_mm
+    };
+    let entry_turn = (0..7200)
+        .map(|k| -180f32.to_radians() + k as f32 * 0.05f32.to_radians())
+        .find(|&turn| {
+            let (rotation, _) = pose_at(turn);
+            let dir = rotation * driver.tip_dir_tool;
+            tip_at(turn).z.abs() < 0.05 && dir.z < 0.0
+        })
+        .expect("the tip never reaches the skin going down");
+    let start = entry_turn - 8f32.to_radians();
+    let sign = {
+        let (r0, _) = pose_at(start);
+        let ahead = tip_at(start + 0.01) - tip_at(start);
+        if ahead.dot(&(r0 * driver.tip_dir_tool)) > 0.0 {
+            1.0
+        } else {
+            -1.0
+        }
+    };
+    let command = |driver: &Driver, turn: f32| {
+        let (rotation, origin) = pose_at(turn);
+        driver.pose_command(&rotation, &origin)
+    };
+    let mut out = [ToolOutput::default(); 2];
+    for _ in 0..1500 {
+        driver.sim.step(DT_S, &command(&driver, start), &mut out);
+    }
+    let mut trace = Vec::new();
+    let mut pops = Vec::new();
+    for k in 0..10_000 {
+        let turn = start + sign * (k as f32 * DT_S * 20f32.to_radians());
+        let before = driver.punctures();
+        let report = driver.sim.step(DT_S, &command(&driver, turn), &mut out);
+        assert_eq!(report.faults, 0);
+        let force = out[0].force_world_n.norm();
+        assert!(force.is_finite());
+        trace.push(force);
+        if driver.punctures() > before {
+            pops.push((k, *trace.iter().rev().nth(1).unwrap_or(&0.0), force));
+        }
+        if pops.len() == 2 {
+            break;
+        }
+    }
+    println!("pops (tick, force before, force after): {pops:?}");
+    assert_eq!(pops.len(), 2, "a through-bite punctures twice");
+    let needle = driver.sim.tools[0].needle().unwrap();
+    assert_eq!(needle.holes().len(), 2);
+    assert!(!needle.holes()[0].exit && needle.holes()[1].exit);
+    assert!(matches!(needle.phase(), TipPhase::Free));
+    for (_, before, after) in pops {
+        assert!(before > 1.0, "no peak before a pop: {before} N");
+        assert!(
+            after < 0.5 * before,
+            "the pop did not drop the force: {before} -> {after} N"
+        );
+    }
+}
