@@ -1,8 +1,17 @@
 //! A needle driver's curved needle against the shipped suture world's skin, on virtual time: the tip tents the
 //! surface and punctures it past the material's force and within its angle, not below the force and not at a
 //! glancing angle; the pop drops the force at once; a needle driven on through the block tents its floor from
-//! inside and punctures it too (a through-bite's second peak).
+//! inside and punctures it too (a through-bite's second peak), allocating nothing between; in the skin it slides
+//! along its own curve with friction and meets a wall across it.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+#[path = "common/counting_allocator.rs"]
+mod counting_allocator;
+
+use counting_allocator::{Counting, assert_counting_works, count_this_thread};
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use sinew_server::interaction::suture::{NeedleArc, TipPhase};
@@ -231,80 +240,112 @@ fn a_tip_meeting_the_skin_at_a_glancing_angle_slides_instead_of_puncturing() {
     assert_eq!(driver.punctures(), 0, "punctured at a glancing angle");
 }
 
-#[test]
-fn a_needle_driven_along_its_curve_through_a_bite_pops_in_and_pops_out() {
-    // A half circle held 10 degrees from its tail, so 170 degrees of it lie ahead of the jaws.
-    let mut world = suture_world();
-    let InstrumentSpec::NeedleDriver(spec) = &mut world.tools[0].instrument else {
-        panic!("tool 0 is not a needle driver");
-    };
-    spec.arc = NeedleArc::new(10.7, 180.0).unwrap();
-    spec.grasp_at_rad = 10f32.to_radians();
-    let spec = *spec;
-    let mut driver = Driver::with(world, 0.0);
-    let tool_from_needle = spec.tool_from_needle();
-    // The needle's centre 3 mm over the skin at x = 0: its arc dips 7.7 mm into it, entering and leaving 10.3
-    // mm either side, its tangent 16 degrees off the normal there. The tool turns about the needle's axis
-    // (world y, through the centre), driving the needle along its own curve.
-    let centre = Vector3::new(0.0, 1.0, 3.0);
-    let base = driver.rotation;
-    let centre_tool = (tool_from_needle * Point3::origin()).coords;
-    let pose_at = |turn_rad: f32| {
-        let rotation = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn_rad) * base;
-        (rotation, centre - rotation * centre_tool)
-    };
-    // Where is the tip at no turn, and which way does a turn take it? Start with the tip 8 degrees short of
-    // the skin, and turn the needle along its curve at 20 degrees a second.
-    let tip_at = |turn: f32| {
-        let (rotation, origin) = pose_at(turn);
-        origin + rotation * driver.tip_tool_mm
-    };
-    let entry_turn = (0..7200)
-        .map(|k| -180f32.to_radians() + k as f32 * 0.05f32.to_radians())
-        .find(|&turn| {
-            let (rotation, _) = pose_at(turn);
-            let dir = rotation * driver.tip_dir_tool;
-            tip_at(turn).z.abs() < 0.05 && dir.z < 0.0
-        })
-        .expect("the tip never reaches the skin going down");
-    let start = entry_turn - 8f32.to_radians();
-    let sign = {
-        let (r0, _) = pose_at(start);
-        let ahead = tip_at(start + 0.01) - tip_at(start);
-        if ahead.dot(&(r0 * driver.tip_dir_tool)) > 0.0 {
+/// The suture world with a half-circle needle held 10 degrees from its tail (170 degrees of it ahead of the
+/// jaws), and the pose of the driver turned `turn_rad` about the needle's own axis, its centre 3 mm over the
+/// skin at x = 0 (world y runs along the axis): the arc dips 7.7 mm into the skin, entering and leaving 10.3
+/// mm either side, its tangent 16 degrees off the normal there. Returns the driver, the pose at a turn, and
+/// the turn (and its sign) that brings the tip to the skin 8 degrees later, going down.
+struct Bite {
+    driver: Driver,
+    centre: Vector3<f32>,
+    centre_tool: Vector3<f32>,
+    base: UnitQuaternion<f32>,
+    start: f32,
+    sign: f32,
+}
+
+impl Bite {
+    fn new() -> Self {
+        let mut world = suture_world();
+        let InstrumentSpec::NeedleDriver(spec) = &mut world.tools[0].instrument else {
+            panic!("tool 0 is not a needle driver");
+        };
+        spec.arc = NeedleArc::new(10.7, 180.0).unwrap();
+        spec.grasp_at_rad = 10f32.to_radians();
+        let spec = *spec;
+        let driver = Driver::with(world, 0.0);
+        let mut bite = Self {
+            centre_tool: (spec.tool_from_needle() * Point3::origin()).coords,
+            base: driver.rotation,
+            driver,
+            centre: Vector3::new(0.0, 1.0, 3.0),
+            start: 0.0,
+            sign: 1.0,
+        };
+        let entry_turn = (0..7200)
+            .map(|k| -180f32.to_radians() + k as f32 * 0.05f32.to_radians())
+            .find(|&turn| {
+                let (rotation, _) = bite.pose_at(turn);
+                bite.tip_at(turn).z.abs() < 0.05 && (rotation * bite.driver.tip_dir_tool).z < 0.0
+            })
+            .expect("the tip never reaches the skin going down");
+        bite.start = entry_turn - 8f32.to_radians();
+        let (r0, _) = bite.pose_at(bite.start);
+        let ahead = bite.tip_at(bite.start + 0.01) - bite.tip_at(bite.start);
+        bite.sign = if ahead.dot(&(r0 * bite.driver.tip_dir_tool)) > 0.0 {
             1.0
         } else {
             -1.0
-        }
-    };
-    let command = |driver: &Driver, turn: f32| {
-        let (rotation, origin) = pose_at(turn);
-        driver.pose_command(&rotation, &origin)
-    };
-    let mut out = [ToolOutput::default(); 2];
+        };
+        bite
+    }
+
+    /// The tool's pose turned `turn_rad` about the needle's axis.
+    fn pose_at(&self, turn_rad: f32) -> (UnitQuaternion<f32>, Vector3<f32>) {
+        let rotation = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn_rad) * self.base;
+        (rotation, self.centre - rotation * self.centre_tool)
+    }
+
+    fn tip_at(&self, turn_rad: f32) -> Vector3<f32> {
+        let (rotation, origin) = self.pose_at(turn_rad);
+        origin + rotation * self.driver.tip_tool_mm
+    }
+
+    /// One tick with the tool turned `turn_rad` along the needle's curve from the start and shifted by
+    /// `shift_mm` (world). Returns the output.
+    fn step(&mut self, turn_rad: f32, shift_mm: &Vector3<f32>) -> ToolOutput {
+        let (rotation, origin) = self.pose_at(self.start + self.sign * turn_rad);
+        let command = self.driver.pose_command(&rotation, &(origin + shift_mm));
+        let mut out = [ToolOutput::default(); 2];
+        let report = self.driver.sim.step(DT_S, &command, &mut out);
+        assert_eq!(report.faults, 0, "the guard reset the tissue");
+        assert!(out[0].force_world_n.iter().all(|c| c.is_finite()));
+        out[0]
+    }
+}
+
+#[test]
+fn a_needle_driven_along_its_curve_through_a_bite_pops_in_and_pops_out() {
+    assert_counting_works();
+    let mut bite = Bite::new();
     for _ in 0..1500 {
-        driver.sim.step(DT_S, &command(&driver, start), &mut out);
+        bite.step(0.0, &Vector3::zeros());
     }
-    let mut trace = Vec::new();
-    let mut pops = Vec::new();
-    for k in 0..10_000 {
-        let turn = start + sign * (k as f32 * DT_S * 20f32.to_radians());
-        let before = driver.punctures();
-        let report = driver.sim.step(DT_S, &command(&driver, turn), &mut out);
-        assert_eq!(report.faults, 0);
-        let force = out[0].force_world_n.norm();
-        assert!(force.is_finite());
-        trace.push(force);
-        if driver.punctures() > before {
-            pops.push((k, *trace.iter().rev().nth(1).unwrap_or(&0.0), force));
+    let mut pops = Vec::with_capacity(2);
+    let mut last_force = 0.0;
+    let mut k = 0;
+    let mut drive = |bite: &mut Bite, pops: &mut Vec<(usize, f32, f32)>, until: usize| {
+        while pops.len() < until && k < 10_000 {
+            let before = bite.driver.punctures();
+            let out = bite.step(k as f32 * DT_S * 20f32.to_radians(), &Vector3::zeros());
+            let force = out.force_world_n.norm();
+            if bite.driver.punctures() > before {
+                pops.push((k, last_force, force));
+            }
+            last_force = force;
+            k += 1;
         }
-        if pops.len() == 2 {
-            break;
-        }
-    }
-    println!("pops (tick, force before, force after): {pops:?}");
+    };
+    drive(&mut bite, &mut pops, 1);
+    // From the tick after the way in to the way out (tissue pressed and let go, a hole made), a tick
+    // allocates nothing.
+    let allocations = count_this_thread(|| drive(&mut bite, &mut pops, 2));
+    println!(
+        "pops (tick, force before, force after): {pops:?}; {allocations} allocations in between"
+    );
+    assert_eq!(allocations, 0, "the needle's ticks allocated");
     assert_eq!(pops.len(), 2, "a through-bite punctures twice");
-    let needle = driver.sim.tools[0].needle().unwrap();
+    let needle = bite.driver.sim.tools[0].needle().unwrap();
     assert_eq!(needle.holes().len(), 2);
     assert!(!needle.holes()[0].exit && needle.holes()[1].exit);
     assert!(matches!(needle.phase(), TipPhase::Free));
@@ -315,4 +356,69 @@ fn a_needle_driven_along_its_curve_through_a_bite_pops_in_and_pops_out() {
             "the pop did not drop the force: {before} -> {after} N"
         );
     }
+}
+
+#[test]
+fn in_the_skin_the_needle_slides_along_its_curve_with_friction_and_a_push_out_of_its_plane_meets_a_wall()
+ {
+    let mut bite = Bite::new();
+    for _ in 0..1500 {
+        bite.step(0.0, &Vector3::zeros());
+    }
+    // Turn until the tip is in, then on for 1.3 s (26 degrees, 4.9 mm of needle through the skin).
+    let mut turn = 0.0;
+    while bite.driver.punctures() == 0 {
+        turn += DT_S * 20f32.to_radians();
+        bite.step(turn, &Vector3::zeros());
+        assert!(turn < 1.0, "the tip never went in");
+    }
+    // The pop's spring-back settles over the next 0.3 s of driving.
+    for _ in 0..300 {
+        turn += DT_S * 20f32.to_radians();
+        bite.step(turn, &Vector3::zeros());
+    }
+    let mut along = Vec::new();
+    let mut drift_mm = 0.0f32;
+    let entry = bite.driver.sim.tools[0].needle().unwrap().holes()[0].point;
+    let skin = &bite.driver.sim.objects[0];
+    let entry_at = entry.position_mm(&skin.model, &skin.state).unwrap();
+    for _ in 0..1000 {
+        turn += DT_S * 20f32.to_radians();
+        let out = bite.step(turn, &Vector3::zeros());
+        along.push(out.force_world_n.norm());
+        let skin = &bite.driver.sim.objects[0];
+        let now = entry.position_mm(&skin.model, &skin.state).unwrap();
+        drift_mm = drift_mm.max((now - entry_at).norm());
+    }
+    let mean_along = along.iter().sum::<f32>() / along.len() as f32;
+    // Then held there and pushed 2 mm out of the needle's plane (world +y) over 0.2 s, held 0.5 s.
+    let mut sideways = ToolOutput::default();
+    for k in 0..700 {
+        let shift = Vector3::y() * (2.0 * (k as f32 / 200.0).min(1.0));
+        sideways = bite.step(turn, &shift);
+    }
+    let f = sideways.force_world_n;
+    println!(
+        "driven along its curve: {mean_along:.3} N on average (the entry point moved {drift_mm:.2} mm); \
+         pushed 2 mm out of its plane: {f:?} N"
+    );
+    assert_eq!(
+        bite.driver.punctures(),
+        1,
+        "the needle tore out or punctured again"
+    );
+    assert!(mean_along > 0.05, "no drag along the curve: {mean_along} N");
+    assert!(
+        mean_along < 1.0,
+        "more than friction along the curve: {mean_along} N"
+    );
+    assert!(
+        drift_mm <= 0.5,
+        "the entry point moved {drift_mm} mm on the skin"
+    );
+    assert!(f.y < -2.0 * mean_along, "no wall across the path: {f:?} N");
+    assert!(
+        -f.y > 0.8 * f.norm(),
+        "the wall does not push back across the path: {f:?}"
+    );
 }

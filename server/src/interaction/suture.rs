@@ -6,21 +6,24 @@
 //! - the needle driver and where the needle sits in its jaws ([`NeedleDriverSpec`]);
 //! - a sharp tip pressing a surface ([`TipContact`], on a [`SurfacePoint`]: the surface tents under it);
 //! - the needle against the tissue ([`NeedleTissue`]: tenting, puncture on force and angle, the holes it
-//!   passes through; a material's [`PunctureSpec`]).
+//!   passes through; a material's [`PunctureSpec`]);
+//! - the path constraint: each [`Hole`] holds the needle on its path, and it slides through with friction.
 //!
-//! The path constraint, the thread and the stitches come next, each in its own file here, behind the tick's
+//! The thread and the stitches come next, each in its own file here, behind the tick's
 //! instrument extension point (`sim/instrument.rs`; the needle driver is `sim/instruments/needle_driver.rs`);
 //! `docs/suturing.md` is the design.
 //!
 //! Must not: hold tick state beyond what each type owns, or allocate in a tick without a topology change.
 
+mod hole;
 mod needle;
 mod needle_arc;
 mod puncture;
 mod tip_contact;
 
 pub use crate::tissue::PunctureSpec;
+pub use hole::Hole;
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
-pub use puncture::{Hole, MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
+pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
 pub use tip_contact::{SurfacePoint, TipContact};

@@ -114,7 +114,7 @@ pub(crate) fn build_instrument(
         InstrumentSpec::Cautery(c) => Some(Box::new(CauteryTip::new(*c))),
         InstrumentSpec::Scalpel(s) => Some(Box::new(Scalpel::new(*s))),
         InstrumentSpec::Scissors(s) => Some(Box::new(Scissors::new(*s))),
-        InstrumentSpec::NeedleDriver(n) => Some(Box::new(NeedleDriver::new(*n))),
+        InstrumentSpec::NeedleDriver(n) => Some(Box::new(NeedleDriver::new(*n, objects))),
     }
 }
 

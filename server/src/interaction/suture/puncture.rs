@@ -19,19 +19,17 @@
 //! - **Inside** an object: when its path leaves the object's surface, it presses that point from inside
 //!   (outward); puncturing it is the exit, the second peak of a through-bite, and leaves a second hole.
 //!
-//! Holes: a hole is a material point of the surface and the angle on the needle where it sits (`theta_rad`,
-//! from the tail). Each tick a hole's angle is read again from where its point lies against the arc: the needle
-//! slides through its holes. A hole whose angle passes the tip (the needle drawn back through it) closes; if
-//! it was the way in of an object the tip is inside, the tip is free again. A hole whose angle passes the tail
-//! (the needle pulled all the way through) is let go (the thread will take it). The path constraint that holds
-//! a hole on the arc, and the friction of the needle sliding through it, come next (`docs/suturing.md`, step
-//! 4).
+//! Holes ([`Hole`], `hole.rs`): each puncture leaves one, a material point of the surface and the angle on the
+//! needle where it holds it. The holes hold the needle on its own path and it slides through them with
+//! friction. A hole whose angle passes the tip (the needle drawn back through it) closes; if it was the way in
+//! of an object the tip is inside, the tip is free again. A hole whose angle passes the tail (the needle pulled
+//! all the way through) is let go (the thread will take it).
 //!
 //! Must not: allocate once built (holes are capped at [`MAX_HOLES`]) or panic.
 
 use nalgebra::{Isometry3, Point3};
 
-use super::{NeedleArc, SurfacePoint, TipContact};
+use super::{Hole, NeedleArc, SurfacePoint, TipContact};
 use crate::collision::{SurfaceCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, PunctureSpec, TissueState, Vec3};
 
@@ -57,17 +55,6 @@ pub enum TipPhase {
     },
 }
 
-/// A hole the needle passes through.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Hole {
-    /// The material point the tip punctured.
-    pub point: SurfacePoint,
-    /// Where along the needle it sits: the angle from the tail, rad.
-    pub theta_rad: f32,
-    /// The tip made it leaving the object (an exit), not entering.
-    pub exit: bool,
-}
-
 /// What one stage of the needle did, counted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct NeedleEvents {
@@ -81,26 +68,29 @@ pub struct NeedleEvents {
 #[derive(Debug, Clone)]
 pub struct NeedleTissue {
     arc: NeedleArc,
+    /// The needle's wire diameter, mm (the tissue's squeeze on it sets the holes' friction).
+    diameter_mm: f32,
     phase: TipPhase,
     holes: Vec<Hole>,
     /// The tip last tick, world, mm (None: not yet placed, or just released).
     last_tip_mm: Option<Vec3>,
-    /// The pressed point's corners, sorted, and how many of them there are.
-    pressed_nodes: [u32; 3],
-    pressed_len: usize,
+    /// Per object, the nodes the pressed point and the holes move, sorted.
+    held_nodes: Vec<Vec<u32>>,
     punctures: u32,
 }
 
 impl NeedleTissue {
-    /// A needle of arc `arc` touching nothing.
-    pub fn new(arc: NeedleArc) -> Self {
+    /// A needle of arc `arc`, `diameter_mm` thick, touching nothing, in a scene of `objects` objects.
+    pub fn new(arc: NeedleArc, diameter_mm: f32, objects: usize) -> Self {
         Self {
             arc,
+            diameter_mm,
             phase: TipPhase::Free,
             holes: Vec::with_capacity(MAX_HOLES),
             last_tip_mm: None,
-            pressed_nodes: [0; 3],
-            pressed_len: 0,
+            held_nodes: (0..objects)
+                .map(|_| Vec::with_capacity(3 * (MAX_HOLES + 1)))
+                .collect(),
             punctures: 0,
         }
     }
@@ -134,22 +124,18 @@ impl NeedleTissue {
         )
     }
 
-    /// The nodes of object `object` the tip presses (sorted).
-    pub fn pressed_nodes(&self, object: usize) -> &[u32] {
-        match self.phase {
-            TipPhase::Pressing { contact, .. } if usize::from(contact.point.object) == object => {
-                &self.pressed_nodes[..self.pressed_len]
-            }
-            _ => &[],
-        }
+    /// The nodes of object `object` the tip presses and the holes hold (sorted).
+    pub fn held_nodes(&self, object: usize) -> &[u32] {
+        self.held_nodes.get(object).map_or(&[], |v| v.as_slice())
     }
 
-    /// The tissue's push on the needle through its tip, world, N.
+    /// The tissue's force on the needle through its tip and its holes, world, N.
     pub fn force_on_needle_n(&self) -> Vec3 {
-        match self.phase {
+        let tip = match self.phase {
             TipPhase::Pressing { contact, .. } => contact.force_n,
             _ => Vec3::zeros(),
-        }
+        };
+        self.holes.iter().fold(tip, |sum, h| sum + h.force_n)
     }
 
     /// Let go of everything (the tool left, or the tissue was reset): no contact, no holes.
@@ -157,8 +143,10 @@ impl NeedleTissue {
         let closed = self.holes.len() as u32;
         self.holes.clear();
         self.phase = TipPhase::Free;
-        self.pressed_len = 0;
         self.last_tip_mm = None;
+        for list in &mut self.held_nodes {
+            list.clear();
+        }
         closed
     }
 
@@ -173,7 +161,9 @@ impl NeedleTissue {
         };
         if on_it {
             self.phase = TipPhase::Free;
-            self.pressed_len = 0;
+        }
+        if let Some(list) = self.held_nodes.get_mut(object) {
+            list.clear();
         }
         (before - self.holes.len()) as u32
     }
@@ -193,7 +183,15 @@ impl NeedleTissue {
         if !tip_mm.iter().all(|c| c.is_finite()) {
             return events;
         }
-        events.holes_closed += self.slide_holes(world_from_needle, &object);
+        let closed = self.close_holes();
+        if closed > 0 {
+            events.holes_closed += closed;
+            for o in 0..objects {
+                if let Some((_, model, _)) = object(o) {
+                    self.rebuild_nodes(o, model);
+                }
+            }
+        }
         let from = self.last_tip_mm.replace(tip_mm);
         let Some(from) = from else {
             return events;
@@ -231,7 +229,17 @@ impl NeedleTissue {
             }
             TipPhase::Inside { object: o } => {
                 let o = usize::from(o);
-                if let Some((hit, model)) = crossing(o, false) {
+                // A crossing beside one of the needle's own holes is the hole's tissue springing back along
+                // the needle, not the far wall.
+                if let Some((hit, model)) = crossing(o, false)
+                    && let Some((_, _, state)) = object(o)
+                    && !self.holes.iter().any(|h| {
+                        usize::from(h.point.object) == o
+                            && h.point
+                                .position_mm(model, state)
+                                .is_some_and(|x| (x - hit.point_mm).norm() < HOLE_CLEARANCE_MM)
+                    })
+                {
                     self.press(o, hit.triangle, hit.barycentric, true, model);
                 }
             }
@@ -240,7 +248,8 @@ impl NeedleTissue {
         events
     }
 
-    /// Every substep, after object `object`'s integration: the pressed point is held at the tip.
+    /// Every substep, after object `object`'s integration: the pressed point is held at the tip, and each hole
+    /// holds the needle on its path.
     pub fn hold(
         &self,
         object: usize,
@@ -254,6 +263,13 @@ impl NeedleTissue {
             let (tip_mm, _) = self.tip(world_from_needle);
             contact.hold(&tip_mm, model, state);
         }
+        for hole in self
+            .holes
+            .iter()
+            .filter(|h| usize::from(h.point.object) == object)
+        {
+            hole.hold(&self.arc, world_from_needle, model, state);
+        }
     }
 
     /// Stage 4 (after the substeps): read the pressed point's load; puncture it, or let it go if the tip
@@ -265,13 +281,25 @@ impl NeedleTissue {
         puncture: impl Fn(usize) -> PunctureSpec,
     ) -> NeedleEvents {
         let mut events = NeedleEvents::default();
+        for hole in &mut self.holes {
+            let o = usize::from(hole.point.object);
+            match object(o) {
+                Some((_, model, state)) => hole.settle(
+                    &self.arc,
+                    world_from_needle,
+                    puncture(o).needle_friction,
+                    model,
+                    state,
+                ),
+                None => hole.force_n = Vec3::zeros(),
+            }
+        }
         let TipPhase::Pressing { mut contact, exit } = self.phase else {
             return events;
         };
         let o = usize::from(contact.point.object);
         let Some((collider, model, state)) = object(o) else {
             self.phase = TipPhase::Free;
-            self.pressed_len = 0;
             return events;
         };
         let (tip_mm, tip_dir) = self.tip(world_from_needle);
@@ -284,7 +312,7 @@ impl NeedleTissue {
         };
         if contact.lifted(&tip_mm, model, state) {
             self.phase = after;
-            self.pressed_len = 0;
+            self.rebuild_nodes(o, model);
             return events;
         }
         let spec = puncture(o);
@@ -296,11 +324,17 @@ impl NeedleTissue {
             events.punctures += 1;
             self.punctures += 1;
             if self.holes.len() < MAX_HOLES {
-                self.holes.push(Hole {
-                    point: contact.point,
-                    theta_rad: self.arc.sweep_rad(),
-                    exit,
-                });
+                // The tissue's stiffness against the tip: the load over how far the tent has carried the point
+                // from its rest along the push.
+                let depth_mm = contact
+                    .point
+                    .position_mm(model, state)
+                    .zip(contact.point.rest_position_mm(model))
+                    .map_or(0.0, |(x, rest)| (x - rest).dot(&contact.push));
+                let stiffness = contact.load_n / depth_mm.max(MIN_TENT_MM);
+                let squeeze = Hole::squeeze_for(stiffness, self.diameter_mm);
+                self.holes
+                    .push(Hole::new(contact.point, &self.arc, exit, squeeze));
             }
             self.phase = if exit {
                 TipPhase::Free
@@ -309,22 +343,18 @@ impl NeedleTissue {
                     object: contact.point.object,
                 }
             };
-            self.pressed_len = 0;
+            self.rebuild_nodes(o, model);
             return events;
         }
         contact.follow(&tip_mm, collider, model, state);
         self.phase = TipPhase::Pressing { contact, exit };
-        self.set_pressed(&contact, model);
+        self.rebuild_nodes(o, model);
         events
     }
 
-    /// Re-read the pressed point's corners (a topology change may have re-pointed them).
+    /// Re-read the corners of what stands on object `object` (a topology change may have re-pointed them).
     pub fn topology_changed(&mut self, object: usize, model: &MassSpringModel) {
-        if let TipPhase::Pressing { contact, .. } = self.phase
-            && usize::from(contact.point.object) == object
-        {
-            self.set_pressed(&contact, model);
-        }
+        self.rebuild_nodes(object, model);
     }
 
     fn press(
@@ -335,82 +365,81 @@ impl NeedleTissue {
         exit: bool,
         model: &MassSpringModel,
     ) {
-        let Ok(object) = u16::try_from(object) else {
+        let Ok(object_id) = u16::try_from(object) else {
             return;
         };
         let point = SurfacePoint {
-            object,
+            object: object_id,
             triangle,
             barycentric,
         };
         if let Some(contact) = TipContact::new(point, exit, model) {
             self.phase = TipPhase::Pressing { contact, exit };
-            self.set_pressed(&contact, model);
+            self.rebuild_nodes(object, model);
         }
     }
 
-    fn set_pressed(&mut self, contact: &TipContact, model: &MassSpringModel) {
-        self.pressed_len = 0;
-        if let Some(corners) = contact.point.corners(model) {
-            for (&c, &b) in corners.iter().zip(&contact.point.barycentric) {
-                if b != 0.0 && !self.pressed_nodes[..self.pressed_len].contains(&c) {
-                    self.pressed_nodes[self.pressed_len] = c;
-                    self.pressed_len += 1;
-                }
-            }
-            self.pressed_nodes[..self.pressed_len].sort_unstable();
-        }
-    }
-
-    /// Read each hole's angle on the needle from where its point lies; close the holes the needle left.
-    fn slide_holes<'a>(
-        &mut self,
-        world_from_needle: &Isometry3<f32>,
-        object: &impl Fn(usize) -> Option<(&'a SurfaceCollider, &'a MassSpringModel, &'a TissueState)>,
-    ) -> u32 {
-        let needle_from_world = world_from_needle.inverse();
-        let sweep = self.arc.sweep_rad();
-        let before = self.holes.len();
-        let mut keep = 0;
-        let mut tip_left = None;
-        for k in 0..before {
-            let mut hole = self.holes[k];
-            let o = usize::from(hole.point.object);
-            let at = object(o).and_then(|(_, model, state)| hole.point.position_mm(model, state));
-            let Some(at) = at else {
+    /// Object `object`'s held nodes from the pressed point and the holes on it (sorted, once each).
+    fn rebuild_nodes(&mut self, object: usize, model: &MassSpringModel) {
+        let Some(list) = self.held_nodes.get_mut(object) else {
+            return;
+        };
+        list.clear();
+        let pressed = match self.phase {
+            TipPhase::Pressing { contact, .. } => Some(contact.point),
+            _ => None,
+        };
+        let points = pressed
+            .into_iter()
+            .chain(self.holes.iter().map(|h| h.point))
+            .filter(|p| usize::from(p.object) == object);
+        for point in points {
+            let Some(corners) = point.corners(model) else {
                 continue;
             };
-            let local = (needle_from_world * Point3::from(at)).coords;
-            let offset = self.arc.offset_of(&local);
-            // Past an end, the offset along the tangent carries on the angle (positive toward the tip).
-            let theta = offset.nearest.theta_rad + offset.along_mm / self.arc.radius_mm();
-            if !theta.is_finite() {
-                continue;
-            }
-            hole.theta_rad = theta;
-            if theta >= sweep {
-                // Drawn back through it: the way in of the object the tip is in closes behind it.
-                if !hole.exit {
-                    tip_left = Some(hole.point.object);
+            for (&c, &b) in corners.iter().zip(&point.barycentric) {
+                if b != 0.0
+                    && let Err(at) = list.binary_search(&c)
+                {
+                    list.insert(at, c);
                 }
-                continue;
             }
-            if theta <= 0.0 {
-                continue;
-            }
-            self.holes[keep] = hole;
-            keep += 1;
         }
-        self.holes.truncate(keep);
+    }
+
+    /// Close the holes the needle left: drawn back past the tip, or pulled through past the tail. A tip inside
+    /// an object whose way in closed behind it is free again.
+    fn close_holes(&mut self) -> u32 {
+        // A hole is left once the needle has drawn back (or on) past it by a hair: a hole made at the tip sits
+        // at the sweep itself.
+        let margin = HOLE_LEFT_MM / self.arc.radius_mm();
+        let (first, last) = (-margin, self.arc.sweep_rad() + margin);
+        let before = self.holes.len();
+        let mut tip_left = None;
+        self.holes.retain(|hole| {
+            if hole.theta_rad > last && !hole.exit {
+                tip_left = Some(hole.point.object);
+            }
+            (first..=last).contains(&hole.theta_rad)
+        });
         if let (Some(o), TipPhase::Inside { object }) = (tip_left, self.phase)
             && o == object
             && !self.holes.iter().any(|h| h.point.object == o && !h.exit)
         {
             self.phase = TipPhase::Free;
         }
-        (before - keep) as u32
+        (before - self.holes.len()) as u32
     }
 }
+
+/// A tent shallower than this is taken as this deep when the tissue's stiffness is read from it, mm.
+const MIN_TENT_MM: f32 = 0.1;
+
+/// The needle has left a hole once it lies this far past the tip or the tail, mm along the arc.
+const HOLE_LEFT_MM: f32 = 0.3;
+
+/// A tip inside an object meets its far wall only this far from the needle's holes in it, mm.
+const HOLE_CLEARANCE_MM: f32 = 2.0;
 
 /// The tip's path is tested against surface boxes loosened by this, mm (the tree is refitted in the tick's
 /// tail, so its boxes may be a tick behind the surface).

@@ -52,25 +52,30 @@ impl SurfacePoint {
         model.triangles().get(self.triangle as usize).copied()
     }
 
+    /// The corners' `values` (one per node) by the point's weights, if the model has its triangle.
+    fn weighted(&self, model: &MassSpringModel, values: &[Vec3]) -> Option<Vec3> {
+        let corners = self.corners(model)?;
+        let mut sum = Vec3::zeros();
+        for (&c, &b) in corners.iter().zip(&self.barycentric) {
+            sum += values.get(c as usize)? * b;
+        }
+        Some(sum)
+    }
+
     /// Where the point is now, mm.
     pub fn position_mm(&self, model: &MassSpringModel, state: &TissueState) -> Option<Vec3> {
-        let corners = self.corners(model)?;
-        let mut x = Vec3::zeros();
-        for (&c, &b) in corners.iter().zip(&self.barycentric) {
-            x += state.positions_mm.get(c as usize)? * b;
-        }
-        Some(x)
+        self.weighted(model, &state.positions_mm)
+    }
+
+    /// Where the point is at rest, mm.
+    pub fn rest_position_mm(&self, model: &MassSpringModel) -> Option<Vec3> {
+        self.weighted(model, model.rest_positions_mm())
     }
 
     /// The surface's outward rest normal at the point (unit), if the model has it.
     pub fn rest_normal(&self, model: &MassSpringModel) -> Option<Vec3> {
-        let corners = self.corners(model)?;
-        let normals = model.rest_normals();
-        let mut n = Vec3::zeros();
-        for (&c, &b) in corners.iter().zip(&self.barycentric) {
-            n += normals.get(c as usize)? * b;
-        }
-        n.try_normalize(1e-6)
+        self.weighted(model, model.rest_normals())?
+            .try_normalize(1e-6)
     }
 
     /// Move the point by `shift_mm`, spread over the free corners by weight (minimum norm); with

@@ -2,13 +2,13 @@
 //!
 //! Owns: [`NeedleDriver`] (the needle's pose on the tool and its relation to the tissue,
 //! [`NeedleTissue`]). The body (the jaws, the tool's `shape`) probes as any body does; the needle's tip is
-//! a point that presses a surface point, and the needle's own body does not push tissue (the holes it passes
-//! through will hold it, `docs/suturing.md` step 4).
+//! a point that presses a surface point, and the needle's own body does not push tissue: the holes it passes
+//! through hold it on its path (`interaction/suture/hole.rs`).
 //!
 //! Stages: before the contacts, the tip's path since the last tick is tested against the surfaces (a free tip
-//! meets one, a tip inside an object reaches its far wall) and the holes slide along the needle; each substep
-//! the pressed point is held at the tip; after the substeps the load is read and the tip punctures, slides or
-//! lifts off.
+//! meets one, a tip inside an object reaches its far wall) and the holes the needle left close; each substep
+//! the pressed point is held at the tip and the holes hold the needle on its path; after the substeps the
+//! holes' forces are read (they stick or slide) and the tip punctures, skates or lifts off.
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
@@ -26,11 +26,11 @@ pub(in crate::sim) struct NeedleDriver {
 }
 
 impl NeedleDriver {
-    /// Jaws holding the needle, touching nothing.
-    pub(in crate::sim) fn new(spec: NeedleDriverSpec) -> Self {
+    /// Jaws holding the needle, touching nothing, in a scene of `objects` objects.
+    pub(in crate::sim) fn new(spec: NeedleDriverSpec, objects: usize) -> Self {
         Self {
             tool_from_needle: spec.tool_from_needle(),
-            needle: NeedleTissue::new(spec.arc),
+            needle: NeedleTissue::new(spec.arc, spec.diameter_mm, objects),
         }
     }
 
@@ -87,7 +87,7 @@ impl Instrument for NeedleDriver {
     }
 
     fn attached_nodes(&self, object: usize) -> &[u32] {
-        self.needle.pressed_nodes(object)
+        self.needle.held_nodes(object)
     }
 
     fn hold(
