@@ -7,9 +7,11 @@
 //! - a sharp tip pressing a surface ([`TipContact`], on a [`SurfacePoint`]: the surface tents under it);
 //! - the needle against the tissue ([`NeedleTissue`]: tenting, puncture on force and angle, the holes it
 //!   passes through; a material's [`PunctureSpec`]);
-//! - the path constraint: each [`Hole`] holds the needle on its path, and it slides through with friction.
+//! - the path constraint: each [`Hole`] holds the needle on its path, and it slides through with friction;
+//! - the thread's chain held to length by a direct solve ([`ThreadChain`]), the core its bending, collisions
+//!   and holes will build on.
 //!
-//! The thread and the stitches come next, each in its own file here, behind the tick's
+//! The rest of the thread and the stitches come next, each in its own file here, behind the tick's
 //! instrument extension point (`sim/instrument.rs`; the needle driver is `sim/instruments/needle_driver.rs`);
 //! `docs/suturing.md` is the design.
 //!
@@ -19,6 +21,7 @@ mod hole;
 mod needle;
 mod needle_arc;
 mod puncture;
+mod thread_chain;
 mod tip_contact;
 
 pub use crate::tissue::PunctureSpec;
@@ -26,4 +29,5 @@ pub use hole::Hole;
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
 pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
+pub use thread_chain::ThreadChain;
 pub use tip_contact::{SurfacePoint, TipContact};
