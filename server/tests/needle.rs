@@ -391,6 +391,10 @@ fn in_the_skin_the_needle_slides_along_its_curve_with_friction_and_a_push_out_of
         drift_mm = drift_mm.max((now - entry_at).norm());
     }
     let mean_along = along.iter().sum::<f32>() / along.len() as f32;
+    let (least, most) = along
+        .iter()
+        .fold((f32::MAX, 0.0f32), |(lo, hi), &f| (lo.min(f), hi.max(f)));
+    println!("drag along the curve from {least:.3} to {most:.3} N");
     // Then held there and pushed 2 mm out of the needle's plane (world +y) over 0.2 s, held 0.5 s.
     let mut sideways = ToolOutput::default();
     for k in 0..700 {

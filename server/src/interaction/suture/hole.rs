@@ -12,7 +12,11 @@
 //!   hand feels it through the coupling, as it feels any contact.
 //! - **Along it the needle slides with friction.** The hole sticks while the pull along the tangent stays within
 //!   `needle_friction` times the hole's normal load, and slides past it, the along force then held at that limit
-//!   and the hole's angle read again from where the point lies. The normal load is the pull across the path plus
+//!   and the hole's angle read again from where the point lies; once sliding it keeps sliding (kinetic
+//!   friction at the limit, against the motion) while the needle moves through it faster than 1 mm/s, so a
+//!   needle driven steadily drags steadily instead of alternating stick and slip each tick. (While a hole
+//!   slides the tissue is held across the path only: the kinetic drag reaches the hand, not the tissue.) The
+//!   normal load is the pull across the path plus
 //!   the tissue's squeeze on the needle: the needle's diameter pressed into the tissue's stiffness against a
 //!   point, which the tip measured as it tented the surface there (the load at puncture over the tent's depth),
 //!   so a needle driven straight along its own path still drags (published needle-tissue friction
@@ -24,6 +28,9 @@ use nalgebra::{Isometry3, Point3};
 
 use super::{NeedleArc, SurfacePoint};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
+
+/// A sliding hole keeps sliding while the needle moves through it more than this a tick, mm (1 mm/s at 1 kHz).
+const KINETIC_MM: f32 = 0.001;
 
 /// A hole the needle passes through.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -117,22 +124,31 @@ impl Hole {
         let along = pull.dot(&tangent);
         let across = pull - tangent * along;
         let limit = friction.max(0.0) * (across.norm() + self.squeeze_n);
-        self.sliding = along.abs() > limit;
-        let along = along.clamp(-limit, limit);
+        // The needle's angle at the point now: while the hole slides, how far the needle slid through it.
+        let theta_now = self.point.position_mm(model, state).and_then(|x| {
+            let local = (world_from_needle.inverse() * Point3::from(x)).coords;
+            let offset = arc.offset_of(&local);
+            let theta = offset.nearest.theta_rad + offset.along_mm / arc.radius_mm();
+            theta.is_finite().then_some(theta)
+        });
+        let slid_mm = theta_now.map_or(0.0, |t| (t - self.theta_rad) * arc.radius_mm());
+        // Static friction holds up to the limit; a sliding hole keeps sliding (kinetic friction, at the limit
+        // against the motion) while the needle moves through it faster than KINETIC_MM a tick.
+        let keeps_sliding = self.sliding && slid_mm.abs() > KINETIC_MM;
+        let along = if keeps_sliding && along.abs() <= limit {
+            limit.copysign(slid_mm)
+        } else {
+            along.clamp(-limit, limit)
+        };
+        self.sliding = keeps_sliding || pull.dot(&tangent).abs() > limit;
         self.force_n = across + tangent * along;
         if !self.force_n.iter().all(|c| c.is_finite()) {
             self.force_n = Vec3::zeros();
         }
         if self.sliding
-            && let Some(x) = self.point.position_mm(model, state)
+            && let Some(theta) = theta_now
         {
-            // Slid: the needle's angle at the point now.
-            let local = (world_from_needle.inverse() * Point3::from(x)).coords;
-            let offset = arc.offset_of(&local);
-            let theta = offset.nearest.theta_rad + offset.along_mm / arc.radius_mm();
-            if theta.is_finite() {
-                self.theta_rad = theta;
-            }
+            self.theta_rad = theta;
         }
     }
 }
