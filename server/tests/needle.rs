@@ -7,6 +7,10 @@
 
 #[path = "common/counting_allocator.rs"]
 mod counting_allocator;
+#[path = "common/tool_pose.rs"]
+mod tool_pose;
+
+use tool_pose::pose_command;
 
 use counting_allocator::{Counting, assert_counting_works, count_this_thread};
 
@@ -79,15 +83,8 @@ impl Driver {
         rotation: &UnitQuaternion<f32>,
         origin_mm: &Vector3<f32>,
     ) -> [ToolCommand; 2] {
-        let p = origin_mm - self.device_origin_mm;
-        let q = rotation.as_ref().coords;
         [
-            ToolCommand {
-                active: true,
-                position_device_mm: [p.x, p.y, p.z],
-                orientation_xyzw: [q.x, q.y, q.z, q.w],
-                ..ToolCommand::default()
-            },
+            pose_command(origin_mm, &self.device_origin_mm, rotation),
             ToolCommand::default(),
         ]
     }

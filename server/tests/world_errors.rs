@@ -1118,6 +1118,31 @@ fn a_needle_driver_and_the_puncture_keys_load_and_bad_ones_name_the_key_and_line
     .unwrap();
     let driver = *world.tools[0].instrument.needle_driver().unwrap();
     assert!((driver.grasp_at_rad - 60f32.to_radians()).abs() < 1e-6);
+    assert_eq!(driver.thread.length_mm, 150.0, "the default thread");
+    assert_eq!(driver.thread.segments, 64);
+    let world = load_world(&write_world(
+        &with("{ kind = \"needle_driver\", thread_length_mm = 200.0, thread_segments = 100 }"),
+        None,
+    ))
+    .unwrap();
+    let driver = *world.tools[0].instrument.needle_driver().unwrap();
+    assert_eq!(
+        (driver.thread.length_mm, driver.thread.segments),
+        (200.0, 100)
+    );
+    let world = load_world(&write_world(
+        &with("{ kind = \"needle_driver\", thread_length_mm = 0.0 }"),
+        None,
+    ))
+    .unwrap();
+    assert!(
+        !world.tools[0]
+            .instrument
+            .needle_driver()
+            .unwrap()
+            .thread
+            .is_some()
+    );
     for (instrument, key, says) in [
         (
             "{ kind = \"needle_driver\", needle_radius_mm = 0.5 }",
@@ -1143,6 +1168,26 @@ fn a_needle_driver_and_the_puncture_keys_load_and_bad_ones_name_the_key_and_line
             "{ kind = \"needle_driver\", slip_force_n = 0.5 }",
             "tools[0].instrument.slip_force_n",
             "a needle driver takes",
+        ),
+        (
+            "{ kind = \"needle_driver\", thread_segments = 3 }",
+            "tools[0].instrument.thread_segments",
+            "4 to 512",
+        ),
+        (
+            "{ kind = \"needle_driver\", thread_length_mm = 5.0 }",
+            "tools[0].instrument.thread_length_mm",
+            "10 to 1000 mm",
+        ),
+        (
+            "{ kind = \"needle_driver\", thread_length_mm = 300.0 }",
+            "tools[0].instrument.thread_length_mm",
+            "at most 2.5 mm each",
+        ),
+        (
+            "{ kind = \"needle_driver\", thread_length_mm = 150.0, thread_segments = 32 }",
+            "tools[0].instrument.thread_segments",
+            "segments of 4.69 mm",
         ),
     ] {
         let world = with(instrument);

@@ -8,8 +8,9 @@
 //! - the needle against the tissue ([`NeedleTissue`]: tenting, puncture on force and angle, the holes it
 //!   passes through; a material's [`PunctureSpec`]);
 //! - the path constraint: each [`Hole`] holds the needle on its path, and it slides through with friction;
-//! - the thread's chain held to length by a direct solve ([`ThreadChain`]), the core its bending, collisions
-//!   and holes will build on.
+//! - the thread's chain held to length by a direct solve ([`ThreadChain`]), with soft bending;
+//! - the thread on the needle's tail ([`SutureThread`]): it follows the needle, hangs and lies on the tissue
+//!   without passing into it.
 //!
 //! The rest of the thread and the stitches come next, each in its own file here, behind the tick's
 //! instrument extension point (`sim/instrument.rs`; the needle driver is `sim/instruments/needle_driver.rs`);
@@ -21,6 +22,7 @@ mod hole;
 mod needle;
 mod needle_arc;
 mod puncture;
+mod thread;
 mod thread_chain;
 mod tip_contact;
 
@@ -29,5 +31,8 @@ pub use hole::Hole;
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
 pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
+pub use thread::{
+    STANDARD_GRAVITY_MM_PER_S2, SutureThread, THREAD_DIAMETER_MM, ThreadObject, ThreadSpec,
+};
 pub use thread_chain::ThreadChain;
 pub use tip_contact::{SurfacePoint, TipContact};

@@ -174,7 +174,11 @@ impl Sim {
                     estimate: NormalStiffnessEstimate::default(),
                     friction: KineticFrictionEstimate::default(),
                 },
-                instrument_state: instrument::build_instrument(&spec.instrument, objects.len()),
+                instrument_state: instrument::build_instrument(
+                    &spec.instrument,
+                    objects.len(),
+                    Vec3::from(world.gravity_mm_per_s2),
+                ),
             });
         }
         // Multi-rate objects step as jobs that see each tool's body at its pose when the step leaves.

@@ -18,7 +18,7 @@ use std::fmt::Debug;
 
 use nalgebra::UnitQuaternion;
 
-use crate::interaction::suture::NeedleTissue;
+use crate::interaction::suture::{NeedleTissue, SutureThread};
 use crate::interaction::{Grasp, InstrumentSpec, Jaws};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -100,13 +100,19 @@ pub(crate) trait Instrument: Debug + Send + Sync {
     fn needle(&self) -> Option<&NeedleTissue> {
         None
     }
+
+    /// The thread on the needle, for a needle driver with one.
+    fn thread(&self) -> Option<&SutureThread> {
+        None
+    }
 }
 
-/// The implementation of an instrument descriptor, for a scene of `objects` objects (`None`: a probe, the
-/// body alone). Allocates (a scene is being built).
+/// The implementation of an instrument descriptor, for a scene of `objects` objects under the world's
+/// `gravity_mm_per_s2` (`None`: a probe, the body alone). Allocates (a scene is being built).
 pub(crate) fn build_instrument(
     spec: &InstrumentSpec,
     objects: usize,
+    gravity_mm_per_s2: Vec3,
 ) -> Option<Box<dyn Instrument>> {
     match spec {
         InstrumentSpec::Probe => None,
@@ -114,7 +120,9 @@ pub(crate) fn build_instrument(
         InstrumentSpec::Cautery(c) => Some(Box::new(CauteryTip::new(*c))),
         InstrumentSpec::Scalpel(s) => Some(Box::new(Scalpel::new(*s))),
         InstrumentSpec::Scissors(s) => Some(Box::new(Scissors::new(*s))),
-        InstrumentSpec::NeedleDriver(n) => Some(Box::new(NeedleDriver::new(*n, objects))),
+        InstrumentSpec::NeedleDriver(n) => {
+            Some(Box::new(NeedleDriver::new(*n, objects, gravity_mm_per_s2)))
+        }
     }
 }
 

@@ -151,6 +151,11 @@ impl SimTool {
         self.instrument_state.as_ref().and_then(|i| i.needle())
     }
 
+    /// A needle driver's thread (None for another instrument, or a needle without one).
+    pub fn thread(&self) -> Option<&crate::interaction::suture::SutureThread> {
+        self.instrument_state.as_ref().and_then(|i| i.thread())
+    }
+
     /// The nodes of object `object` the tool's instrument holds (sorted; none for most instruments).
     pub(super) fn attached_nodes(&self, object: usize) -> &[u32] {
         self.instrument_state

@@ -404,6 +404,10 @@ pub(crate) struct InstrumentSection {
     pub needle_diameter_mm: Option<f32>,
     /// Needle driver: where along the needle the jaws hold it, degrees from the tail.
     pub grasp_at_deg: Option<f32>,
+    /// Needle driver: the thread's length, mm (0: no thread).
+    pub thread_length_mm: Option<f32>,
+    /// Needle driver: the thread's segments.
+    pub thread_segments: Option<u16>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]

@@ -16,7 +16,7 @@
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
-use super::NeedleArc;
+use super::{NeedleArc, ThreadSpec};
 use crate::tissue::Vec3;
 
 /// A needle driver holding a curved needle.
@@ -31,6 +31,8 @@ pub struct NeedleDriverSpec {
     /// Where along the arc the jaws hold it: the angle from the tail, rad (surgeons load a needle a third to a
     /// half of the way from the swage).
     pub grasp_at_rad: f32,
+    /// The thread swaged to the needle's tail.
+    pub thread: ThreadSpec,
 }
 
 impl NeedleDriverSpec {
@@ -41,6 +43,7 @@ impl NeedleDriverSpec {
         arc: NeedleArc::IMSTK_DEFAULT,
         diameter_mm: 0.5,
         grasp_at_rad: 40.0 * std::f32::consts::PI / 180.0,
+        thread: ThreadSpec::DEFAULT,
     };
 
     /// The needle's pose in the tool frame while the jaws hold it (see the module doc).

@@ -34,6 +34,8 @@ pub struct ThreadChain {
     drag_per_s: f32,
     /// Each segment's tension at the last step, N.
     tension_n: Vec<f32>,
+    /// Bending stiffness of each hinge, N/mm (0: a rope; [`ThreadChain::set_bending`]).
+    bend_stiffness_n_per_mm: f32,
     // Scratch: the positions before the step, the directions, the system's diagonals and right-hand side.
     previous_mm: Vec<Vec3>,
     direction: Vec<Vec3>,
@@ -71,6 +73,7 @@ impl ThreadChain {
             rest_mm,
             drag_per_s,
             tension_n: vec![0.0; m],
+            bend_stiffness_n_per_mm: 0.0,
             previous_mm: vec![Vec3::zeros(); n],
             direction: vec![Vec3::zeros(); m],
             diag: vec![0.0; m],
@@ -90,6 +93,26 @@ impl ThreadChain {
                 1.0 / node_mass_kg
             };
         }
+    }
+
+    /// Resist bending with a flexural rigidity `ei_n_mm2` (N mm^2; 0 or less: none). Each interior node's
+    /// offset from its neighbours' midpoint, `C = x_i - (x_{i-1} + x_{i+1}) / 2`, is `l theta / 2` for a hinge
+    /// bent by `theta` between segments of length `l`, so an energy `EI theta^2 / (2 l)` is `k |C|^2 / 2` with
+    /// `k = 4 EI / l^3` (taken at the mean segment length).
+    pub fn set_bending(&mut self, ei_n_mm2: f32) {
+        let l = self.rest_length_mm() / self.rest_mm.len() as f32;
+        let k = 4.0 * ei_n_mm2 / (l * l * l);
+        self.bend_stiffness_n_per_mm = if k.is_finite() && k > 0.0 { k } else { 0.0 };
+    }
+
+    /// Where the nodes were before the current step's motion (the start of the last step), mm.
+    pub fn previous_mm(&self) -> &[Vec3] {
+        &self.previous_mm
+    }
+
+    /// The inverse mass of each node, 1/kg (0: held).
+    pub fn inverse_mass_per_kg(&self) -> &[f32] {
+        &self.inverse_mass_per_kg
     }
 
     /// Each segment's tension at the last step, N (its XPBD multiplier over the step squared).
@@ -114,6 +137,19 @@ impl ThreadChain {
     /// of the segments' constraints, then velocities from the motion. A step that would leave a non-finite
     /// value leaves the chain as it was. No allocation.
     pub fn step(&mut self, h_s: f32, gravity_mm_per_s2: &Vec3, newton: usize) {
+        self.step_with(h_s, gravity_mm_per_s2, newton, |_, _, _| {});
+    }
+
+    /// [`ThreadChain::step`], with the bending pass (if any) before the length solve, and `constrain` run
+    /// after it on (the positions at the step's start, the positions now, the inverse masses): contacts put
+    /// nodes back where they may be, and the velocities then follow from the corrected motion.
+    pub fn step_with(
+        &mut self,
+        h_s: f32,
+        gravity_mm_per_s2: &Vec3,
+        newton: usize,
+        mut constrain: impl FnMut(&[Vec3], &mut [Vec3], &[f32]),
+    ) {
         let n = self.positions_mm.len();
         if !(h_s > 0.0 && h_s.is_finite()) {
             return;
@@ -131,10 +167,16 @@ impl ThreadChain {
             self.velocities_mm_s[i] = self.velocities_mm_s[i] * drag + accel * h_s;
             self.positions_mm[i] += self.velocities_mm_s[i] * h_s;
         }
+        self.bend(h_s);
         self.lambda.fill(0.0);
         for _ in 0..newton.max(1) {
             self.solve_once(h_s);
         }
+        constrain(
+            &self.previous_mm,
+            &mut self.positions_mm,
+            &self.inverse_mass_per_kg,
+        );
         let finite = self
             .positions_mm
             .iter()
@@ -150,6 +192,39 @@ impl ThreadChain {
         // lambda is in N s^2 / kg-mm units of the mm-scaled system: tension = lambda / h^2 (see solve_once).
         for (t, l) in self.tension_n.iter_mut().zip(&self.lambda) {
             *t = -l / (h_s * h_s);
+        }
+    }
+
+    /// One Gauss-Seidel sweep of the hinges' XPBD constraints `C = x_i - (x_{i-1} + x_{i+1}) / 2` across the
+    /// chord `x_{i+1} - x_{i-1}` (a vector, gradients `I` and `-I/2` with the chord taken as fixed), each
+    /// starting from a zero multiplier: a soft constraint needs no more. The length solve that follows puts the
+    /// segments back to length.
+    fn bend(&mut self, h_s: f32) {
+        let k = self.bend_stiffness_n_per_mm;
+        if k <= 0.0 {
+            return;
+        }
+        let alpha = 1.0 / (k * h_s * h_s);
+        let n = self.positions_mm.len();
+        for i in 1..n.saturating_sub(1) {
+            let w = |j: usize| self.inverse_mass_per_kg[j] * MM_PER_M;
+            let (wa, wb, wc) = (w(i - 1), w(i), w(i + 1));
+            let effective = wb + 0.25 * (wa + wc);
+            if effective <= 0.0 {
+                continue;
+            }
+            let p = &mut self.positions_mm;
+            // Only the part across the chord is bending: along it, the midpoint offset is uneven stretch, which
+            // is the length solve's (left in, it would carry part of the chain's load).
+            let chord = (p[i + 1] - p[i - 1])
+                .try_normalize(1e-9)
+                .unwrap_or_else(Vec3::zeros);
+            let offset = p[i] - (p[i - 1] + p[i + 1]) * 0.5;
+            let c = offset - chord * chord.dot(&offset);
+            let dl = -c / (effective + alpha);
+            p[i] += dl * wb;
+            p[i - 1] -= dl * (0.5 * wa);
+            p[i + 1] -= dl * (0.5 * wc);
         }
     }
 

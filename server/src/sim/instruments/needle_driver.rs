@@ -10,9 +10,9 @@
 //! the pressed point is held at the tip and the holes hold the needle on its path; after the substeps the
 //! holes' forces are read (they stick or slide) and the tip punctures, skates or lifts off.
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 
-use crate::interaction::suture::{NeedleDriverSpec, NeedleTissue, TipPhase};
+use crate::interaction::suture::{NeedleDriverSpec, NeedleTissue, SutureThread, TipPhase};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 use super::super::instrument::Instrument;
@@ -23,15 +23,32 @@ use super::super::*;
 pub(in crate::sim) struct NeedleDriver {
     tool_from_needle: Isometry3<f32>,
     needle: NeedleTissue,
+    /// The thread on the needle's tail (None: a needle without one).
+    thread: Option<SutureThread>,
 }
 
 impl NeedleDriver {
-    /// Jaws holding the needle, touching nothing, in a scene of `objects` objects.
-    pub(in crate::sim) fn new(spec: NeedleDriverSpec, objects: usize) -> Self {
+    /// Jaws holding the needle, touching nothing, in a scene of `objects` objects whose world pulls the thread
+    /// down with `gravity_mm_per_s2` (zero: standard gravity down -z).
+    pub(in crate::sim) fn new(
+        spec: NeedleDriverSpec,
+        objects: usize,
+        gravity_mm_per_s2: Vec3,
+    ) -> Self {
         Self {
             tool_from_needle: spec.tool_from_needle(),
             needle: NeedleTissue::new(spec.arc, spec.diameter_mm, objects),
+            thread: SutureThread::new(spec.thread, gravity_mm_per_s2),
         }
+    }
+
+    /// The needle's tail (world, mm) and the way out of it behind the needle (unit), where the thread leaves.
+    fn tail(&self, world_from_needle: &Isometry3<f32>) -> (Vec3, Vec3) {
+        let tail = self.needle.arc().tail();
+        (
+            (world_from_needle * Point3::from(tail.point_mm)).coords,
+            -(world_from_needle * tail.tangent),
+        )
     }
 
     fn world_from_needle(
@@ -65,6 +82,9 @@ impl Instrument for NeedleDriver {
         let tool = &sim.tools[t];
         if !tool.active {
             report.attachments_released += self.needle.release();
+            if let Some(thread) = &mut self.thread {
+                thread.lift();
+            }
             return;
         }
         let pose = self.world_from_needle(&tool.position_mm, &tool.rotation);
@@ -74,7 +94,7 @@ impl Instrument for NeedleDriver {
         report.needle_holes_closed += events.holes_closed;
     }
 
-    fn after_substeps(&mut self, sim: &mut Sim, t: usize, _dt_s: f32, report: &mut StepReport) {
+    fn after_substeps(&mut self, sim: &mut Sim, t: usize, dt_s: f32, report: &mut StepReport) {
         let tool = &sim.tools[t];
         if !tool.active {
             return;
@@ -84,6 +104,14 @@ impl Instrument for NeedleDriver {
             .needle
             .after_substeps(&pose, needle_objects(sim), |o| sim.objects[o].puncture);
         report.punctures += events.punctures;
+        let (tail_mm, away) = self.tail(&pose);
+        if let Some(thread) = &mut self.thread {
+            if thread.is_laid_out() {
+                thread.step(dt_s, &tail_mm, sim.objects.len(), needle_objects(sim));
+            } else {
+                thread.lay_out(&tail_mm, &away);
+            }
+        }
     }
 
     fn attached_nodes(&self, object: usize) -> &[u32] {
@@ -111,7 +139,11 @@ impl Instrument for NeedleDriver {
     }
 
     fn force_on_tool_n(&self) -> Vec3 {
-        self.needle.force_on_needle_n()
+        let thread = self
+            .thread
+            .as_ref()
+            .map_or(Vec3::zeros(), SutureThread::pull_on_tail_n);
+        self.needle.force_on_needle_n() + thread
     }
 
     fn held_points(&self) -> u16 {
@@ -120,5 +152,9 @@ impl Instrument for NeedleDriver {
 
     fn needle(&self) -> Option<&NeedleTissue> {
         Some(&self.needle)
+    }
+
+    fn thread(&self) -> Option<&SutureThread> {
+        self.thread.as_ref()
     }
 }

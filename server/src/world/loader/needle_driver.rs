@@ -1,9 +1,10 @@
 //! A needle driver's keys: `instrument = { kind = "needle_driver", jaw_length_mm, needle_radius_mm,
-//! needle_sweep_deg, needle_diameter_mm, grasp_at_deg }`, each checked for its range.
+//! needle_sweep_deg, needle_diameter_mm, grasp_at_deg, thread_length_mm, thread_segments }`, each checked for
+//! its range.
 
 use toml::Spanned;
 
-use crate::interaction::suture::{NeedleArc, NeedleDriverSpec};
+use crate::interaction::suture::{NeedleArc, NeedleDriverSpec, ThreadSpec};
 use crate::world::file_format::InstrumentSection;
 
 use super::*;
@@ -69,6 +70,42 @@ impl Context<'_> {
             &mut grasp_at_deg,
         )?;
         spec.grasp_at_rad = grasp_at_deg.to_radians();
+        self.take_checked(
+            at,
+            &key("thread_length_mm"),
+            section.thread_length_mm,
+            |v| v == 0.0 || (10.0..=1000.0).contains(&v),
+            "must be 0 (no thread) or 10 to 1000 mm",
+            &mut spec.thread.length_mm,
+        )?;
+        if let Some(segments) = section.thread_segments {
+            self.check(
+                at,
+                &key("thread_segments"),
+                (4..=512).contains(&segments),
+                "must be 4 to 512",
+            )?;
+            spec.thread.segments = segments;
+        }
+        if spec.thread.is_some() && spec.thread.segment_mm() > ThreadSpec::MAX_SEGMENT_MM {
+            let named = if section.thread_segments.is_some() {
+                "thread_segments"
+            } else {
+                "thread_length_mm"
+            };
+            return Err(self.invalid(
+                at,
+                &key(named),
+                format!(
+                    "a thread of {} mm in {} segments has segments of {:.2} mm: at most {} mm each \
+                     (give more thread_segments)",
+                    spec.thread.length_mm,
+                    spec.thread.segments,
+                    spec.thread.segment_mm(),
+                    ThreadSpec::MAX_SEGMENT_MM
+                ),
+            ));
+        }
         Ok(crate::world::InstrumentSpec::NeedleDriver(spec))
     }
 }

@@ -292,6 +292,8 @@ impl Context<'_> {
             ("needle_sweep_deg", section.needle_sweep_deg.is_some()),
             ("needle_diameter_mm", section.needle_diameter_mm.is_some()),
             ("grasp_at_deg", section.grasp_at_deg.is_some()),
+            ("thread_length_mm", section.thread_length_mm.is_some()),
+            ("thread_segments", section.thread_segments.is_some()),
         ];
         let (takes, kind_says): (&[&str], &str) = match section.kind {
             InstrumentKindName::Probe => (
@@ -341,9 +343,11 @@ impl Context<'_> {
                     "needle_sweep_deg",
                     "needle_diameter_mm",
                     "grasp_at_deg",
+                    "thread_length_mm",
+                    "thread_segments",
                 ],
                 "a needle driver takes jaw_length_mm, needle_radius_mm, needle_sweep_deg, \
-                 needle_diameter_mm and grasp_at_deg",
+                 needle_diameter_mm, grasp_at_deg, thread_length_mm and thread_segments",
             ),
         };
         if let Some((name, _)) = given

@@ -1,0 +1,340 @@
+//! A suture thread swaged to a needle's tail: a chain of segments that follows the needle, hangs, bends a
+//! little and lies on the tissue without passing into it.
+//!
+//! Owns: [`ThreadSpec`] (length and segments, the world's keys), the thread's material constants and
+//! [`SutureThread`] (the [`ThreadChain`] with its first node on the needle's tail, and each node's contact with
+//! a surface). The needle driver steps it once a tick, after the tissue's substeps, in substeps of its own
+//! (`sim/instruments/needle_driver.rs`).
+//!
+//! A step:
+//! - the tail node moves on a straight line from last tick's tail to this tick's, a substep at a time (it is
+//!   held: it has no inverse mass);
+//! - the chain predicts under gravity and drag, bends back a little ([`ThreadChain::set_bending`]) and is held
+//!   to length by its direct solve;
+//! - **contacts** put each node back outside the tissue:
+//!   - continuous: a node whose path this substep entered a surface (`collision::crossing_nearest`, the
+//!     triangles as they are now) takes the point it crossed as its contact;
+//!   - resting: a node with a contact is kept at least the thread's radius out along that triangle's normal
+//!     now (a surface that moves up under a resting thread lifts it), with Coulomb friction on the substep's
+//!     motion along the surface (position-based: the sliding is cut by `mu` times the depth put back), and
+//!     its contact follows it across the surface (the surface point under it); it lets go when the node lifts
+//!     off or slides off the triangle's neighbourhood.
+//!
+//! One-way: the tissue holds the thread out, the thread's weight (a hundredth of a gram) does not press the
+//! tissue. Known gaps, in `docs/suturing.md`: a segment may cut across a sharp edge between two nodes outside
+//! it; a surface that sweeps over a node not resting on it is not seen; collisions with the tools and with
+//! itself are next.
+//!
+//! Must not: allocate once built, or panic on any input (a non-finite tail leaves the thread as it was).
+
+use super::{SurfacePoint, ThreadChain};
+use crate::collision::{SurfaceCollider, crossing_nearest};
+use crate::tissue::{MassSpringModel, TissueState, Vec3};
+
+/// Standard gravity, mm/s^2 (the thread's weight when the world's gravity is off: worlds are z up).
+pub const STANDARD_GRAVITY_MM_PER_S2: f32 = 9810.0;
+/// The thread's diameter, mm (a 3-0 suture is 0.20-0.25 mm).
+pub const THREAD_DIAMETER_MM: f32 = 0.25;
+/// Mass per length, kg/mm (nylon 3-0 is about 0.06 g/m, braided silk about 0.1).
+const LINEAR_DENSITY_KG_PER_MM: f32 = 1.0e-7;
+/// Axial rigidity EA, N: 5 N stretches it 0.5% (the acceptance allows 1%; real nylon stretches more, but a
+/// suture that visibly stretches reads as rubber).
+const AXIAL_RIGIDITY_N: f32 = 1000.0;
+/// Flexural rigidity EI, N mm^2: nylon (E about 3 GPa) 0.25 mm thick is 0.58.
+const BEND_RIGIDITY_N_MM2: f32 = 0.5;
+/// Air and wetness drag on every node, 1/s.
+const DRAG_PER_S: f32 = 5.0;
+/// Substeps of the thread per tick, and Newton steps of its length solve per substep.
+const SUBSTEPS: usize = 4;
+const NEWTON: usize = 2;
+/// Thread-tissue Coulomb coefficient (wet suture on skin).
+const SURFACE_FRICTION: f32 = 0.3;
+/// A resting node this far off its contact's plane beyond the radius has lifted off it, mm.
+const LIFT_MM: f32 = 0.5;
+/// A node this far across the surface from its contact point looks for the point under it, mm.
+const FOLLOW_MM: f32 = 0.3;
+/// A node this far across the surface from its contact point, with no surface under it, lets it go, mm.
+const SLID_OFF_MM: f32 = 2.0;
+/// The tree's query box is loosened by this much for a node's path, mm.
+const CROSSING_MARGIN_MM: f32 = 0.5;
+
+/// A thread's size (the world's keys `thread_length_mm`, `thread_segments`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThreadSpec {
+    /// Length, mm (0: no thread).
+    pub length_mm: f32,
+    /// Segments (each at most 2.5 mm long).
+    pub segments: u16,
+}
+
+impl ThreadSpec {
+    /// 150 mm in 64 segments of 2.34 mm (iMSTK uses 64 of about 2.3).
+    pub const DEFAULT: ThreadSpec = ThreadSpec {
+        length_mm: 150.0,
+        segments: 64,
+    };
+    /// No thread.
+    pub const NONE: ThreadSpec = ThreadSpec {
+        length_mm: 0.0,
+        segments: 0,
+    };
+    /// The longest segment allowed, mm.
+    pub const MAX_SEGMENT_MM: f32 = 2.5;
+
+    /// Each segment's rest length, mm.
+    pub fn segment_mm(&self) -> f32 {
+        self.length_mm / f32::from(self.segments.max(1))
+    }
+
+    /// A thread at all.
+    pub fn is_some(&self) -> bool {
+        self.segments > 0 && self.length_mm > 0.0
+    }
+}
+
+/// The object `o` a thread meets: its collider, model and state (None: not met).
+pub type ThreadObject<'a> = (&'a SurfaceCollider, &'a MassSpringModel, &'a TissueState);
+
+/// A thread on a needle's tail (module doc).
+#[derive(Debug, Clone)]
+pub struct SutureThread {
+    chain: ThreadChain,
+    /// Per node, the surface point it rests on.
+    contacts: Vec<Option<SurfacePoint>>,
+    segment_mm: f32,
+    gravity_mm_per_s2: Vec3,
+    /// The tail last tick (None: not laid out yet, or to be laid out again).
+    last_tail_mm: Option<Vec3>,
+}
+
+impl SutureThread {
+    /// A thread of `spec`, under `gravity_mm_per_s2` (zero: standard gravity down -z), not yet laid out. None
+    /// for no thread or one whose segments are longer than [`ThreadSpec::MAX_SEGMENT_MM`] (the loader refuses
+    /// those first).
+    pub fn new(spec: ThreadSpec, gravity_mm_per_s2: Vec3) -> Option<Self> {
+        let segment_mm = spec.segment_mm();
+        if !spec.is_some() || segment_mm.is_nan() || segment_mm > ThreadSpec::MAX_SEGMENT_MM {
+            return None;
+        }
+        let nodes: Vec<Vec3> = (0..=spec.segments)
+            .map(|i| Vec3::new(-segment_mm * f32::from(i), 0.0, 0.0))
+            .collect();
+        let mut chain = ThreadChain::new(
+            &nodes,
+            LINEAR_DENSITY_KG_PER_MM * segment_mm,
+            AXIAL_RIGIDITY_N,
+            DRAG_PER_S,
+        )?;
+        chain.set_held(0, true, 0.0);
+        chain.set_bending(BEND_RIGIDITY_N_MM2);
+        let gravity_mm_per_s2 = if gravity_mm_per_s2 == Vec3::zeros() {
+            Vec3::new(0.0, 0.0, -STANDARD_GRAVITY_MM_PER_S2)
+        } else {
+            gravity_mm_per_s2
+        };
+        Some(Self {
+            contacts: vec![None; nodes.len()],
+            chain,
+            segment_mm,
+            gravity_mm_per_s2,
+            last_tail_mm: None,
+        })
+    }
+
+    /// The nodes, tail first, mm.
+    pub fn nodes_mm(&self) -> &[Vec3] {
+        &self.chain.positions_mm
+    }
+
+    /// The chain (tensions, length).
+    pub fn chain(&self) -> &ThreadChain {
+        &self.chain
+    }
+
+    /// Nodes resting on a surface now.
+    pub fn resting_nodes(&self) -> usize {
+        self.contacts.iter().filter(|c| c.is_some()).count()
+    }
+
+    /// The thread's pull on the needle's tail, world, N (the first segment's tension along it).
+    pub fn pull_on_tail_n(&self) -> Vec3 {
+        let p = &self.chain.positions_mm;
+        let tension = self.chain.tension_n().first().copied().unwrap_or(0.0);
+        match (p[1] - p[0]).try_normalize(1e-9) {
+            Some(along) if tension.is_finite() => along * tension.max(0.0),
+            _ => Vec3::zeros(),
+        }
+    }
+
+    /// Lay the thread out straight and level from `tail_mm`, toward `away` (the way out of the tail) turned
+    /// square to gravity, at rest: when it is first placed, and when its needle comes back after a gap (a
+    /// thread laid along a tail pointing down would start inside whatever lies below). A non-finite input is
+    /// ignored.
+    pub fn lay_out(&mut self, tail_mm: &Vec3, away: &Vec3) {
+        let Some(down) = self.gravity_mm_per_s2.try_normalize(1e-6) else {
+            return;
+        };
+        let level = away - down * down.dot(away);
+        let Some(away) = level
+            .try_normalize(1e-3)
+            .or_else(|| down.cross(&Vec3::x()).try_normalize(1e-3))
+            .or_else(|| down.cross(&Vec3::y()).try_normalize(1e-3))
+        else {
+            return;
+        };
+        if !tail_mm.iter().all(|c| c.is_finite()) {
+            return;
+        }
+        for (i, p) in self.chain.positions_mm.iter_mut().enumerate() {
+            *p = tail_mm + away * (self.segment_mm * i as f32);
+        }
+        self.chain.velocities_mm_s.fill(Vec3::zeros());
+        self.contacts.fill(None);
+        self.last_tail_mm = Some(*tail_mm);
+    }
+
+    /// Forget where the tail was: the next [`SutureThread::step`] lays the thread out again.
+    pub fn lift(&mut self) {
+        self.last_tail_mm = None;
+    }
+
+    /// Whether it has been laid out.
+    pub fn is_laid_out(&self) -> bool {
+        self.last_tail_mm.is_some()
+    }
+
+    /// One tick of `dt_s` with the tail at `tail_mm` (from last tick's, on a straight line), against the
+    /// surfaces of `objects` objects (`object(o)`). A thread not laid out, or a non-finite tail, does nothing.
+    /// No allocation.
+    pub fn step<'a>(
+        &mut self,
+        dt_s: f32,
+        tail_mm: &Vec3,
+        objects: usize,
+        object: impl Fn(usize) -> Option<ThreadObject<'a>>,
+    ) {
+        let Some(from_tail) = self.last_tail_mm else {
+            return;
+        };
+        if !(dt_s > 0.0 && tail_mm.iter().all(|c| c.is_finite())) {
+            return;
+        }
+        let h_s = dt_s / SUBSTEPS as f32;
+        let contacts = &mut self.contacts;
+        for k in 1..=SUBSTEPS {
+            let s = k as f32 / SUBSTEPS as f32;
+            self.chain.positions_mm[0] = from_tail + (tail_mm - from_tail) * s;
+            self.chain
+                .step_with(h_s, &self.gravity_mm_per_s2, NEWTON, |before, now, w| {
+                    for i in 0..now.len() {
+                        if w[i] > 0.0 {
+                            keep_out(&before[i], &mut now[i], &mut contacts[i], objects, &object);
+                        }
+                    }
+                });
+        }
+        self.last_tail_mm = Some(*tail_mm);
+    }
+}
+
+/// A surface point's place and the outward unit normal of its triangle as the surface is now.
+fn place_and_normal(
+    point: &SurfacePoint,
+    model: &MassSpringModel,
+    state: &TissueState,
+) -> Option<(Vec3, Vec3)> {
+    let [a, b, c] = point
+        .corners(model)?
+        .map(|i| state.positions_mm.get(i as usize).copied());
+    let (a, b, c) = (a?, b?, c?);
+    let normal = (b - a).cross(&(c - a)).try_normalize(1e-12)?;
+    let w = point.barycentric;
+    Some((a * w[0] + b * w[1] + c * w[2], normal))
+}
+
+/// Put one node, which moved from `before` to `now` this substep, back outside the surfaces (module doc).
+fn keep_out<'a>(
+    before: &Vec3,
+    now: &mut Vec3,
+    contact: &mut Option<SurfacePoint>,
+    objects: usize,
+    object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
+) {
+    let radius_mm = 0.5 * THREAD_DIAMETER_MM;
+    // Continuous: the first surface its path entered.
+    let mut first: Option<(usize, crate::collision::SurfaceCrossing)> = None;
+    for o in 0..objects {
+        let Some((collider, model, state)) = object(o) else {
+            continue;
+        };
+        if let Some(hit) = crossing_nearest(
+            collider,
+            model.triangles(),
+            &state.positions_mm,
+            before,
+            now,
+            CROSSING_MARGIN_MM,
+            0.0,
+            Some(true),
+        ) && first.is_none_or(|(_, f)| hit.along < f.along)
+        {
+            first = Some((o, hit));
+        }
+    }
+    if let Some((o, hit)) = first {
+        *contact = Some(SurfacePoint {
+            object: o as u16,
+            triangle: hit.triangle,
+            barycentric: hit.barycentric,
+        });
+    }
+    let Some(point) = *contact else {
+        return;
+    };
+    let Some((collider, model, state)) = object(usize::from(point.object)) else {
+        *contact = None;
+        return;
+    };
+    let Some((place, normal)) = place_and_normal(&point, model, state) else {
+        *contact = None;
+        return;
+    };
+    let depth = (*now - place).dot(&normal);
+    let across = (*now - place) - normal * depth;
+    if depth > radius_mm + LIFT_MM || across.norm() > SLID_OFF_MM {
+        *contact = None;
+        return;
+    }
+    if depth < radius_mm {
+        let put_back = radius_mm - depth;
+        *now += normal * put_back;
+        // Coulomb, position-based: the substep's sliding is cut by mu times the depth put back.
+        let moved = *now - before;
+        let sliding = moved - normal * moved.dot(&normal);
+        let slide = sliding.norm();
+        let limit = SURFACE_FRICTION * put_back;
+        if slide > 0.0 {
+            *now -= sliding * (limit / slide).min(1.0);
+        }
+    }
+    // Follow across the surface: the point under the node now.
+    if across.norm() > FOLLOW_MM {
+        let reach = normal * (radius_mm + LIFT_MM + 1.0);
+        if let Some(under) = crossing_nearest(
+            collider,
+            model.triangles(),
+            &state.positions_mm,
+            &(*now + reach),
+            &(*now - reach),
+            CROSSING_MARGIN_MM,
+            0.5,
+            Some(true),
+        ) {
+            *contact = Some(SurfacePoint {
+                object: point.object,
+                triangle: under.triangle,
+                barycentric: under.barycentric,
+            });
+        }
+    }
+}

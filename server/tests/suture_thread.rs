@@ -1,0 +1,259 @@
+//! The thread on the suture world's needle, on virtual time: it hangs from the needle's tail at its length and
+//! carries its own weight; it follows the needle; it falls onto the skin, lies on it, and over 10,000 ticks of
+//! a randomly driven needle no node ever ends a tick inside the skin, the tick allocating nothing.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+#[path = "common/counting_allocator.rs"]
+mod counting_allocator;
+#[path = "common/tool_pose.rs"]
+mod tool_pose;
+
+use tool_pose::pose_command;
+
+use counting_allocator::{Counting, assert_counting_works, count_this_thread};
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use sinew_server::interaction::suture::{STANDARD_GRAVITY_MM_PER_S2, THREAD_DIAMETER_MM};
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::world::{InstrumentSpec, load_world};
+
+const DT_S: f32 = 0.001;
+
+/// The suture world's needle driver (tool 0), its shaft level along world +y, the needle's curve down.
+struct Driver {
+    sim: Sim,
+    device_origin_mm: Vector3<f32>,
+    /// The needle's tail in the tool frame.
+    tail_tool_mm: Vector3<f32>,
+    thread_length_mm: f32,
+}
+
+impl Driver {
+    fn new() -> Self {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
+        let world = load_world(&path).unwrap();
+        let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
+            panic!("tool 0 of the suture world is not a needle driver");
+        };
+        Self {
+            device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
+            tail_tool_mm: (spec.tool_from_needle() * Point3::from(spec.arc.tail().point_mm)).coords,
+            thread_length_mm: spec.thread.length_mm,
+            sim: Sim::new(&world).unwrap(),
+        }
+    }
+
+    fn level() -> UnitQuaternion<f32> {
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f32::consts::FRAC_PI_2)
+    }
+
+    /// One tick with the tool's origin commanded to `origin_mm` (world) at `rotation`.
+    fn step(&mut self, origin_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>) -> ToolOutput {
+        let command = [
+            pose_command(origin_mm, &self.device_origin_mm, rotation),
+            ToolCommand::default(),
+        ];
+        let mut out = [ToolOutput::default(); 2];
+        let report = self.sim.step(DT_S, &command, &mut out);
+        assert_eq!(report.faults, 0, "the guard reset the tissue");
+        assert!(out[0].force_world_n.iter().all(|c| c.is_finite()));
+        out[0]
+    }
+
+    fn nodes(&self) -> &[Vector3<f32>] {
+        self.sim.tools[0].thread().unwrap().nodes_mm()
+    }
+
+    /// The needle's tail where the tool is now (world).
+    fn tail_now(&self) -> Vector3<f32> {
+        let tool = &self.sim.tools[0];
+        let pose = Isometry3::from_parts(Translation3::from(tool.position_mm), tool.rotation);
+        (pose * Point3::from(self.tail_tool_mm)).coords
+    }
+
+    fn length_mm(&self) -> f32 {
+        self.sim.tools[0].thread().unwrap().chain().length_mm()
+    }
+}
+
+/// How far inside the skin block (40 x 30 x 10 mm, top face on z = 0, every side but the top fixed) a point
+/// lies, mm (negative: outside). The needle is kept off the skin, so the block stays at rest.
+fn depth_in_block_mm(p: &Vector3<f32>) -> f32 {
+    (20.0 - p.x.abs())
+        .min(15.0 - p.y.abs())
+        .min(-p.z)
+        .min(p.z + 10.0)
+}
+
+#[test]
+fn a_thread_hangs_from_the_needles_tail_at_its_length_and_carries_its_weight() {
+    let mut d = Driver::new();
+    let level = Driver::level();
+    // Well clear of the skin block (which spans x -20..20).
+    let origin = Vector3::new(-80.0, 0.0, 100.0);
+    // Laid out level, it swings down and settles; the tension is read over the last second (its mean
+    // carries the weight whatever swing is left).
+    let mut tension_sum = 0.0f64;
+    for tick in 0..4000 {
+        d.step(&origin, &level);
+        if tick >= 3000 {
+            tension_sum += f64::from(d.sim.tools[0].thread().unwrap().chain().tension_n()[0]);
+        }
+    }
+    let nodes = d.nodes().to_vec();
+    let tail = d.tail_now();
+    assert!(
+        (nodes[0] - tail).norm() < 1e-4,
+        "the thread's first node {:?} is not on the needle's tail {tail:?}",
+        nodes[0]
+    );
+    let end = nodes[nodes.len() - 1];
+    let length = d.length_mm();
+    println!(
+        "hanging: length {length:.3} mm of {}, end {:.2} mm below the tail and {:.3} mm off its vertical",
+        d.thread_length_mm,
+        tail.z - end.z,
+        (end - tail).xy().norm()
+    );
+    assert!((length - d.thread_length_mm).abs() <= 0.01 * d.thread_length_mm);
+    assert!(
+        tail.z - end.z > 0.98 * d.thread_length_mm,
+        "it does not hang straight down"
+    );
+    assert!((end - tail).xy().norm() < 2.0);
+    // The first segment carries the weight of every node below it.
+    let thread = d.sim.tools[0].thread().unwrap();
+    let free_nodes = (nodes.len() - 1) as f32;
+    let node_kg = 1.0e-7 * d.thread_length_mm / free_nodes;
+    let weight_n = free_nodes * node_kg * STANDARD_GRAVITY_MM_PER_S2 / 1000.0;
+    let tension = (tension_sum / 1000.0) as f32;
+    println!("mean tension at the tail {tension:.3e} N, weight {weight_n:.3e} N");
+    assert!(
+        (tension - weight_n).abs() < 0.1 * weight_n,
+        "tension {tension} N against a weight of {weight_n} N"
+    );
+    // The needle driver feels it, straight down.
+    let pull = thread.pull_on_tail_n();
+    assert!(pull.z < 0.0 && pull.xy().norm() < 0.05 * pull.norm());
+}
+
+#[test]
+fn a_thread_follows_its_needle_at_its_length() {
+    let mut d = Driver::new();
+    let level = Driver::level();
+    let start = Vector3::new(-80.0, 0.0, 100.0);
+    for _ in 0..500 {
+        d.step(&start, &level);
+    }
+    // 100 mm across in a second, then a turn of the wrist, then back.
+    let mut longest = 0.0f32;
+    for k in 0..2000 {
+        let s = (k as f32 / 1000.0).min(1.0);
+        let origin = start + Vector3::new(0.0, 100.0 * s, 0.0);
+        let turn = UnitQuaternion::from_axis_angle(
+            &Vector3::z_axis(),
+            (k as f32 / 1000.0 - 1.0).max(0.0) * 1.5,
+        );
+        d.step(&origin, &(turn * level));
+        assert!((d.nodes()[0] - d.tail_now()).norm() < 1e-3);
+        longest = longest.max(d.length_mm());
+    }
+    println!("longest while following: {longest:.3} mm");
+    assert!(longest <= 1.01 * d.thread_length_mm);
+    // It trails behind the needle: its end is no longer below the start.
+    let end = d.nodes()[d.nodes().len() - 1];
+    assert!(end.y > 20.0, "the thread's end stayed behind at {end:?}");
+}
+
+/// A small xorshift: the test's randomness, the same every run.
+struct Random(u64);
+
+impl Random {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    fn between(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.next()
+    }
+}
+
+#[test]
+fn a_thread_lies_on_the_skin_and_never_passes_into_it_over_10000_random_ticks() {
+    assert_counting_works();
+    let mut d = Driver::new();
+    let level = Driver::level();
+    // Laid out level from over the block's middle and let fall onto it.
+    let mut origin = Vector3::new(0.0, 0.0, 30.0);
+    for _ in 0..1500 {
+        d.step(&origin, &level);
+    }
+    let thread = d.sim.tools[0].thread().unwrap();
+    let resting = thread.resting_nodes();
+    // Laid out level toward -x, most of its 150 mm lies beyond the 40 mm block: it slides over the edge and
+    // hangs down the side, still resting on the edge.
+    println!("after falling: {resting} nodes resting on the skin");
+    assert!(resting >= 1, "the thread fell past the skin");
+    let radius = 0.5 * THREAD_DIAMETER_MM;
+    let deepest = |d: &Driver| {
+        d.nodes()
+            .iter()
+            .map(depth_in_block_mm)
+            .fold(f32::NEG_INFINITY, f32::max)
+    };
+    assert!(deepest(&d) <= -0.9 * radius);
+    // A random walk of the needle above the skin: targets anywhere over the block and beyond, reached at 100
+    // to 400 mm/s, the wrist turned about the vertical; the needle (its lowest point 21 mm below the tool)
+    // stays 4 mm above the skin, the thread drags over it, falls off its sides and is flung back on.
+    let mut random = Random(0x5eed_1234_abcd_9876);
+    let mut target = origin;
+    let mut yaw = 0.0f32;
+    let mut yaw_target = 0.0f32;
+    let mut worst = f32::NEG_INFINITY;
+    let mut worst_tick = 0;
+    let mut allocations = 0;
+    let mut ticks_resting = 0;
+    for tick in 0..10_000 {
+        if (target - origin).norm() < 0.5 {
+            target = Vector3::new(
+                random.between(-35.0, 35.0),
+                random.between(-30.0, 30.0),
+                random.between(25.0, 45.0),
+            );
+            yaw_target = random.between(-2.0, 2.0);
+        }
+        // 100 mm/s in the first quarter, 400 mm/s in the last.
+        let speed_mm_per_tick = 0.1 * (1 + tick / 2500) as f32;
+        let to = target - origin;
+        origin += to * (speed_mm_per_tick / to.norm()).min(1.0);
+        yaw += (yaw_target - yaw).clamp(-0.003, 0.003);
+        let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * level;
+        allocations += count_this_thread(|| {
+            d.step(&origin, &rotation);
+        });
+        let depth = deepest(&d);
+        if depth > worst {
+            worst = depth;
+            worst_tick = tick;
+        }
+        if d.sim.tools[0].thread().unwrap().resting_nodes() > 0 {
+            ticks_resting += 1;
+        }
+    }
+    println!(
+        "10,000 random ticks: deepest node {worst:.4} mm into the skin (tick {worst_tick}; negative: outside), \
+         {ticks_resting} ticks with the thread resting on it, {allocations} allocations"
+    );
+    assert!(
+        worst <= 0.0,
+        "a node ended a tick {worst} mm inside the skin at tick {worst_tick}"
+    );
+    assert!(ticks_resting > 5000, "the thread seldom touched the skin");
+    assert_eq!(allocations, 0, "the ticks allocated");
+}
