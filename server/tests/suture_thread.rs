@@ -1,6 +1,7 @@
 //! The thread on the suture world's needle, on virtual time: it hangs from the needle's tail at its length and
 //! carries its own weight; it follows the needle; it falls onto the skin, lies on it, and over 10,000 ticks of
-//! a randomly driven needle no node ever ends a tick inside the skin, the tick allocating nothing.
+//! a randomly driven needle and a grasper chasing the thread no node ever ends a tick inside the skin or a tool,
+//! the ticks allocating nothing.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 #[path = "common/counting_allocator.rs"]
@@ -26,6 +27,7 @@ const DT_S: f32 = 0.001;
 struct Driver {
     sim: Sim,
     device_origin_mm: Vector3<f32>,
+    grasper_origin_mm: Vector3<f32>,
     /// The needle's tail in the tool frame.
     tail_tool_mm: Vector3<f32>,
     thread_length_mm: f32,
@@ -40,6 +42,7 @@ impl Driver {
         };
         Self {
             device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
+            grasper_origin_mm: Vector3::from(world.tools[1].device_origin_in_world_mm),
             tail_tool_mm: (spec.tool_from_needle() * Point3::from(spec.arc.tail().point_mm)).coords,
             thread_length_mm: spec.thread.length_mm,
             sim: Sim::new(&world).unwrap(),
@@ -50,11 +53,24 @@ impl Driver {
         UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f32::consts::FRAC_PI_2)
     }
 
-    /// One tick with the tool's origin commanded to `origin_mm` (world) at `rotation`.
+    /// One tick with the tool's origin commanded to `origin_mm` (world) at `rotation`, the grasper away.
     fn step(&mut self, origin_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>) -> ToolOutput {
+        self.step_both(origin_mm, rotation, None)
+    }
+
+    /// One tick with the needle driver at `origin_mm`, `rotation` and the grasper (upright) at `grasper_mm`.
+    fn step_both(
+        &mut self,
+        origin_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        grasper_mm: Option<&Vector3<f32>>,
+    ) -> ToolOutput {
+        let grasper = grasper_mm.map_or(ToolCommand::default(), |at| {
+            pose_command(at, &self.grasper_origin_mm, &UnitQuaternion::identity())
+        });
         let command = [
             pose_command(origin_mm, &self.device_origin_mm, rotation),
-            ToolCommand::default(),
+            grasper,
         ];
         let mut out = [ToolOutput::default(); 2];
         let report = self.sim.step(DT_S, &command, &mut out);
@@ -77,6 +93,22 @@ impl Driver {
     fn length_mm(&self) -> f32 {
         self.sim.tools[0].thread().unwrap().chain().length_mm()
     }
+}
+
+/// How far inside the suture world's tools a point lies, mm (negative: outside): the needle driver's 1 mm
+/// sphere at its origin, the grasper's capsule (3 mm half length along its z, 1.5 mm radius), each where the
+/// sim has it now.
+fn depth_in_tools_mm(sim: &Sim, p: &Vector3<f32>) -> f32 {
+    let driver = &sim.tools[0];
+    let in_driver = 1.0 - (p - driver.position_mm).norm();
+    let grasper = &sim.tools[1];
+    if !grasper.active {
+        return in_driver;
+    }
+    let axis = grasper.rotation * Vector3::z();
+    let along = (p - grasper.position_mm).dot(&axis).clamp(-3.0, 3.0);
+    let core = grasper.position_mm + axis * along;
+    in_driver.max(1.5 - (p - core).norm())
 }
 
 /// How far inside the skin block (40 x 30 x 10 mm, top face on z = 0, every side but the top fixed) a point
@@ -185,7 +217,7 @@ impl Random {
 }
 
 #[test]
-fn a_thread_lies_on_the_skin_and_never_passes_into_it_over_10000_random_ticks() {
+fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_random_ticks() {
     assert_counting_works();
     let mut d = Driver::new();
     let level = Driver::level();
@@ -215,6 +247,12 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_over_10000_random_ticks() 
     let mut target = origin;
     let mut yaw = 0.0f32;
     let mut yaw_target = 0.0f32;
+    // The grasper wanders too, from one of the thread's nodes to another, above the skin (its capsule's
+    // bottom at least 0.5 mm over it).
+    let mut grasper = Vector3::new(20.0, 20.0, 20.0);
+    let mut grasper_target = grasper;
+    let mut worst_in_tools = f32::NEG_INFINITY;
+    let mut ticks_touching_tools = 0;
     let mut worst = f32::NEG_INFINITY;
     let mut worst_tick = 0;
     let mut allocations = 0;
@@ -234,9 +272,29 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_over_10000_random_ticks() 
         origin += to * (speed_mm_per_tick / to.norm()).min(1.0);
         yaw += (yaw_target - yaw).clamp(-0.003, 0.003);
         let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * level;
+        if (grasper_target - grasper).norm() < 0.5 {
+            // Through where a random node of the thread is now, kept 5 mm over the skin's top.
+            let node = d.nodes()[1 + (random.next() * 63.0) as usize];
+            grasper_target = Vector3::new(
+                node.x + random.between(-2.0, 2.0),
+                node.y + random.between(-2.0, 2.0),
+                node.z.max(5.0),
+            );
+        }
+        let to = grasper_target - grasper;
+        grasper += to * (speed_mm_per_tick / to.norm()).min(1.0);
         allocations += count_this_thread(|| {
-            d.step(&origin, &rotation);
+            d.step_both(&origin, &rotation, Some(&grasper));
         });
+        let in_tools = d
+            .nodes()
+            .iter()
+            .map(|p| depth_in_tools_mm(&d.sim, p))
+            .fold(f32::NEG_INFINITY, f32::max);
+        worst_in_tools = worst_in_tools.max(in_tools);
+        if in_tools > -0.5 * THREAD_DIAMETER_MM - 0.01 {
+            ticks_touching_tools += 1;
+        }
         let depth = deepest(&d);
         if depth > worst {
             worst = depth;
@@ -248,7 +306,16 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_over_10000_random_ticks() 
     }
     println!(
         "10,000 random ticks: deepest node {worst:.4} mm into the skin (tick {worst_tick}; negative: outside), \
-         {ticks_resting} ticks with the thread resting on it, {allocations} allocations"
+         {ticks_resting} ticks with the thread resting on it, {allocations} allocations; deepest into a tool \
+         {worst_in_tools:.4} mm, {ticks_touching_tools} ticks with a tool touching the thread"
+    );
+    assert!(
+        worst_in_tools <= 0.0,
+        "a node ended a tick {worst_in_tools} mm inside a tool"
+    );
+    assert!(
+        ticks_touching_tools > 100,
+        "the tools seldom met the thread"
     );
     assert!(
         worst <= 0.0,

@@ -247,6 +247,39 @@ impl ToolCollider {
 
     /// Closest point to `p` on the tool's core (ball centre, capsule segment): both shapes are swept spheres,
     /// so the outward normal at a surface point is the direction from its core point.
+    /// Where `point_mm` must go to lie `clearance_mm` clear of the tool's surface, by the nearest way out
+    /// (parry's projection onto the surface); None when it already does, or when no way out can be told (a
+    /// point exactly on a mesh tool's surface). A thin body (a thread's node) meeting the tool. No allocation,
+    /// never non-finite.
+    pub fn keep_clear(
+        &self,
+        position_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        point_mm: &Vector3<f32>,
+        clearance_mm: f32,
+    ) -> Option<Vector3<f32>> {
+        let projection =
+            self.shape()
+                .project_point(&pose(position_mm, rotation), to_parry(point_mm), false);
+        let surface = from_parry(projection.point);
+        let offset = point_mm - surface;
+        let distance = offset.norm();
+        if !projection.is_inside && distance >= clearance_mm {
+            return None;
+        }
+        let outward = if distance > 1e-6 {
+            if projection.is_inside {
+                -offset / distance
+            } else {
+                offset / distance
+            }
+        } else {
+            (surface - self.core_point(position_mm, rotation, &surface)).try_normalize(1e-9)?
+        };
+        let to = surface + outward * clearance_mm.max(0.0);
+        to.iter().all(|c| c.is_finite()).then_some(to)
+    }
+
     fn core_point(
         &self,
         position_mm: &Vector3<f32>,

@@ -33,6 +33,7 @@ pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
 pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
 pub use thread::{
     STANDARD_GRAVITY_MM_PER_S2, SutureThread, THREAD_DIAMETER_MM, ThreadObject, ThreadSpec,
+    ThreadTool,
 };
 pub use thread_chain::ThreadChain;
 pub use tip_contact::{SurfacePoint, TipContact};

@@ -1,5 +1,5 @@
 //! A suture thread swaged to a needle's tail: a chain of segments that follows the needle, hangs, bends a
-//! little and lies on the tissue without passing into it.
+//! little and lies on the tissue and against the tools without passing into them.
 //!
 //! Owns: [`ThreadSpec`] (length and segments, the world's keys), the thread's material constants and
 //! [`SutureThread`] (the [`ThreadChain`] with its first node on the needle's tail, and each node's contact with
@@ -11,9 +11,13 @@
 //!   held: it has no inverse mass);
 //! - the chain predicts under gravity and drag, bends back a little ([`ThreadChain::set_bending`]) and is held
 //!   to length by its direct solve;
-//! - **contacts** put each node back outside the tissue:
+//! - **tools**: a node within the thread's radius of a tool's tip or shaft (at its pose this tick) goes to that
+//!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction;
+//! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
+//!   skin stays out of the skin):
 //!   - continuous: a node whose path this substep entered a surface (`collision::crossing_nearest`, the
-//!     triangles as they are now) takes the point it crossed as its contact;
+//!     triangles as they are now) takes the point it crossed as its contact, and goes back out however far
+//!     past it it went;
 //!   - resting: a node with a contact is kept at least the thread's radius out along that triangle's normal
 //!     now (a surface that moves up under a resting thread lifts it), with Coulomb friction on the substep's
 //!     motion along the surface (position-based: the sliding is cut by `mu` times the depth put back), and
@@ -22,13 +26,15 @@
 //!
 //! One-way: the tissue holds the thread out, the thread's weight (a hundredth of a gram) does not press the
 //! tissue. Known gaps, in `docs/suturing.md`: a segment may cut across a sharp edge between two nodes outside
-//! it; a surface that sweeps over a node not resting on it is not seen; collisions with the tools and with
-//! itself are next.
+//! it; a surface that sweeps over a node not resting on it is not seen; a tool faster than about a millimetre
+//! a tick can carry a node through itself; collisions with itself are next.
 //!
 //! Must not: allocate once built, or panic on any input (a non-finite tail leaves the thread as it was).
 
+use nalgebra::UnitQuaternion;
+
 use super::{SurfacePoint, ThreadChain};
-use crate::collision::{SurfaceCollider, crossing_nearest};
+use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 /// Standard gravity, mm/s^2 (the thread's weight when the world's gravity is off: worlds are z up).
@@ -94,6 +100,9 @@ impl ThreadSpec {
 
 /// The object `o` a thread meets: its collider, model and state (None: not met).
 pub type ThreadObject<'a> = (&'a SurfaceCollider, &'a MassSpringModel, &'a TissueState);
+
+/// A tool part a thread meets: its collider and its pose this tick (origin, mm, and rotation).
+pub type ThreadTool<'a> = (&'a ToolCollider, Vec3, UnitQuaternion<f32>);
 
 /// A thread on a needle's tail (module doc).
 #[derive(Debug, Clone)]
@@ -204,12 +213,15 @@ impl SutureThread {
     }
 
     /// One tick of `dt_s` with the tail at `tail_mm` (from last tick's, on a straight line), against the
-    /// surfaces of `objects` objects (`object(o)`). A thread not laid out, or a non-finite tail, does nothing.
-    /// No allocation.
-    pub fn step<'a>(
+    /// tool parts `tool(0..tools)` at their poses this tick and then the surfaces of `objects` objects
+    /// (`object(o)`). A thread not laid out, or a non-finite tail, does nothing. No allocation.
+    #[allow(clippy::too_many_arguments)] // the tail, and what the thread meets: tools and objects
+    pub fn step<'a, 'b>(
         &mut self,
         dt_s: f32,
         tail_mm: &Vec3,
+        tools: usize,
+        tool: impl Fn(usize) -> Option<ThreadTool<'b>>,
         objects: usize,
         object: impl Fn(usize) -> Option<ThreadObject<'a>>,
     ) {
@@ -228,6 +240,7 @@ impl SutureThread {
                 .step_with(h_s, &self.gravity_mm_per_s2, NEWTON, |before, now, w| {
                     for i in 0..now.len() {
                         if w[i] > 0.0 {
+                            keep_clear_of_tools(&mut now[i], tools, &tool);
                             keep_out(&before[i], &mut now[i], &mut contacts[i], objects, &object);
                         }
                     }
@@ -250,6 +263,27 @@ fn place_and_normal(
     let normal = (b - a).cross(&(c - a)).try_normalize(1e-12)?;
     let w = point.barycentric;
     Some((a * w[0] + b * w[1] + c * w[2], normal))
+}
+
+/// Put one node out of the tool parts, the thread's radius clear of each (nearest way out, no friction).
+fn keep_clear_of_tools<'b>(
+    now: &mut Vec3,
+    tools: usize,
+    tool: &impl Fn(usize) -> Option<ThreadTool<'b>>,
+) {
+    let radius_mm = 0.5 * THREAD_DIAMETER_MM;
+    for k in 0..tools {
+        let Some((collider, position_mm, rotation)) = tool(k) else {
+            continue;
+        };
+        let near = collider.aabb(&position_mm, &rotation, radius_mm);
+        if !near.contains_local_point(crate::collision::glam_boundary::to_parry(now)) {
+            continue;
+        }
+        if let Some(to) = collider.keep_clear(&position_mm, &rotation, now, radius_mm) {
+            *now = to;
+        }
+    }
 }
 
 /// Put one node, which moved from `before` to `now` this substep, back outside the surfaces (module doc).
@@ -281,6 +315,7 @@ fn keep_out<'a>(
             first = Some((o, hit));
         }
     }
+    let entered = first.is_some();
     if let Some((o, hit)) = first {
         *contact = Some(SurfacePoint {
             object: o as u16,
@@ -301,7 +336,9 @@ fn keep_out<'a>(
     };
     let depth = (*now - place).dot(&normal);
     let across = (*now - place) - normal * depth;
-    if depth > radius_mm + LIFT_MM || across.norm() > SLID_OFF_MM {
+    // A node that entered this substep goes back out however far it went (a fast one may be millimetres past
+    // the point it crossed); a resting one may have lifted off or slid past the triangle's edge.
+    if !entered && (depth > radius_mm + LIFT_MM || across.norm() > SLID_OFF_MM) {
         *contact = None;
         return;
     }

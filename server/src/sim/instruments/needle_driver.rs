@@ -77,6 +77,22 @@ fn needle_objects<'a>(
     }
 }
 
+/// The tool parts a thread meets: part `2 t` is tool `t`'s tip, `2 t + 1` its shaft (released tools, and a
+/// tool without a shaft, have none).
+fn tool_parts<'a>(
+    sim: &'a Sim,
+) -> impl Fn(usize) -> Option<crate::interaction::suture::ThreadTool<'a>> + 'a {
+    |k| {
+        let tool = sim.tools.get(k / 2).filter(|t| t.active)?;
+        let collider = if k % 2 == 0 {
+            &tool.body.collider
+        } else {
+            tool.body.shaft.as_ref()?
+        };
+        Some((collider, tool.position_mm, tool.rotation))
+    }
+}
+
 impl Instrument for NeedleDriver {
     fn before_contacts(&mut self, sim: &mut Sim, t: usize, _dt_s: f32, report: &mut StepReport) {
         let tool = &sim.tools[t];
@@ -107,7 +123,14 @@ impl Instrument for NeedleDriver {
         let (tail_mm, away) = self.tail(&pose);
         if let Some(thread) = &mut self.thread {
             if thread.is_laid_out() {
-                thread.step(dt_s, &tail_mm, sim.objects.len(), needle_objects(sim));
+                thread.step(
+                    dt_s,
+                    &tail_mm,
+                    2 * sim.tools.len(),
+                    tool_parts(sim),
+                    sim.objects.len(),
+                    needle_objects(sim),
+                );
             } else {
                 thread.lay_out(&tail_mm, &away);
             }
