@@ -17,6 +17,7 @@ use counting_allocator::{Counting, assert_counting_works, count_this_thread};
 static GLOBAL: Counting = Counting;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use sinew_server::interaction::suture::thread_self_contact::closest_params;
 use sinew_server::interaction::suture::{STANDARD_GRAVITY_MM_PER_S2, THREAD_DIAMETER_MM};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{InstrumentSpec, load_world};
@@ -109,6 +110,39 @@ fn depth_in_tools_mm(sim: &Sim, p: &Vector3<f32>) -> f32 {
     let along = (p - grasper.position_mm).dot(&axis).clamp(-3.0, 3.0);
     let core = grasper.position_mm + axis * along;
     in_driver.max(1.5 - (p - core).norm())
+}
+
+/// Over the thread's pairs of segments that share no node: the least distance between them, and how many pairs
+/// passed through each other since `gaps` (each pair's closest-approach vector at the last call, updated): a
+/// pair near each other (within 1 mm) both times, their closest points inside both segments, whose
+/// closest-approach vector turned round (a negative dot product).
+fn self_contact(nodes: &[Vector3<f32>], gaps: &mut [Option<Vector3<f32>>]) -> (f32, u32) {
+    let segments = nodes.len() - 1;
+    let mut least = f32::INFINITY;
+    let mut passed = 0;
+    for i in 0..segments {
+        for j in i + 2..segments {
+            let slot = &mut gaps[i * segments + j];
+            let Some((s, t)) = closest_params(&nodes[i], &nodes[i + 1], &nodes[j], &nodes[j + 1])
+            else {
+                *slot = None;
+                continue;
+            };
+            let gap = (nodes[i] + (nodes[i + 1] - nodes[i]) * s)
+                - (nodes[j] + (nodes[j + 1] - nodes[j]) * t);
+            least = least.min(gap.norm());
+            let inside = s > 0.01 && s < 0.99 && t > 0.01 && t < 0.99;
+            let near = gap.norm() < 1.0 && inside;
+            if let Some(was) = *slot
+                && near
+                && gap.dot(&was) < 0.0
+            {
+                passed += 1;
+            }
+            *slot = near.then_some(gap);
+        }
+    }
+    (least, passed)
 }
 
 /// How far inside the skin block (40 x 30 x 10 mm, top face on z = 0, every side but the top fixed) a point
@@ -255,6 +289,11 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
     let mut ticks_touching_tools = 0;
     let mut worst = f32::NEG_INFINITY;
     let mut worst_tick = 0;
+    let segments = d.nodes().len() - 1;
+    let mut gaps = vec![None; segments * segments];
+    let mut least_apart = f32::INFINITY;
+    let mut passed_through = 0;
+    let mut ticks_self_touching = 0;
     let mut allocations = 0;
     let mut ticks_resting = 0;
     for tick in 0..10_000 {
@@ -295,6 +334,12 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
         if in_tools > -0.5 * THREAD_DIAMETER_MM - 0.01 {
             ticks_touching_tools += 1;
         }
+        let (least, passed) = self_contact(d.nodes(), &mut gaps);
+        least_apart = least_apart.min(least);
+        passed_through += passed;
+        if d.sim.tools[0].thread().unwrap().pairs_held_apart() > 0 {
+            ticks_self_touching += 1;
+        }
         let depth = deepest(&d);
         if depth > worst {
             worst = depth;
@@ -307,8 +352,18 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
     println!(
         "10,000 random ticks: deepest node {worst:.4} mm into the skin (tick {worst_tick}; negative: outside), \
          {ticks_resting} ticks with the thread resting on it, {allocations} allocations; deepest into a tool \
-         {worst_in_tools:.4} mm, {ticks_touching_tools} ticks with a tool touching the thread"
+         {worst_in_tools:.4} mm, {ticks_touching_tools} ticks with a tool touching the thread; segments at \
+         least {least_apart:.4} mm apart, {passed_through} pairs passed through each other, {ticks_self_touching} \
+         ticks with the thread touching itself"
     );
+    assert_eq!(passed_through, 0, "the thread passed through itself");
+    assert!(
+        least_apart > 0.5 * THREAD_DIAMETER_MM,
+        "two segments came {least_apart} mm close"
+    );
+    // Few ticks bring the thread onto itself here (it slides off the 40 mm block and hangs down a side); the
+    // pair test in thread_self_contact.rs drives one segment through another.
+    assert!(ticks_self_touching > 0, "the thread never touched itself");
     assert!(
         worst_in_tools <= 0.0,
         "a node ended a tick {worst_in_tools} mm inside a tool"

@@ -10,7 +10,7 @@
 //! - the path constraint: each [`Hole`] holds the needle on its path, and it slides through with friction;
 //! - the thread's chain held to length by a direct solve ([`ThreadChain`]), with soft bending;
 //! - the thread on the needle's tail ([`SutureThread`]): it follows the needle, hangs and lies on the tissue
-//!   without passing into it.
+//!   and against the tools without passing into them, and keeps off itself (`thread_self_contact`).
 //!
 //! The rest of the thread and the stitches come next, each in its own file here, behind the tick's
 //! instrument extension point (`sim/instrument.rs`; the needle driver is `sim/instruments/needle_driver.rs`);
@@ -24,6 +24,7 @@ mod needle_arc;
 mod puncture;
 mod thread;
 mod thread_chain;
+pub mod thread_self_contact;
 mod tip_contact;
 
 pub use crate::tissue::PunctureSpec;

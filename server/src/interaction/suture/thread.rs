@@ -11,6 +11,8 @@
 //!   held: it has no inverse mass);
 //! - the chain predicts under gravity and drag, bends back a little ([`ThreadChain::set_bending`]) and is held
 //!   to length by its direct solve;
+//! - **itself**: no two segments closer than its diameter, none passing through another
+//!   (`thread_self_contact.rs`);
 //! - **tools**: a node within the thread's radius of a tool's tip or shaft (at its pose this tick) goes to that
 //!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction;
 //! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
@@ -27,12 +29,13 @@
 //! One-way: the tissue holds the thread out, the thread's weight (a hundredth of a gram) does not press the
 //! tissue. Known gaps, in `docs/suturing.md`: a segment may cut across a sharp edge between two nodes outside
 //! it; a surface that sweeps over a node not resting on it is not seen; a tool faster than about a millimetre
-//! a tick can carry a node through itself; collisions with itself are next.
+//! a tick can carry a node through itself.
 //!
 //! Must not: allocate once built, or panic on any input (a non-finite tail leaves the thread as it was).
 
 use nalgebra::UnitQuaternion;
 
+use super::thread_self_contact::keep_apart;
 use super::{SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -114,6 +117,10 @@ pub struct SutureThread {
     gravity_mm_per_s2: Vec3,
     /// The tail last tick (None: not laid out yet, or to be laid out again).
     last_tail_mm: Option<Vec3>,
+    /// Pairs of segments held apart last tick.
+    pairs_apart: u32,
+    /// Scratch: each segment's swept box (`thread_self_contact::keep_apart`).
+    segment_boxes: Vec<[Vec3; 2]>,
 }
 
 impl SutureThread {
@@ -147,6 +154,8 @@ impl SutureThread {
             segment_mm,
             gravity_mm_per_s2,
             last_tail_mm: None,
+            pairs_apart: 0,
+            segment_boxes: vec![[Vec3::zeros(); 2]; usize::from(spec.segments)],
         })
     }
 
@@ -233,11 +242,14 @@ impl SutureThread {
         }
         let h_s = dt_s / SUBSTEPS as f32;
         let contacts = &mut self.contacts;
+        let boxes = &mut self.segment_boxes;
+        let mut pairs_apart = 0;
         for k in 1..=SUBSTEPS {
             let s = k as f32 / SUBSTEPS as f32;
             self.chain.positions_mm[0] = from_tail + (tail_mm - from_tail) * s;
             self.chain
                 .step_with(h_s, &self.gravity_mm_per_s2, NEWTON, |before, now, w| {
+                    pairs_apart += keep_apart(before, now, w, THREAD_DIAMETER_MM, boxes);
                     for i in 0..now.len() {
                         if w[i] > 0.0 {
                             keep_clear_of_tools(&mut now[i], tools, &tool);
@@ -247,6 +259,12 @@ impl SutureThread {
                 });
         }
         self.last_tail_mm = Some(*tail_mm);
+        self.pairs_apart = pairs_apart;
+    }
+
+    /// Pairs of its segments held apart in the last tick (summed over its substeps).
+    pub fn pairs_held_apart(&self) -> u32 {
+        self.pairs_apart
     }
 }
 
