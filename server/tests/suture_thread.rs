@@ -6,9 +6,12 @@
 
 #[path = "common/counting_allocator.rs"]
 mod counting_allocator;
+#[path = "common/skin_block.rs"]
+mod skin_block;
 #[path = "common/tool_pose.rs"]
 mod tool_pose;
 
+use skin_block::depth_in_block_mm;
 use tool_pose::pose_command;
 
 use counting_allocator::{Counting, assert_counting_works, count_this_thread};
@@ -143,15 +146,6 @@ fn self_contact(nodes: &[Vector3<f32>], gaps: &mut [Option<Vector3<f32>>]) -> (f
         }
     }
     (least, passed)
-}
-
-/// How far inside the skin block (40 x 30 x 10 mm, top face on z = 0, every side but the top fixed) a point
-/// lies, mm (negative: outside). The needle is kept off the skin, so the block stays at rest.
-fn depth_in_block_mm(p: &Vector3<f32>) -> f32 {
-    (20.0 - p.x.abs())
-        .min(15.0 - p.y.abs())
-        .min(-p.z)
-        .min(p.z + 10.0)
 }
 
 #[test]

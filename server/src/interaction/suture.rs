@@ -24,6 +24,7 @@ mod needle_arc;
 mod puncture;
 mod thread;
 mod thread_chain;
+mod thread_hole;
 pub mod thread_self_contact;
 mod tip_contact;
 
@@ -36,5 +37,6 @@ pub use thread::{
     STANDARD_GRAVITY_MM_PER_S2, SutureThread, THREAD_DIAMETER_MM, ThreadObject, ThreadSpec,
     ThreadTool,
 };
-pub use thread_chain::ThreadChain;
+pub use thread_chain::{NodeHold, ThreadChain};
+pub use thread_hole::{ThreadHole, inside_by_holes};
 pub use tip_contact::{SurfacePoint, TipContact};

@@ -92,9 +92,11 @@ impl Sim {
 
     /// `substeps` steps of `h` for every object: ties, integrate, push out of the tools.
     pub(super) fn run_substeps(&mut self, h: f32, substeps: u32, report: &mut StepReport) {
+        let pulls = self.tools.iter().any(|t| t.pulls_tissue());
         for _ in 0..substeps {
-            if !self.ties.is_empty() {
-                // Region-tracked objects are never tied (refused at build): their external forces stay zero.
+            if !self.ties.is_empty() || pulls {
+                // Region-tracked objects are never tied (refused at build) and not pulled (a thread's holes in
+                // one are let go with its region's nodes: docs/suturing.md): their external forces stay zero.
                 for object in self.objects.iter_mut().filter(|o| o.region.is_none()) {
                     object.state.external_forces_n.fill(Vec3::zeros());
                 }
@@ -106,6 +108,16 @@ impl Sim {
                         tie.accumulate(&mut low.state, &mut high.state);
                     } else {
                         tie.accumulate(&mut high.state, &mut low.state);
+                    }
+                }
+                if pulls {
+                    for (o, object) in self.objects.iter_mut().enumerate() {
+                        if object.region.is_some() || object.lane.is_some() {
+                            continue;
+                        }
+                        for tool in self.tools.iter().filter(|t| t.pulls_tissue()) {
+                            tool.add_forces(o, &object.model, &mut object.state);
+                        }
                     }
                 }
             }

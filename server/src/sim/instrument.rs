@@ -63,6 +63,16 @@ pub(crate) trait Instrument: Debug + Send + Sync {
     ) {
     }
 
+    /// Whether it pulls tissue with forces this tick ([`Instrument::add_forces`]): a thread through holes.
+    fn pulls_tissue(&self) -> bool {
+        false
+    }
+
+    /// Every substep, before the integration: add the instrument's forces on object `object`'s nodes to its
+    /// external forces (cleared before, and the ties' added, by the substep). Called only while
+    /// [`Instrument::pulls_tissue`].
+    fn add_forces(&self, _object: usize, _model: &MassSpringModel, _state: &mut TissueState) {}
+
     /// Object `object` was reset to rest (a contained fault): let go of it. Returns the points let go.
     fn object_reset(&mut self, _object: usize) -> u32 {
         0

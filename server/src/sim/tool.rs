@@ -151,6 +151,27 @@ impl SimTool {
         self.instrument_state.as_ref().and_then(|i| i.needle())
     }
 
+    /// Whether its instrument pulls tissue with forces this tick.
+    pub(super) fn pulls_tissue(&self) -> bool {
+        self.active
+            && self
+                .instrument_state
+                .as_ref()
+                .is_some_and(|i| i.pulls_tissue())
+    }
+
+    /// Add its instrument's forces on object `object` to the object's external forces.
+    pub(super) fn add_forces(
+        &self,
+        object: usize,
+        model: &crate::tissue::MassSpringModel,
+        state: &mut crate::tissue::TissueState,
+    ) {
+        if let Some(i) = &self.instrument_state {
+            i.add_forces(object, model, state);
+        }
+    }
+
     /// A needle driver's thread (None for another instrument, or a needle without one).
     pub fn thread(&self) -> Option<&crate::interaction::suture::SutureThread> {
         self.instrument_state.as_ref().and_then(|i| i.thread())

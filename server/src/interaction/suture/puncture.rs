@@ -76,6 +76,9 @@ pub struct NeedleTissue {
     last_tip_mm: Option<Vec3>,
     /// Per object, the nodes the pressed point and the holes move, sorted.
     held_nodes: Vec<Vec<u32>>,
+    /// Holes the needle's tail left this tick, oldest first, for the thread to take
+    /// ([`NeedleTissue::take_passed_tail`]).
+    passed_tail: Vec<Hole>,
     punctures: u32,
 }
 
@@ -87,6 +90,7 @@ impl NeedleTissue {
             diameter_mm,
             phase: TipPhase::Free,
             holes: Vec::with_capacity(MAX_HOLES),
+            passed_tail: Vec::with_capacity(MAX_HOLES),
             last_tip_mm: None,
             held_nodes: (0..objects)
                 .map(|_| Vec::with_capacity(3 * (MAX_HOLES + 1)))
@@ -138,10 +142,17 @@ impl NeedleTissue {
         self.holes.iter().fold(tip, |sum, h| sum + h.force_n)
     }
 
+    /// The holes the needle's tail left since the last call (the thread takes them), oldest first. No
+    /// allocation.
+    pub fn take_passed_tail(&mut self) -> std::vec::Drain<'_, Hole> {
+        self.passed_tail.drain(..)
+    }
+
     /// Let go of everything (the tool left, or the tissue was reset): no contact, no holes.
     pub fn release(&mut self) -> u32 {
         let closed = self.holes.len() as u32;
         self.holes.clear();
+        self.passed_tail.clear();
         self.phase = TipPhase::Free;
         self.last_tip_mm = None;
         for list in &mut self.held_nodes {
@@ -416,9 +427,13 @@ impl NeedleTissue {
         let (first, last) = (-margin, self.arc.sweep_rad() + margin);
         let before = self.holes.len();
         let mut tip_left = None;
+        let passed_tail = &mut self.passed_tail;
         self.holes.retain(|hole| {
             if hole.theta_rad > last && !hole.exit {
                 tip_left = Some(hole.point.object);
+            }
+            if hole.theta_rad < first && passed_tail.len() < MAX_HOLES {
+                passed_tail.push(*hole);
             }
             (first..=last).contains(&hole.theta_rad)
         });

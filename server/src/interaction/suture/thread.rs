@@ -10,11 +10,12 @@
 //! - the tail node moves on a straight line from last tick's tail to this tick's, a substep at a time (it is
 //!   held: it has no inverse mass);
 //! - the chain predicts under gravity and drag, bends back a little ([`ThreadChain::set_bending`]) and is held
-//!   to length by its direct solve;
+//!   to length by its direct solve, the holes it runs through holding their nodes inside that solve
+//!   (`thread_hole.rs`);
 //! - **itself**: no two segments closer than its diameter, none passing through another
 //!   (`thread_self_contact.rs`);
 //! - **tools**: a node within the thread's radius of a tool's tip or shaft (at its pose this tick) goes to that
-//!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction;
+//!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction (not a node a hole holds);
 //! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
 //!   skin stays out of the skin):
 //!   - continuous: a node whose path this substep entered a surface (`collision::crossing_nearest`, the
@@ -24,7 +25,9 @@
 //!     now (a surface that moves up under a resting thread lifts it), with Coulomb friction on the substep's
 //!     motion along the surface (position-based: the sliding is cut by `mu` times the depth put back), and
 //!     its contact follows it across the surface (the surface point under it); it lets go when the node lifts
-//!     off or slides off the triangle's neighbourhood.
+//!     off or slides off the triangle's neighbourhood;
+//!   - the side: a node between two of its holes in an object (by their parity, `inside_by_holes`) is kept
+//!     *inside* that object the same way, the normal turned; within 2 mm of a hole any surface may be crossed.
 //!
 //! One-way: the tissue holds the thread out, the thread's weight (a hundredth of a gram) does not press the
 //! tissue. Known gaps, in `docs/suturing.md`: a segment may cut across a sharp edge between two nodes outside
@@ -35,8 +38,9 @@
 
 use nalgebra::UnitQuaternion;
 
+use super::thread_hole::{ThreadHole, inside_by_holes};
 use super::thread_self_contact::keep_apart;
-use super::{SurfacePoint, ThreadChain};
+use super::{MAX_HOLES, SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -64,6 +68,8 @@ const LIFT_MM: f32 = 0.5;
 const FOLLOW_MM: f32 = 0.3;
 /// A node this far across the surface from its contact point, with no surface under it, lets it go, mm.
 const SLID_OFF_MM: f32 = 2.0;
+/// A crossing this close to one of the thread's holes is the thread running through it, mm.
+const HOLE_CLEARANCE_MM: f32 = 2.0;
 /// The tree's query box is loosened by this much for a node's path, mm.
 const CROSSING_MARGIN_MM: f32 = 0.5;
 
@@ -121,6 +127,8 @@ pub struct SutureThread {
     pairs_apart: u32,
     /// Scratch: each segment's swept box (`thread_self_contact::keep_apart`).
     segment_boxes: Vec<[Vec3; 2]>,
+    /// The holes the thread runs through, in the order it entered them.
+    holes: Vec<ThreadHole>,
 }
 
 impl SutureThread {
@@ -156,6 +164,7 @@ impl SutureThread {
             last_tail_mm: None,
             pairs_apart: 0,
             segment_boxes: vec![[Vec3::zeros(); 2]; usize::from(spec.segments)],
+            holes: Vec::with_capacity(MAX_HOLES),
         })
     }
 
@@ -241,25 +250,112 @@ impl SutureThread {
             return;
         }
         let h_s = dt_s / SUBSTEPS as f32;
+        // Where the holes hold it this tick; a hole whose tissue is gone lets go.
+        self.holes.retain_mut(|hole| {
+            object(usize::from(hole.point.object))
+                .is_some_and(|(_, model, state)| hole.place(model, state))
+        });
         let contacts = &mut self.contacts;
         let boxes = &mut self.segment_boxes;
+        let holes = &mut self.holes;
+        let segment_mm = self.segment_mm;
         let mut pairs_apart = 0;
         for k in 1..=SUBSTEPS {
             let s = k as f32 / SUBSTEPS as f32;
             self.chain.positions_mm[0] = from_tail + (tail_mm - from_tail) * s;
+            // The holes hold their nodes inside the length solve (thread_hole.rs).
+            for hole in holes.iter_mut() {
+                let chain = &self.chain;
+                let held = hole.node_holds(
+                    &chain.positions_mm,
+                    chain.inverse_mass_per_kg(),
+                    segment_mm,
+                    h_s,
+                );
+                for (i, hold) in held.into_iter().flatten() {
+                    self.chain.hold_node(i, hold);
+                }
+            }
             self.chain
                 .step_with(h_s, &self.gravity_mm_per_s2, NEWTON, |before, now, w| {
                     pairs_apart += keep_apart(before, now, w, THREAD_DIAMETER_MM, boxes);
                     for i in 0..now.len() {
                         if w[i] > 0.0 {
-                            keep_clear_of_tools(&mut now[i], tools, &tool);
-                            keep_out(&before[i], &mut now[i], &mut contacts[i], objects, &object);
+                            // A node a hole holds is the hole's: a tool in the same hole (the needle, the
+                            // jaws following it through) does not push it out of it.
+                            if !holes.iter().any(|h| h.holds_node(i)) {
+                                keep_clear_of_tools(&mut now[i], tools, &tool);
+                            }
+                            // Kept inside an object it runs through (between its holes there), and free to
+                            // cross a surface beside one of its holes.
+                            let u_mm = segment_mm * i as f32;
+                            let exempt = |o: usize, at: &Vec3| {
+                                holes.iter().any(|h| {
+                                    usize::from(h.point.object) == o
+                                        && (h.place_mm() - at).norm() < HOLE_CLEARANCE_MM
+                                })
+                            };
+                            let inside = |o: usize| inside_by_holes(holes, o as u16, u_mm);
+                            keep_to_side(
+                                &before[i],
+                                &mut now[i],
+                                &mut contacts[i],
+                                objects,
+                                &object,
+                                &inside,
+                                &exempt,
+                            );
                         }
                     }
                 });
+            for hole in holes.iter_mut() {
+                hole.after_substep(
+                    &self.chain.positions_mm,
+                    self.chain.tension_n(),
+                    segment_mm,
+                    h_s,
+                );
+            }
         }
         self.last_tail_mm = Some(*tail_mm);
         self.pairs_apart = pairs_apart;
+    }
+
+    /// A hole the needle's tail just left takes the thread there (at its tail, `u = 0`): `squeeze_n`,
+    /// `friction` and `stiffness_n_per_mm` as [`ThreadHole::new`]. False when the thread already runs through
+    /// [`MAX_HOLES`] holes (the hole is then let go).
+    pub fn take_hole(
+        &mut self,
+        point: SurfacePoint,
+        squeeze_n: f32,
+        friction: f32,
+        stiffness_n_per_mm: f32,
+    ) -> bool {
+        if self.holes.len() >= MAX_HOLES {
+            return false;
+        }
+        self.holes.push(ThreadHole::new(
+            point,
+            0.0,
+            squeeze_n,
+            friction,
+            stiffness_n_per_mm,
+        ));
+        true
+    }
+
+    /// The holes the thread runs through.
+    pub fn holes(&self) -> &[ThreadHole] {
+        &self.holes
+    }
+
+    /// Let go of the holes in object `object` (it was reset, or its topology changed under them is handled by
+    /// each hole's place); all of them for `None`. Returns how many.
+    pub fn release_holes(&mut self, object: Option<usize>) -> u32 {
+        let before = self.holes.len();
+        self.holes
+            .retain(|h| object.is_some_and(|o| usize::from(h.point.object) != o));
+        (before - self.holes.len()) as u32
     }
 
     /// Pairs of its segments held apart in the last tick (summed over its substeps).
@@ -305,15 +401,19 @@ fn keep_clear_of_tools<'b>(
 }
 
 /// Put one node, which moved from `before` to `now` this substep, back outside the surfaces (module doc).
-fn keep_out<'a>(
+#[allow(clippy::too_many_arguments)] // the node's motion and contact, the objects, and which side of each
+fn keep_to_side<'a>(
     before: &Vec3,
     now: &mut Vec3,
     contact: &mut Option<SurfacePoint>,
     objects: usize,
     object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
+    inside: &impl Fn(usize) -> bool,
+    exempt: &impl Fn(usize, &Vec3) -> bool,
 ) {
     let radius_mm = 0.5 * THREAD_DIAMETER_MM;
-    // Continuous: the first surface its path entered.
+    // Continuous: the first surface its path crossed the wrong way (into an object it is outside of, out of
+    // one it runs inside).
     let mut first: Option<(usize, crate::collision::SurfaceCrossing)> = None;
     for o in 0..objects {
         let Some((collider, model, state)) = object(o) else {
@@ -327,8 +427,9 @@ fn keep_out<'a>(
             now,
             CROSSING_MARGIN_MM,
             0.0,
-            Some(true),
+            Some(!inside(o)),
         ) && first.is_none_or(|(_, f)| hit.along < f.along)
+            && !exempt(o, &hit.point_mm)
         {
             first = Some((o, hit));
         }
@@ -344,13 +445,21 @@ fn keep_out<'a>(
     let Some(point) = *contact else {
         return;
     };
-    let Some((collider, model, state)) = object(usize::from(point.object)) else {
+    let Some((collider, model, state)) = object(usize::from(point.object))
+        .filter(|_| entered || !exempt(usize::from(point.object), now))
+    else {
         *contact = None;
         return;
     };
-    let Some((place, normal)) = place_and_normal(&point, model, state) else {
+    let Some((place, outward)) = place_and_normal(&point, model, state) else {
         *contact = None;
         return;
+    };
+    // The normal toward the side it belongs on.
+    let normal = if inside(usize::from(point.object)) {
+        -outward
+    } else {
+        outward
     };
     let depth = (*now - place).dot(&normal);
     let across = (*now - place) - normal * depth;
@@ -383,7 +492,7 @@ fn keep_out<'a>(
             &(*now - reach),
             CROSSING_MARGIN_MM,
             0.5,
-            Some(true),
+            Some(!inside(usize::from(point.object))),
         ) {
             *contact = Some(SurfacePoint {
                 object: point.object,

@@ -1,7 +1,8 @@
 //! A suture thread's chain of segments, held to length by a direct solve: the core of the thread's dynamics.
 //!
 //! Owns: [`ThreadChain`] (node positions and velocities, inverse masses, rest lengths, the segments' XPBD
-//! multipliers and the tridiagonal solver's scratch) and its step. Bending, collisions and holes build on it
+//! multipliers and the tridiagonal solver's scratch) and its step, and [`NodeHold`] (a node held for one step
+//! by implicit springs inside the solve: a hole around it). Bending, collisions and holes build on it
 //! (`docs/suturing.md`, "Thread").
 //!
 //! Why a direct solve. A segment's distance constraint couples only its two nodes, so the chain's linearised
@@ -43,6 +44,27 @@ pub struct ThreadChain {
     upper: Vec<f32>,
     rhs: Vec<f32>,
     lambda: Vec<f32>,
+    // This step's holds ([`ThreadChain::hold_node`]), per node: the inverse masses across and along the hold's
+    // direction (mm/N s^2), the direction and the hold.
+    across_w: Vec<f32>,
+    along_w: Vec<f32>,
+    hold_direction: Vec<Vec3>,
+    hold: Vec<Option<NodeHold>>,
+}
+
+/// How a node is held for one step ([`ThreadChain::hold_node`]): a hole in the tissue around it, springs
+/// toward a place, one across a direction and one along it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodeHold {
+    /// The thread's direction through the hole (unit).
+    pub direction: Vec3,
+    /// Where the springs pull the node, mm.
+    pub place_mm: Vec3,
+    /// The spring across the direction, N/mm (the tissue's stiffness against the point; more than 0).
+    pub across_n_per_mm: f32,
+    /// The spring along it, N/mm (0: free along, a frictionless ring; a sliding hole's friction is a damper,
+    /// a spring toward where the node starts the step).
+    pub along_n_per_mm: f32,
 }
 
 impl ThreadChain {
@@ -80,6 +102,10 @@ impl ThreadChain {
             upper: vec![0.0; m],
             rhs: vec![0.0; m],
             lambda: vec![0.0; m],
+            across_w: vec![MM_PER_M / node_mass_kg; n],
+            along_w: vec![MM_PER_M / node_mass_kg; n],
+            hold_direction: vec![Vec3::zeros(); n],
+            hold: vec![None; n],
         })
     }
 
@@ -92,7 +118,33 @@ impl ThreadChain {
             } else {
                 1.0 / node_mass_kg
             };
+            self.across_w[i] = *w * MM_PER_M;
+            self.along_w[i] = *w * MM_PER_M;
         }
+    }
+
+    /// Hold node `i` for the next step only (a hole around it): springs toward a place, implicit, one across
+    /// a direction and one along it ([`NodeHold`]). For a spring `k` the node's inverse mass that way becomes
+    /// `w / (1 + w h^2 k)` and its prediction is drawn toward the place by `w h^2 k / (1 + w h^2 k)` of the
+    /// way; the direct solve sees both, so the tensions either side of a held node are the thread's real pull
+    /// against the tissue (a light node moved after the solve would show only its own inertia). False
+    /// (nothing held) for a held node, a bad index or a non-finite hold.
+    pub fn hold_node(&mut self, i: usize, hold: NodeHold) -> bool {
+        let Some(&w) = self.inverse_mass_per_kg.get(i) else {
+            return false;
+        };
+        let finite = hold.place_mm.iter().all(|c| c.is_finite());
+        let Some(direction) = hold.direction.try_normalize(1e-6) else {
+            return false;
+        };
+        let across_ok = hold.across_n_per_mm > 0.0 && hold.across_n_per_mm.is_finite();
+        let along_ok = hold.along_n_per_mm >= 0.0 && hold.along_n_per_mm.is_finite();
+        let usable = w != 0.0 && finite && across_ok && along_ok;
+        if !usable {
+            return false;
+        }
+        self.hold[i] = Some(NodeHold { direction, ..hold });
+        true
     }
 
     /// Resist bending with a flexural rigidity `ei_n_mm2` (N mm^2; 0 or less: none). Each interior node's
@@ -152,6 +204,7 @@ impl ThreadChain {
     ) {
         let n = self.positions_mm.len();
         if !(h_s > 0.0 && h_s.is_finite()) {
+            self.clear_holds();
             return;
         }
         let drag = 1.0 / (1.0 + h_s * self.drag_per_s);
@@ -168,10 +221,12 @@ impl ThreadChain {
             self.positions_mm[i] += self.velocities_mm_s[i] * h_s;
         }
         self.bend(h_s);
+        self.apply_holds(h_s);
         self.lambda.fill(0.0);
         for _ in 0..newton.max(1) {
             self.solve_once(h_s);
         }
+        self.clear_holds();
         constrain(
             &self.previous_mm,
             &mut self.positions_mm,
@@ -228,22 +283,90 @@ impl ThreadChain {
         }
     }
 
-    /// One Newton step: build the tridiagonal system at the current positions and solve it (Thomas).
+    /// The held nodes' predictions drawn toward their places, and their inverse masses across (and, pinned,
+    /// along) made the spring's (module doc of [`ThreadChain::hold_node`]).
+    fn apply_holds(&mut self, h_s: f32) {
+        let h2 = h_s * h_s;
+        for i in 0..self.positions_mm.len() {
+            let Some(hold) = self.hold[i] else {
+                continue;
+            };
+            let t = hold.direction;
+            self.hold_direction[i] = t;
+            let w = self.inverse_mass_per_kg[i] * MM_PER_M;
+            let across = w * h2 * hold.across_n_per_mm;
+            let along = w * h2 * hold.along_n_per_mm;
+            let off = hold.place_mm - self.positions_mm[i];
+            let off_along = t * t.dot(&off);
+            self.positions_mm[i] +=
+                (off - off_along) * (across / (1.0 + across)) + off_along * (along / (1.0 + along));
+            self.across_w[i] = w / (1.0 + across);
+            self.along_w[i] = w / (1.0 + along);
+        }
+    }
+
+    /// Every node free again (holds last one step).
+    fn clear_holds(&mut self) {
+        for i in 0..self.positions_mm.len() {
+            if self.hold[i].take().is_some() {
+                let w = self.inverse_mass_per_kg[i] * MM_PER_M;
+                self.across_w[i] = w;
+                self.along_w[i] = w;
+            }
+        }
+    }
+
+    /// `a . W_i b` for node `i`'s inverse mass matrix (mm/N s^2): `w_across` across its hold's direction,
+    /// `w_along` along it.
+    fn weighted_dot(&self, i: usize, a: &Vec3, b: &Vec3) -> f32 {
+        let (across, along) = (self.across_w[i], self.along_w[i]);
+        let dot = a.dot(b);
+        if across == along {
+            return across * dot;
+        }
+        let t = &self.hold_direction[i];
+        across * dot + (along - across) * a.dot(t) * b.dot(t)
+    }
+
+    /// `n . W_i n` for node `i` and a unit `n` (exactly `w_i` for a node no hold makes a matrix).
+    fn weighted_square(&self, i: usize, n: &Vec3) -> f32 {
+        let (across, along) = (self.across_w[i], self.along_w[i]);
+        if across == along {
+            return across;
+        }
+        let t = n.dot(&self.hold_direction[i]);
+        across + (along - across) * t * t
+    }
+
+    /// `W_i v` for node `i` (mm/N s^2 times N s^2).
+    fn weighted(&self, i: usize, v: &Vec3) -> Vec3 {
+        let (across, along) = (self.across_w[i], self.along_w[i]);
+        if across == along {
+            return v * across;
+        }
+        let t = &self.hold_direction[i];
+        v * across + t * ((along - across) * t.dot(v))
+    }
+
+    /// One Newton step: build the tridiagonal system at the current positions and solve it (Thomas), each
+    /// node's inverse mass a matrix where a hold makes it one ([`ThreadChain::hold_node`]).
     fn solve_once(&mut self, h_s: f32) {
         let m = self.rest_mm.len();
-        let w = &self.inverse_mass_per_kg;
-        // Inverse masses in mm/N s^2: a force of 1 N on 1 kg moves 1000 mm/s^2.
-        let wi = |i: usize| w[i] * MM_PER_M;
+        let h2 = h_s * h_s;
         for s in 0..m {
             let d = self.positions_mm[s + 1] - self.positions_mm[s];
             let len = d.norm();
             self.direction[s] = if len > 1e-9 { d / len } else { Vec3::x() };
-            let alpha = self.compliance_mm_per_n[s] / (h_s * h_s);
-            self.diag[s] = wi(s) + wi(s + 1) + alpha;
+        }
+        for s in 0..m {
+            let n = self.direction[s];
+            let alpha = self.compliance_mm_per_n[s] / h2;
+            let len = (self.positions_mm[s + 1] - self.positions_mm[s]).norm();
+            self.diag[s] = self.weighted_square(s, &n) + self.weighted_square(s + 1, &n) + alpha;
             self.rhs[s] = -(len - self.rest_mm[s]) - alpha * self.lambda[s];
         }
         for s in 0..m.saturating_sub(1) {
-            self.upper[s] = -wi(s + 1) * self.direction[s].dot(&self.direction[s + 1]);
+            self.upper[s] = -self.weighted_dot(s + 1, &self.direction[s], &self.direction[s + 1]);
         }
         // Thomas: forward elimination (upper is symmetric), back substitution into rhs.
         for s in 1..m {
@@ -267,8 +390,9 @@ impl ThreadChain {
             }
             self.lambda[s] += dl;
             let push = self.direction[s] * dl;
-            self.positions_mm[s] -= push * wi(s);
-            self.positions_mm[s + 1] += push * wi(s + 1);
+            let (a, b) = (self.weighted(s, &push), self.weighted(s + 1, &push));
+            self.positions_mm[s] -= a;
+            self.positions_mm[s + 1] += b;
         }
     }
 }

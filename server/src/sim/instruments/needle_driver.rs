@@ -12,7 +12,9 @@
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 
-use crate::interaction::suture::{NeedleDriverSpec, NeedleTissue, SutureThread, TipPhase};
+use crate::interaction::suture::{
+    NeedleDriverSpec, NeedleTissue, SutureThread, THREAD_DIAMETER_MM, TipPhase,
+};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 use super::super::instrument::Instrument;
@@ -23,6 +25,8 @@ use super::super::*;
 pub(in crate::sim) struct NeedleDriver {
     tool_from_needle: Isometry3<f32>,
     needle: NeedleTissue,
+    /// The needle's wire diameter, mm.
+    diameter_mm: f32,
     /// The thread on the needle's tail (None: a needle without one).
     thread: Option<SutureThread>,
 }
@@ -38,6 +42,7 @@ impl NeedleDriver {
         Self {
             tool_from_needle: spec.tool_from_needle(),
             needle: NeedleTissue::new(spec.arc, spec.diameter_mm, objects),
+            diameter_mm: spec.diameter_mm,
             thread: SutureThread::new(spec.thread, gravity_mm_per_s2),
         }
     }
@@ -99,6 +104,7 @@ impl Instrument for NeedleDriver {
         if !tool.active {
             report.attachments_released += self.needle.release();
             if let Some(thread) = &mut self.thread {
+                report.attachments_released += thread.release_holes(None);
                 thread.lift();
             }
             return;
@@ -108,6 +114,25 @@ impl Instrument for NeedleDriver {
             .needle
             .before_substeps(&pose, sim.objects.len(), needle_objects(sim));
         report.needle_holes_closed += events.holes_closed;
+        // The holes the needle's tail left take the thread; the wire is thinner than the needle, and squeezed
+        // by that much less.
+        let thinner = THREAD_DIAMETER_MM / self.diameter_mm;
+        for hole in self.needle.take_passed_tail() {
+            let friction = sim
+                .objects
+                .get(usize::from(hole.point.object))
+                .map_or(0.0, |o| o.puncture.needle_friction);
+            // The squeeze is the wire's diameter pressed into the tissue's stiffness against a point.
+            let stiffness_n_per_mm = hole.squeeze_n / self.diameter_mm;
+            if let Some(thread) = &mut self.thread {
+                thread.take_hole(
+                    hole.point,
+                    hole.squeeze_n * thinner,
+                    friction,
+                    stiffness_n_per_mm,
+                );
+            }
+        }
     }
 
     fn after_substeps(&mut self, sim: &mut Sim, t: usize, dt_s: f32, report: &mut StepReport) {
@@ -154,7 +179,36 @@ impl Instrument for NeedleDriver {
     }
 
     fn object_reset(&mut self, object: usize) -> u32 {
-        self.needle.object_reset(object)
+        let thread = self
+            .thread
+            .as_mut()
+            .map_or(0, |t| t.release_holes(Some(object)));
+        self.needle.object_reset(object) + thread
+    }
+
+    fn pulls_tissue(&self) -> bool {
+        self.thread.as_ref().is_some_and(|t| !t.holes().is_empty())
+    }
+
+    fn add_forces(&self, object: usize, model: &MassSpringModel, state: &mut TissueState) {
+        let Some(thread) = &self.thread else {
+            return;
+        };
+        for hole in thread
+            .holes()
+            .iter()
+            .filter(|h| usize::from(h.point.object) == object)
+        {
+            let pull = hole.pull_on_tissue_n();
+            let Some(corners) = hole.point.corners(model) else {
+                continue;
+            };
+            for (&c, &b) in corners.iter().zip(&hole.point.barycentric) {
+                if let Some(f) = state.external_forces_n.get_mut(c as usize) {
+                    *f += pull * b;
+                }
+            }
+        }
     }
 
     fn topology_changed(&mut self, object: usize, model: &MassSpringModel) {
