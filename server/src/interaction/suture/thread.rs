@@ -13,11 +13,11 @@
 //!   to length by its direct solve, the holes it runs through holding their nodes inside that solve
 //!   (`thread_hole.rs`);
 //! - **itself**: no two segments closer than its diameter, none passing through another
-//!   (`thread_self_contact.rs`);
+//!   (`thread_self_contact.rs`), before the contacts and once more after them;
 //! - **tools**: a node within the thread's radius of a tool's tip or shaft (at its pose this tick) goes to that
 //!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction (not a node a hole holds);
 //! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
-//!   skin stays out of the skin):
+//!   skin stays out of the skin, but for the self pass after them):
 //!   - continuous: a node whose path this substep entered a surface (`collision::crossing_nearest`, the
 //!     triangles as they are now) takes the point it crossed as its contact, and goes back out however far
 //!     past it it went;
@@ -27,7 +27,8 @@
 //!     its contact follows it across the surface (the surface point under it); it lets go when the node lifts
 //!     off or slides off the triangle's neighbourhood;
 //!   - the side: a node between two of its holes in an object (by their parity, `inside_by_holes`) is kept
-//!     *inside* that object the same way, the normal turned; within 2 mm of a hole any surface may be crossed.
+//!     *inside* that object the same way, the normal turned; a node within 2 mm of a hole, on the surface and
+//!     along the thread, may cross any surface.
 //!
 //! One-way: the tissue holds the thread out, the thread's weight (a hundredth of a gram) does not press the
 //! tissue. Known gaps, in `docs/suturing.md`: a segment may cut across a sharp edge between two nodes outside
@@ -39,7 +40,7 @@
 use nalgebra::UnitQuaternion;
 
 use super::thread_hole::{ThreadHole, inside_by_holes};
-use super::thread_self_contact::keep_apart;
+use super::thread_self_contact::SelfContact;
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -125,8 +126,8 @@ pub struct SutureThread {
     last_tail_mm: Option<Vec3>,
     /// Pairs of segments held apart last tick.
     pairs_apart: u32,
-    /// Scratch: each segment's swept box (`thread_self_contact::keep_apart`).
-    segment_boxes: Vec<[Vec3; 2]>,
+    /// Its contact with itself (`thread_self_contact.rs`).
+    self_contact: SelfContact,
     /// The holes the thread runs through, in the order it entered them.
     holes: Vec<ThreadHole>,
 }
@@ -163,7 +164,7 @@ impl SutureThread {
             gravity_mm_per_s2,
             last_tail_mm: None,
             pairs_apart: 0,
-            segment_boxes: vec![[Vec3::zeros(); 2]; usize::from(spec.segments)],
+            self_contact: SelfContact::new(usize::from(spec.segments)),
             holes: Vec::with_capacity(MAX_HOLES),
         })
     }
@@ -256,7 +257,7 @@ impl SutureThread {
                 .is_some_and(|(_, model, state)| hole.place(model, state))
         });
         let contacts = &mut self.contacts;
-        let boxes = &mut self.segment_boxes;
+        let self_contact = &mut self.self_contact;
         let holes = &mut self.holes;
         let segment_mm = self.segment_mm;
         let mut pairs_apart = 0;
@@ -278,35 +279,46 @@ impl SutureThread {
             }
             self.chain
                 .step_with(h_s, &self.gravity_mm_per_s2, NEWTON, |before, now, w| {
-                    pairs_apart += keep_apart(before, now, w, THREAD_DIAMETER_MM, boxes);
-                    for i in 0..now.len() {
-                        if w[i] > 0.0 {
-                            // A node a hole holds is the hole's: a tool in the same hole (the needle, the
-                            // jaws following it through) does not push it out of it.
-                            if !holes.iter().any(|h| h.holds_node(i)) {
-                                keep_clear_of_tools(&mut now[i], tools, &tool);
+                    let mut contact_pass = |now: &mut [Vec3]| {
+                        for i in 0..now.len() {
+                            if w[i] > 0.0 {
+                                // A node a hole holds is the hole's: a tool in the same hole (the needle, the
+                                // jaws following it through) does not push it out of it.
+                                if !holes.iter().any(|h| h.holds_node(i)) {
+                                    keep_clear_of_tools(&mut now[i], tools, &tool);
+                                }
+                                // Kept inside an object it runs through (between its holes there), and free to
+                                // cross a surface beside one of its holes.
+                                let u_mm = segment_mm * i as f32;
+                                // Beside a hole: near it both on the surface and along the thread (a
+                                // stretch of thread further on that lies near it is kept out as any).
+                                let exempt = |o: usize, at: &Vec3| {
+                                    holes.iter().any(|h| {
+                                        usize::from(h.point.object) == o
+                                            && (h.u_mm - u_mm).abs()
+                                                < HOLE_CLEARANCE_MM + segment_mm
+                                            && (h.place_mm() - at).norm() < HOLE_CLEARANCE_MM
+                                    })
+                                };
+                                let inside = |o: usize| inside_by_holes(holes, o as u16, u_mm);
+                                keep_to_side(
+                                    &before[i],
+                                    &mut now[i],
+                                    &mut contacts[i],
+                                    objects,
+                                    &object,
+                                    &inside,
+                                    &exempt,
+                                );
                             }
-                            // Kept inside an object it runs through (between its holes there), and free to
-                            // cross a surface beside one of its holes.
-                            let u_mm = segment_mm * i as f32;
-                            let exempt = |o: usize, at: &Vec3| {
-                                holes.iter().any(|h| {
-                                    usize::from(h.point.object) == o
-                                        && (h.place_mm() - at).norm() < HOLE_CLEARANCE_MM
-                                })
-                            };
-                            let inside = |o: usize| inside_by_holes(holes, o as u16, u_mm);
-                            keep_to_side(
-                                &before[i],
-                                &mut now[i],
-                                &mut contacts[i],
-                                objects,
-                                &object,
-                                &inside,
-                                &exempt,
-                            );
                         }
-                    }
+                    };
+                    // Itself, then the tools and the tissue, then itself once more: a contact may have pushed a
+                    // node through a segment beside it. (A second contact pass after that kept every node out of
+                    // the skin and tools but let more pairs through: docs/suturing.md, "Not yet robust".)
+                    pairs_apart += self_contact.keep_apart(before, now, w, THREAD_DIAMETER_MM);
+                    contact_pass(now);
+                    pairs_apart += self_contact.keep_apart(before, now, w, THREAD_DIAMETER_MM);
                 });
             for hole in holes.iter_mut() {
                 hole.after_substep(

@@ -1,23 +1,24 @@
 //! A thread against itself: no two of its segments come closer than its diameter, and none passes through
 //! another.
 //!
-//! Owns: [`keep_apart`], one position-based pass over the thread's segment pairs, and the segment-segment
-//! closest points it works on ([`closest_params`]).
+//! Owns: [`SelfContact`] (its pass over the thread's segment pairs, and the side each close pair lay on when
+//! last apart) and the segment-segment closest points it works on ([`closest_params`]).
 //!
 //! The pass, after the tissue and tool contacts of a substep: for every pair of segments that are not
 //! neighbours (they share no node) and whose boxes, loosened by the diameter, overlap:
 //! - their closest points now, at parameters `(s, t)`, and the same parameters' points at the substep's start;
-//! - the side: the direction from one closest point to the other at the start (the segments were apart
-//!   then). If the pair is now on the other side of it, it crossed during the substep (continuous, for the
-//!   speeds a thread reaches within a substep);
+//! - the side: the one the pair lay on when last apart (remembered per pair while their boxes overlap, and
+//!   turned with them each pass they are apart), or for a pair just come close the direction from one closest
+//!   point to the other at the substep's start. If the pair is now on the other side of it, it crossed (within
+//!   the substep, or pushed through by another pair's push or a contact since: the memory is what catches
+//!   those, where the substep's start would take the crossed state for the side);
 //! - the correction: the pair is put the diameter apart along that side, the push spread over the four nodes
 //!   by their weights at `(s, t)` and their inverse masses (the minimum-norm PBD correction); a held node does
 //!   not move.
 //!
-//! All pairs are tried with a box test on boxes taken once a pass, about 2,000 pairs for 64 segments (the
-//! bench's figure is the whole thread's step; a sweep along one axis or a spatial hash is the next step if
-//! threads grow). Gauss-Seidel over the pairs in order, once a
-//! substep: a tight knot may need more sweeps, and the knot will say.
+//! The pairs are found by a sweep and prune along x over boxes taken once a pass, and taken in the order of
+//! their indices (Gauss-Seidel). The thread runs the pass twice a substep, before and after the tissue and tool
+//! contacts (`thread.rs`): a tight knot may need more, and the knot will say.
 //!
 //! Must not: allocate or panic; a degenerate segment is skipped.
 
@@ -54,50 +55,106 @@ pub fn closest_params(a0: &Vec3, a1: &Vec3, b0: &Vec3, b1: &Vec3) -> Option<(f32
     (s.is_finite() && t.is_finite()).then_some((s, t))
 }
 
-/// One pass keeping the segments of the polyline `now` (which was `before` at the substep's start) the
-/// `diameter_mm` apart (module doc). `w` are the nodes' inverse masses (0: held); `boxes` is scratch, one per
-/// segment (a shorter one leaves the rest of the segments out). Returns the pairs pushed. No allocation.
-pub fn keep_apart(
-    before: &[Vec3],
-    now: &mut [Vec3],
-    w: &[f32],
-    diameter_mm: f32,
-    boxes: &mut [[Vec3; 2]],
-) -> u32 {
-    let n = now
-        .len()
-        .min(before.len())
-        .min(w.len())
-        .min(boxes.len() + 1);
-    if n < 4 || diameter_mm.is_nan() || diameter_mm <= 0.0 {
-        return 0;
+/// A thread's self-contact: its scratch and what it remembers of each close pair (module doc).
+#[derive(Debug, Clone)]
+pub struct SelfContact {
+    /// Each segment's swept box this pass.
+    boxes: Vec<[Vec3; 2]>,
+    /// Per pair `(i, j)`, `i * segments + j`: the side segment `i` lay on from segment `j` when last apart (unit;
+    /// zero: nothing remembered), and the pass that last found the pair's boxes overlapping (a memory is kept
+    /// only while they overlap pass after pass).
+    sides: Vec<Vec3>,
+    seen: Vec<u64>,
+    pass: u64,
+    /// The segments in order of their boxes' low x (sorted again each pass: nearly sorted already), and this
+    /// pass's overlapping pairs, `i * segments + j` with `i < j`.
+    by_x: Vec<u32>,
+    candidates: Vec<u32>,
+    segments: usize,
+}
+
+impl SelfContact {
+    /// For a thread of `segments` segments (allocates its pair table, `segments^2` sides).
+    pub fn new(segments: usize) -> Self {
+        Self {
+            boxes: vec![[Vec3::zeros(); 2]; segments],
+            sides: vec![Vec3::zeros(); segments * segments],
+            seen: vec![0; segments * segments],
+            pass: 1,
+            by_x: (0..segments as u32).collect(),
+            candidates: Vec::with_capacity(segments * segments / 2 + 1),
+            segments,
+        }
     }
-    let segments = n - 1;
-    // The box each segment swept this substep (a fast pair may have passed through each other from one side to
-    // the other), loosened by the diameter; taken once, before the pushes (a push moves nodes by about a
-    // diameter: a pair it brings together is met next substep).
-    for (s, b) in boxes.iter_mut().enumerate().take(segments) {
-        let lo = now[s].inf(&now[s + 1]).inf(&before[s]).inf(&before[s + 1]);
-        let hi = now[s].sup(&now[s + 1]).sup(&before[s]).sup(&before[s + 1]);
-        *b = [
-            lo.add_scalar(-0.5 * diameter_mm),
-            hi.add_scalar(0.5 * diameter_mm),
-        ];
-    }
-    let mut pushed = 0;
-    for i in 0..segments {
-        let [lo_a, hi_a] = boxes[i];
-        for j in i + 2..segments {
-            let [lo_b, hi_b] = boxes[j];
-            if lo_a.x > hi_b.x
-                || lo_b.x > hi_a.x
-                || lo_a.y > hi_b.y
-                || lo_b.y > hi_a.y
-                || lo_a.z > hi_b.z
-                || lo_b.z > hi_a.z
-            {
-                continue;
+
+    /// One pass keeping the segments of the polyline `now` (which was `before` at the substep's start) the
+    /// `diameter_mm` apart (module doc). `w` are the nodes' inverse masses (0: held); a polyline of other than
+    /// `segments + 1` nodes is left alone. Returns the pairs pushed. No allocation.
+    pub fn keep_apart(
+        &mut self,
+        before: &[Vec3],
+        now: &mut [Vec3],
+        w: &[f32],
+        diameter_mm: f32,
+    ) -> u32 {
+        let segments = self.segments;
+        let n = segments + 1;
+        if now.len() != n || before.len() != n || w.len() != n || n < 4 {
+            return 0;
+        }
+        if diameter_mm.is_nan() || diameter_mm <= 0.0 {
+            return 0;
+        }
+        let boxes = &mut self.boxes;
+        // The box each segment swept this substep (a fast pair may have passed through each other from one side to
+        // the other), loosened by the diameter; taken once, before the pushes (a push moves nodes by about a
+        // diameter: a pair it brings together is met next substep).
+        for (s, b) in boxes.iter_mut().enumerate().take(segments) {
+            let lo = now[s].inf(&now[s + 1]).inf(&before[s]).inf(&before[s + 1]);
+            let hi = now[s].sup(&now[s + 1]).sup(&before[s]).sup(&before[s + 1]);
+            *b = [
+                lo.add_scalar(-0.5 * diameter_mm),
+                hi.add_scalar(0.5 * diameter_mm),
+            ];
+        }
+        self.pass += 1;
+        // Sweep and prune along x: the pairs whose boxes overlap, then taken in the order of their indices (the
+        // Gauss-Seidel order of a pass over all pairs).
+        let by_x = &mut self.by_x;
+        for k in 1..by_x.len() {
+            let mut m = k;
+            while m > 0 && boxes[by_x[m - 1] as usize][0].x > boxes[by_x[m] as usize][0].x {
+                by_x.swap(m - 1, m);
+                m -= 1;
             }
+        }
+        self.candidates.clear();
+        for (k, &a) in by_x.iter().enumerate() {
+            let [lo_a, hi_a] = boxes[a as usize];
+            for &b in &by_x[k + 1..] {
+                let [lo_b, hi_b] = boxes[b as usize];
+                if lo_b.x > hi_a.x {
+                    break;
+                }
+                let apart =
+                    lo_a.y > hi_b.y || lo_b.y > hi_a.y || lo_a.z > hi_b.z || lo_b.z > hi_a.z;
+                let (i, j) = (a.min(b), a.max(b));
+                if apart || j < i + 2 || self.candidates.len() == self.candidates.capacity() {
+                    continue;
+                }
+                self.candidates.push(i * segments as u32 + j);
+            }
+        }
+        self.candidates.sort_unstable();
+        let mut pushed = 0;
+        for &pair in &self.candidates {
+            let pair = pair as usize;
+            let (i, j) = (pair / segments, pair % segments);
+            // A memory from a pass that did not find the pair close is stale: the pair has been apart since.
+            if self.seen[pair] + 1 != self.pass {
+                self.sides[pair] = Vec3::zeros();
+            }
+            self.seen[pair] = self.pass;
             let (a0, a1, b0, b1) = (now[i], now[i + 1], now[j], now[j + 1]);
             let Some((s, t)) = closest_params(&a0, &a1, &b0, &b1) else {
                 continue;
@@ -105,15 +162,22 @@ pub fn keep_apart(
             let on_a = a0 + (a1 - a0) * s;
             let on_b = b0 + (b1 - b0) * t;
             let gap = on_a - on_b;
-            // The side the pair was on at the substep's start, at the same parameters.
+            // The side the pair lay on when last apart; else at the substep's start, at the same parameters.
             let was = (before[i] + (before[i + 1] - before[i]) * s)
                 - (before[j] + (before[j + 1] - before[j]) * t);
-            let side = was.try_normalize(1e-9).or_else(|| gap.try_normalize(1e-9));
+            let remembered = self.sides[pair];
+            let side = if remembered == Vec3::zeros() {
+                was.try_normalize(1e-9).or_else(|| gap.try_normalize(1e-9))
+            } else {
+                Some(remembered)
+            };
             let Some(side) = side else {
                 continue;
             };
             let along = gap.dot(&side);
             if along >= diameter_mm {
+                // Apart: remember the side it is on now (a pair turning about each other turns its side).
+                self.sides[pair] = gap.try_normalize(1e-9).unwrap_or(side);
                 continue;
             }
             let weights = [1.0 - s, s, 1.0 - t, t];
@@ -127,10 +191,11 @@ pub fn keep_apart(
                 let sign = if m < 2 { 1.0 } else { -1.0 };
                 now[k] += side * (sign * lambda * w[k] * b);
             }
+            self.sides[pair] = side;
             pushed += 1;
         }
+        pushed
     }
-    pushed
 }
 
 #[cfg(test)]
@@ -173,15 +238,29 @@ mod tests {
         now[3].z = -1.0;
         let w = [0.0, 0.0, 1.0, 1.0];
         // 1-2 are neighbours; 0-1 and 2-3 are not.
-        let mut boxes = [[Vec3::zeros(); 2]; 3];
-        assert_eq!(keep_apart(&before, &mut now, &w, 0.25, &mut boxes), 1);
+        let mut contact = SelfContact::new(3);
+        assert_eq!(contact.keep_apart(&before, &mut now, &w, 0.25), 1);
         assert!(
             (now[2].z - 0.25).abs() < 1e-5 && (now[3].z - 0.25).abs() < 1e-5,
             "{now:?}"
         );
         // Apart by more than the diameter: nothing moves.
         let mut far = before;
-        assert_eq!(keep_apart(&before, &mut far, &w, 0.25, &mut boxes), 0);
+        let mut contact = SelfContact::new(3);
+        assert_eq!(contact.keep_apart(&before, &mut far, &w, 0.25), 0);
         assert_eq!(far, before);
+        // Put apart above it, then (say, pushed by a contact after the pass) 0.1 mm below it at the next substep's
+        // start: the remembered side puts it back above, where the substep's start alone would keep it below.
+        let mut crossed = now;
+        crossed[2].z = -0.1;
+        crossed[3].z = -0.1;
+        let mut contact = SelfContact::new(3);
+        let mut first = before;
+        first[2].z = 0.2;
+        first[3].z = 0.2;
+        assert_eq!(contact.keep_apart(&before, &mut first, &w, 0.25), 1);
+        let start = crossed;
+        assert_eq!(contact.keep_apart(&start, &mut crossed, &w, 0.25), 1);
+        assert!((crossed[2].z - 0.25).abs() < 1e-5, "{crossed:?}");
     }
 }
