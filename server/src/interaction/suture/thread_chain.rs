@@ -133,10 +133,14 @@ impl ThreadChain {
         let Some(&w) = self.inverse_mass_per_kg.get(i) else {
             return false;
         };
-        let finite = hold.place_mm.iter().all(|c| c.is_finite());
         let Some(direction) = hold.direction.try_normalize(1e-6) else {
             return false;
         };
+        let finite = hold
+            .place_mm
+            .iter()
+            .chain(direction.iter())
+            .all(|c| c.is_finite());
         let across_ok = hold.across_n_per_mm > 0.0 && hold.across_n_per_mm.is_finite();
         let along_ok = hold.along_n_per_mm >= 0.0 && hold.along_n_per_mm.is_finite();
         let usable = w != 0.0 && finite && across_ok && along_ok;

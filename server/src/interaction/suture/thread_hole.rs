@@ -448,6 +448,40 @@ mod tests {
     }
 
     #[test]
+    fn a_hole_far_off_or_a_broken_thread_never_pulls_the_tissue_past_its_limit_or_with_nan() {
+        // The thread 100 mm from its hole (a tissue that jumped, say): the pull is held to the limit.
+        let nodes: Vec<Vec3> = (0..=20)
+            .map(|i| Vec3::new(2.0 * i as f32, 0.0, 0.0))
+            .collect();
+        let mut chain = ThreadChain::new(&nodes, 2e-7, 1000.0, 5.0).unwrap();
+        let mut far = hole_at(Vec3::new(20.0, 100.0, 0.0), 20.0, 1.0, 0.3);
+        far.stiffness_n_per_mm = 50.0;
+        substep(&mut chain, std::slice::from_mut(&mut far));
+        let pull = far.pull_on_tissue_n();
+        println!("a hole 100 mm off: pull {pull:?} N");
+        assert!(pull.iter().all(|c| c.is_finite()));
+        assert!(pull.norm() <= MAX_PULL_N * 1.0001, "{pull:?}");
+        assert!(pull.norm() > 1.0, "the far hole did not pull: {pull:?}");
+        // A non-finite thread: the hole holds nothing and pulls nothing.
+        let mut broken = nodes.clone();
+        broken[10] = Vec3::new(f32::NAN, 0.0, 0.0);
+        let mut hole = hole_at(Vec3::new(20.0, 0.0, 0.0), 20.0, 1.0, 0.3);
+        let w = vec![5e6; broken.len()];
+        let held = hole.node_holds(&broken, &w, 2.0, 0.00025);
+        let mut chain = ThreadChain::new(&nodes, 2e-7, 1000.0, 5.0).unwrap();
+        let mut offered = 0;
+        for (i, hold) in held.into_iter().flatten() {
+            // A hold built on a non-finite node is refused by the chain.
+            assert!(!chain.hold_node(i, hold), "{hold:?} was taken");
+            offered += 1;
+        }
+        assert!(offered > 0, "the test meant the chain to refuse a hold");
+        hole.after_substep(&broken, &[0.0; 20], 2.0, 0.00025);
+        assert_eq!(hole.pull_on_tissue_n(), Vec3::zeros());
+        assert!(hole.u_mm.is_finite());
+    }
+
+    #[test]
     fn the_thread_is_inside_between_holes_of_one_object() {
         let holes = [
             hole_at(Vec3::zeros(), 10.0, 0.0, 0.0),
