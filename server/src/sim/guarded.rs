@@ -95,8 +95,9 @@ impl Sim {
         let pulls = self.tools.iter().any(|t| t.pulls_tissue());
         for _ in 0..substeps {
             if !self.ties.is_empty() || pulls {
-                // Region-tracked objects are never tied (refused at build) and not pulled (a thread's holes in
-                // one are let go with its region's nodes: docs/suturing.md): their external forces stay zero.
+                // Region-tracked objects are never tied (refused at build) and not pulled: a thread's holes in one
+                // hold the thread but do not pull the tissue (docs/suturing.md, the holes' known gaps). Their
+                // external forces stay zero.
                 for object in self.objects.iter_mut().filter(|o| o.region.is_none()) {
                     object.state.external_forces_n.fill(Vec3::zeros());
                 }
