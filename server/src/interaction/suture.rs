@@ -24,6 +24,7 @@ mod needle_arc;
 mod puncture;
 mod thread;
 mod thread_chain;
+mod thread_grip;
 mod thread_hole;
 pub mod thread_self_contact;
 mod tip_contact;
@@ -38,5 +39,6 @@ pub use thread::{
     ThreadTool,
 };
 pub use thread_chain::{NodeHold, ThreadChain};
+pub use thread_grip::{GRIP_SLIP_N, MAX_GRIPS, ThreadGrip};
 pub use thread_hole::{ThreadHole, inside_by_holes};
 pub use tip_contact::{SurfacePoint, TipContact};

@@ -115,6 +115,12 @@ pub(crate) trait Instrument: Debug + Send + Sync {
     fn thread(&self) -> Option<&SutureThread> {
         None
     }
+
+    /// The same thread, for another tool's jaws to take hold of it (a hook runs with its own instrument out
+    /// of its tool, the others in place).
+    fn thread_mut(&mut self) -> Option<&mut SutureThread> {
+        None
+    }
 }
 
 /// The implementation of an instrument descriptor, for a scene of `objects` objects under the world's

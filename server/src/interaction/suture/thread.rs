@@ -14,6 +14,8 @@
 //!   (`thread_hole.rs`);
 //! - **itself**: no two segments closer than its diameter, none passing through another
 //!   (`thread_self_contact.rs`), before the contacts and once more after them;
+//! - **jaws**: a grasper's jaws clamp the node they closed on as the tail is held, and move it with them
+//!   (`thread_grip.rs`); the thread slips out of them past their hold;
 //! - **tools**: a node within the thread's radius of a tool's tip or shaft (at its pose this tick) goes to that
 //!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction (not a node a hole holds);
 //! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
@@ -39,6 +41,7 @@
 
 use nalgebra::UnitQuaternion;
 
+use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{ThreadHole, inside_by_holes};
 use super::thread_self_contact::SelfContact;
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
@@ -71,6 +74,8 @@ const FOLLOW_MM: f32 = 0.3;
 const SLID_OFF_MM: f32 = 2.0;
 /// A crossing this close to one of the thread's holes is the thread running through it, mm.
 const HOLE_CLEARANCE_MM: f32 = 2.0;
+/// Nodes this close (in nodes) to one a grip holds are not pushed by the gripping tool's body.
+const GRIP_CLEAR_NODES: usize = 2;
 /// The tree's query box is loosened by this much for a node's path, mm.
 const CROSSING_MARGIN_MM: f32 = 0.5;
 
@@ -120,6 +125,8 @@ pub struct SutureThread {
     chain: ThreadChain,
     /// Per node, the surface point it rests on.
     contacts: Vec<Option<SurfacePoint>>,
+    /// Per node, whether its contact keeps it inside its object (the side it was made on).
+    contact_inside: Vec<bool>,
     segment_mm: f32,
     gravity_mm_per_s2: Vec3,
     /// The tail last tick (None: not laid out yet, or to be laid out again).
@@ -130,6 +137,10 @@ pub struct SutureThread {
     self_contact: SelfContact,
     /// The holes the thread runs through, in the order it entered them.
     holes: Vec<ThreadHole>,
+    /// The jaws holding it (`thread_grip.rs`).
+    grips: Vec<ThreadGrip>,
+    /// Grips that slipped (the thread pulled out of the jaws) in the last tick.
+    grips_slipped: u32,
 }
 
 impl SutureThread {
@@ -159,6 +170,7 @@ impl SutureThread {
         };
         Some(Self {
             contacts: vec![None; nodes.len()],
+            contact_inside: vec![false; nodes.len()],
             chain,
             segment_mm,
             gravity_mm_per_s2,
@@ -166,6 +178,8 @@ impl SutureThread {
             pairs_apart: 0,
             self_contact: SelfContact::new(usize::from(spec.segments)),
             holes: Vec::with_capacity(MAX_HOLES),
+            grips: Vec::with_capacity(MAX_GRIPS),
+            grips_slipped: 0,
         })
     }
 
@@ -218,6 +232,10 @@ impl SutureThread {
         }
         self.chain.velocities_mm_s.fill(Vec3::zeros());
         self.contacts.fill(None);
+        let node_mass_kg = LINEAR_DENSITY_KG_PER_MM * self.segment_mm;
+        for grip in self.grips.drain(..) {
+            self.chain.set_held(grip.node as usize, false, node_mass_kg);
+        }
         self.last_tail_mm = Some(*tail_mm);
     }
 
@@ -256,9 +274,24 @@ impl SutureThread {
             object(usize::from(hole.point.object))
                 .is_some_and(|(_, model, state)| hole.place(model, state))
         });
+        // Where the jaws hold it this tick; a released tool lets go.
+        let before_grips = self.grips.len();
+        let chain = &mut self.chain;
+        let node_mass_kg = LINEAR_DENSITY_KG_PER_MM * self.segment_mm;
+        self.grips.retain_mut(|grip| {
+            let kept = tool(2 * usize::from(grip.tool))
+                .is_some_and(|(_, position_mm, rotation)| grip.aim(&position_mm, &rotation));
+            if !kept {
+                chain.set_held(grip.node as usize, false, node_mass_kg);
+            }
+            kept
+        });
+        let mut slipped = (before_grips - self.grips.len()) as u32;
         let contacts = &mut self.contacts;
+        let contact_inside = &mut self.contact_inside;
         let self_contact = &mut self.self_contact;
         let holes = &mut self.holes;
+        let grips = &self.grips;
         let segment_mm = self.segment_mm;
         let mut pairs_apart = 0;
         for k in 1..=SUBSTEPS {
@@ -277,6 +310,12 @@ impl SutureThread {
                     self.chain.hold_node(i, hold);
                 }
             }
+            // The jaws carry theirs.
+            for grip in grips {
+                if let Some(p) = self.chain.positions_mm.get_mut(grip.node as usize) {
+                    *p = grip.place_at(s);
+                }
+            }
             self.chain
                 .step_with(h_s, &self.gravity_mm_per_s2, NEWTON, |before, now, w| {
                     let mut contact_pass = |now: &mut [Vec3]| {
@@ -285,7 +324,13 @@ impl SutureThread {
                                 // A node a hole holds is the hole's: a tool in the same hole (the needle, the
                                 // jaws following it through) does not push it out of it.
                                 if !holes.iter().any(|h| h.holds_node(i)) {
-                                    keep_clear_of_tools(&mut now[i], tools, &tool);
+                                    // The thread runs out between the jaws holding it: their
+                                    // body does not push the nodes beside the one they hold.
+                                    let jaws = grips
+                                        .iter()
+                                        .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
+                                        .map(|g| usize::from(g.tool));
+                                    keep_clear_of_tools(&mut now[i], tools, &tool, jaws);
                                 }
                                 // Kept inside an object it runs through (between its holes there), and free to
                                 // cross a surface beside one of its holes.
@@ -305,6 +350,7 @@ impl SutureThread {
                                     &before[i],
                                     &mut now[i],
                                     &mut contacts[i],
+                                    &mut contact_inside[i],
                                     objects,
                                     &object,
                                     &inside,
@@ -329,8 +375,93 @@ impl SutureThread {
                 );
             }
         }
+        // The pull on each jaw; a thread pulled harder than the jaws hold slips out of them.
+        let aimed = self.grips.len();
+        let chain = &mut self.chain;
+        self.grips.retain_mut(|grip| {
+            let kept = grip.after_step(pull_on_node_n(chain, segment_mm, grip.node as usize));
+            if !kept {
+                chain.set_held(grip.node as usize, false, node_mass_kg);
+            }
+            kept
+        });
+        slipped += (aimed - self.grips.len()) as u32;
+        self.grips_slipped = slipped;
         self.last_tail_mm = Some(*tail_mm);
         self.pairs_apart = pairs_apart;
+    }
+
+    /// Tool `tool`'s jaws, at `position_mm`, `rotation`, take the thread: the free node nearest them
+    /// (`distance_mm` from the jaws) within `reach_mm`, held where it is now in the tool's frame. Not the
+    /// tail's node, one a hole holds, or one another grip holds. Returns the node taken (None: none in reach,
+    /// the tool already holds it, or [`MAX_GRIPS`] grips already). No allocation.
+    pub fn take_grip(
+        &mut self,
+        tool: u16,
+        position_mm: &Vec3,
+        rotation: &UnitQuaternion<f32>,
+        distance_mm: impl Fn(&Vec3) -> f32,
+        reach_mm: f32,
+    ) -> Option<u32> {
+        if self.grips.len() >= MAX_GRIPS
+            || self.grips.iter().any(|g| g.tool == tool)
+            || !self.is_laid_out()
+        {
+            return None;
+        }
+        let chain = &self.chain;
+        let (node, _) = chain
+            .positions_mm
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| {
+                chain.inverse_mass_per_kg()[*i] > 0.0
+                    && !self.holes.iter().any(|h| h.holds_node(*i))
+            })
+            .map(|(i, p)| (i, distance_mm(p)))
+            .filter(|(_, d)| *d <= reach_mm)
+            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        let at_tool_mm = super::thread_grip::in_tool_frame(
+            &self.chain.positions_mm[node],
+            position_mm,
+            rotation,
+        );
+        if !at_tool_mm.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        self.chain.set_held(node, true, 0.0);
+        self.grips
+            .push(ThreadGrip::new(tool, node as u32, at_tool_mm));
+        Some(node as u32)
+    }
+
+    /// Tool `tool`'s jaws let go of the thread. Returns whether they held it.
+    pub fn release_grip(&mut self, tool: u16) -> bool {
+        let before = self.grips.len();
+        let chain = &mut self.chain;
+        let node_mass_kg = LINEAR_DENSITY_KG_PER_MM * self.segment_mm;
+        self.grips.retain(|g| {
+            if g.tool == tool {
+                chain.set_held(g.node as usize, false, node_mass_kg);
+            }
+            g.tool != tool
+        });
+        self.grips.len() != before
+    }
+
+    /// The jaws holding it.
+    pub fn grips(&self) -> &[ThreadGrip] {
+        &self.grips
+    }
+
+    /// Tool `tool`'s grip on it, if it holds it.
+    pub fn grip_of(&self, tool: u16) -> Option<&ThreadGrip> {
+        self.grips.iter().find(|g| g.tool == tool)
+    }
+
+    /// Grips that slipped or were let go by a released tool in the last tick.
+    pub fn grips_slipped(&self) -> u32 {
+        self.grips_slipped
     }
 
     /// A hole the needle's tail just left takes the thread there (at its tail, `u = 0`): `squeeze_n`,
@@ -376,6 +507,31 @@ impl SutureThread {
     }
 }
 
+/// The thread's pull on node `i` (held), world, N: the segments either side pull it along them with the
+/// tension their stretch carries (`EA` times the strain; a slack one pulls nothing). Read from the stretch, not
+/// from the length solve's multipliers: between two held nodes a thread pulled taut past its length and bent
+/// the least bit is not carried to convergence by the solve's Newton steps (they straighten it sideways and
+/// overshoot: docs/suturing.md, "A taut thread between two held points"), and its multipliers then read
+/// almost nothing while it is stretched.
+fn pull_on_node_n(chain: &ThreadChain, segment_mm: f32, i: usize) -> Vec3 {
+    let p = &chain.positions_mm;
+    let mut pull = Vec3::zeros();
+    let Some(&at) = p.get(i) else {
+        return pull;
+    };
+    for neighbour in [i.wrapping_sub(1), i + 1] {
+        let Some(q) = p.get(neighbour) else {
+            continue;
+        };
+        let d = q - at;
+        let len = d.norm();
+        if len > segment_mm && len.is_finite() {
+            pull += d / len * (AXIAL_RIGIDITY_N * (len - segment_mm) / segment_mm);
+        }
+    }
+    pull
+}
+
 /// A surface point's place and the outward unit normal of its triangle as the surface is now.
 fn place_and_normal(
     point: &SurfacePoint,
@@ -396,9 +552,10 @@ fn keep_clear_of_tools<'b>(
     now: &mut Vec3,
     tools: usize,
     tool: &impl Fn(usize) -> Option<ThreadTool<'b>>,
+    skip_tool: Option<usize>,
 ) {
     let radius_mm = 0.5 * THREAD_DIAMETER_MM;
-    for k in 0..tools {
+    for k in (0..tools).filter(|k| skip_tool != Some(k / 2)) {
         let Some((collider, position_mm, rotation)) = tool(k) else {
             continue;
         };
@@ -418,12 +575,18 @@ fn keep_to_side<'a>(
     before: &Vec3,
     now: &mut Vec3,
     contact: &mut Option<SurfacePoint>,
+    contact_inside: &mut bool,
     objects: usize,
     object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
     inside: &impl Fn(usize) -> bool,
     exempt: &impl Fn(usize, &Vec3) -> bool,
 ) {
     let radius_mm = 0.5 * THREAD_DIAMETER_MM;
+    // A contact made on the other side of its surface is void: the thread has since run through one of its
+    // holes there, and the node is to cross that surface by the hole, not be thrown through it.
+    if contact.is_some_and(|c| inside(usize::from(c.object)) != *contact_inside) {
+        *contact = None;
+    }
     // Continuous: the first surface its path crossed the wrong way (into an object it is outside of, out of
     // one it runs inside).
     let mut first: Option<(usize, crate::collision::SurfaceCrossing)> = None;
@@ -453,6 +616,7 @@ fn keep_to_side<'a>(
             triangle: hit.triangle,
             barycentric: hit.barycentric,
         });
+        *contact_inside = inside(o);
     }
     let Some(point) = *contact else {
         return;

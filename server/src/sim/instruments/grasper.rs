@@ -1,7 +1,8 @@
 //! A grasper: jaws that close on tissue take hold of it as attachments, hold it each substep, and let it go
-//! when they open or it slips.
+//! when they open or it slips. Jaws that close on a suture thread (a node of another tool's thread within their
+//! bite) take that instead (`interaction/suture/thread_grip.rs`: the thread holds the grip and steps it).
 //!
-//! Owns: [`Grasper`] (its jaws, its grasp, the pull it felt). Must not: integrate (the tick's substeps call
+//! Owns: [`Grasper`] (its jaws, its grasp, the thread it holds, the pulls it felt). Must not: integrate (the tick's substeps call
 //! [`Instrument::hold`]).
 
 use nalgebra::UnitQuaternion;
@@ -25,6 +26,10 @@ pub(in crate::sim) struct Grasper {
     take_share: f32,
     /// The body's push through the points it handed to the grasp, at the take, N.
     handed_over_n: Vec3,
+    /// The tool whose suture thread the jaws hold (`interaction/suture/thread_grip.rs`), if any.
+    thread_of: Option<usize>,
+    /// The thread's pull on the jaws, N.
+    thread_pull_n: Vec3,
 }
 
 impl Grasper {
@@ -36,29 +41,43 @@ impl Grasper {
             pull_n: Vec3::zeros(),
             take_share: 1.0,
             handed_over_n: Vec3::zeros(),
+            thread_of: None,
+            thread_pull_n: Vec3::zeros(),
         }
     }
 }
 
 impl Instrument for Grasper {
-    /// The jaws take this tick's input: on closing, take hold of the tissue the body touches (both jaws must
-    /// touch it); on opening, let go; while holding, measure the pull and let slipping points go.
+    /// The jaws take this tick's input: on closing, take hold of a suture thread within their bite, else of
+    /// the tissue the body touches (both jaws must touch it); on opening, let go; while holding, measure the
+    /// pull and let slipping points go.
     fn after_substeps(&mut self, sim: &mut Sim, t: usize, dt_s: f32, report: &mut StepReport) {
-        let tool = &sim.tools[t];
-        let (jaws, grasp) = (&mut self.jaws, &mut self.grasp);
         self.pull_n = Vec3::zeros();
-        if !tool.active {
-            jaws.open();
-            grasp.closing_edge(false);
-            if !grasp.attachments().is_empty() {
-                report.attachments_released += released(grasp.release());
+        self.thread_pull_n = Vec3::zeros();
+        if !sim.tools[t].active {
+            self.jaws.open();
+            self.grasp.closing_edge(false);
+            if !self.grasp.attachments().is_empty() {
+                report.attachments_released += released(self.grasp.release());
             }
+            report.attachments_released += u32::from(self.let_go_of_thread(sim, t));
             return;
         }
-        let closed = jaws.update(&tool.drive.jaw_input, dt_s);
-        let mut took = false;
+        let closed = self.jaws.update(&sim.tools[t].drive.jaw_input, dt_s);
+        let closing = self.grasp.closing_edge(closed);
         // Jaws that close again while they still hold (opening, not yet open) keep their hold.
-        if grasp.closing_edge(closed) && grasp.attachments().is_empty() {
+        let free = self.grasp.attachments().is_empty() && self.thread_of.is_none();
+        if closing && free {
+            self.thread_of = take_thread(sim, t, self.grasp.spec().bite_mm);
+            if self.thread_of.is_some() {
+                report.grasps_taken += 1;
+            }
+        }
+        self.hold_thread(sim, t, closed, report);
+        let tool = &sim.tools[t];
+        let (jaws, grasp) = (&mut self.jaws, &mut self.grasp);
+        let mut took = false;
+        if closing && free && self.thread_of.is_none() {
             grasp.start_take();
             let bite_mm = grasp.spec().bite_mm;
             // A multi-rate object is not grasped (its nodes move on its own thread).
@@ -160,7 +179,7 @@ impl Instrument for Grasper {
     }
 
     fn force_on_tool_n(&self) -> Vec3 {
-        self.pull_n
+        self.pull_n + self.thread_pull_n
     }
 
     fn held_points(&self) -> u16 {
@@ -179,6 +198,79 @@ impl Instrument for Grasper {
     fn grasp(&self) -> Option<&Grasp> {
         Some(&self.grasp)
     }
+}
+
+impl Grasper {
+    /// While the jaws hold a thread: read its pull, notice it slipped out, let go of it once the jaws are open
+    /// (jaws that close again before they are open keep it).
+    fn hold_thread(&mut self, sim: &mut Sim, t: usize, closed: bool, report: &mut StepReport) {
+        let Some(k) = self.thread_of else {
+            return;
+        };
+        if !closed && self.jaws.grip() <= 0.0 {
+            report.attachments_released += u32::from(self.let_go_of_thread(sim, t));
+            return;
+        }
+        let grip = sim
+            .tools
+            .get(k)
+            .and_then(|tool| tool.instrument_state.as_ref())
+            .and_then(|instrument| instrument.thread())
+            .and_then(|thread| thread.grip_of(t as u16));
+        match grip {
+            Some(grip) => self.thread_pull_n = grip.pull_n(),
+            None => {
+                // It slipped out of the jaws (or its needle driver let it go).
+                self.thread_of = None;
+                report.attachments_slipped += 1;
+            }
+        }
+    }
+
+    /// Let go of the thread the jaws hold. Returns whether they held one.
+    fn let_go_of_thread(&mut self, sim: &mut Sim, t: usize) -> bool {
+        let Some(k) = self.thread_of.take() else {
+            return false;
+        };
+        self.thread_pull_n = Vec3::zeros();
+        sim.tools
+            .get_mut(k)
+            .and_then(|tool| tool.instrument_state.as_mut())
+            .and_then(|instrument| instrument.thread_mut())
+            .is_some_and(|thread| thread.release_grip(t as u16))
+    }
+}
+
+/// Tool `t`'s closing jaws take the first suture thread (in tool order) with a node within `bite_mm` and the
+/// thread's radius of its body. Returns the tool whose thread it took. No allocation.
+fn take_thread(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
+    let reach_mm =
+        bite_mm + 0.5 * crate::interaction::suture::THREAD_DIAMETER_MM + BITE_TOLERANCE_MM;
+    for k in (0..sim.tools.len()).filter(|&k| k != t) {
+        let (jaws, other) = if t < k {
+            let (left, right) = sim.tools.split_at_mut(k);
+            (&left[t], &mut right[0])
+        } else {
+            let (left, right) = sim.tools.split_at_mut(t);
+            (&right[0], &mut left[k])
+        };
+        let Some(thread) = other
+            .instrument_state
+            .as_mut()
+            .and_then(|instrument| instrument.thread_mut())
+        else {
+            continue;
+        };
+        let (position_mm, rotation) = (jaws.position_mm, jaws.rotation);
+        let distance_mm = |p: &Vec3| jaws.body.collider.distance_mm(&position_mm, &rotation, p);
+        if thread
+            .take_grip(t as u16, &position_mm, &rotation, distance_mm, reach_mm)
+            .is_some()
+        {
+            return Some(k);
+        }
+    }
+    None
 }
 
 /// How many points a release let go.

@@ -234,4 +234,8 @@ impl Instrument for NeedleDriver {
     fn thread(&self) -> Option<&SutureThread> {
         self.thread.as_ref()
     }
+
+    fn thread_mut(&mut self) -> Option<&mut SutureThread> {
+        self.thread.as_mut()
+    }
 }
