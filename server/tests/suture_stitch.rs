@@ -289,10 +289,8 @@ fn a_grasper_takes_the_thread_carries_it_feels_its_pull_and_the_thread_slips_out
         grip.node
     );
     // Drawn straight away from the tail at 4 mm/s until the thread between is taut and past its length: the
-    // jaws feel it pull back toward the needle, and it slips out of them before it pulls harder than their
-    // hold, leaving nothing in the grasper's hand. (It slips at about a tenth of the hold, not at the hold: the
-    // length solve does not carry a thread pulled taut between two held points to convergence, and the
-    // stretch gathers beside the jaws; docs/suturing.md, "A taut thread between two held points".)
+    // jaws feel it pull back toward the needle, harder and harder up to their hold, and then it slips out of
+    // them, leaving nothing in the grasper's hand.
     let away = (aim - tail_mm).normalize();
     let from = aim;
     // The worst angle between the pull and the way back to the tail, as the norm of the units' sum.
@@ -332,7 +330,10 @@ fn a_grasper_takes_the_thread_carries_it_feels_its_pull_and_the_thread_slips_out
         "the thread never slipped out of the jaws"
     );
     assert_eq!(slipped, 1);
-    assert!(most_n > 0.1 && most_n <= GRIP_SLIP_N, "{most_n} N");
+    assert!(
+        most_n > 0.9 * GRIP_SLIP_N && most_n <= GRIP_SLIP_N,
+        "{most_n} N"
+    );
     assert!(off_way < 0.2, "the pull is {off_way} off the thread's way");
     assert!(
         !grasper_force_after.is_empty() && grasper_force_after.iter().all(|&f| f < 1e-3),
@@ -371,7 +372,12 @@ fn a_grasper_takes_the_thread_carries_it_feels_its_pull_and_the_thread_slips_out
         grip.node
     );
     assert!((held - place).norm() < 1e-3, "the node left the jaws");
-    assert!((held - (grip.place_mm() + carry)).norm() < 0.1);
+    let moved = held - grip.place_mm();
+    println!("carried {moved:.2?} for {carry:.2?}");
+    assert!(
+        (moved - carry).norm() < 0.5,
+        "carried {moved:?} for {carry:?}"
+    );
     for _ in 0..300 {
         wound.aim_grasper(&aim, false);
         report_sum.attachments_released +=

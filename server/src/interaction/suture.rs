@@ -27,6 +27,7 @@ mod thread_chain;
 mod thread_grip;
 mod thread_hole;
 pub mod thread_self_contact;
+mod thread_solve;
 mod tip_contact;
 
 pub use crate::tissue::PunctureSpec;

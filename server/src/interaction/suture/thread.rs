@@ -61,9 +61,10 @@ const AXIAL_RIGIDITY_N: f32 = 1000.0;
 const BEND_RIGIDITY_N_MM2: f32 = 0.5;
 /// Air and wetness drag on every node, 1/s.
 const DRAG_PER_S: f32 = 5.0;
-/// Substeps of the thread per tick, and Newton steps of its length solve per substep.
+/// Substeps of the thread per tick, and the most Newton steps of its length solve per substep (it stops once
+/// converged: `thread_solve.rs`).
 const SUBSTEPS: usize = 4;
-const NEWTON: usize = 2;
+const NEWTON: usize = 8;
 /// Thread-tissue Coulomb coefficient (wet suture on skin).
 const SURFACE_FRICTION: f32 = 0.3;
 /// A resting node this far off its contact's plane beyond the radius has lifted off it, mm.
@@ -379,7 +380,7 @@ impl SutureThread {
         let aimed = self.grips.len();
         let chain = &mut self.chain;
         self.grips.retain_mut(|grip| {
-            let kept = grip.after_step(pull_on_node_n(chain, segment_mm, grip.node as usize));
+            let kept = grip.after_step(pull_on_node_n(chain, grip.node as usize));
             if !kept {
                 chain.set_held(grip.node as usize, false, node_mass_kg);
             }
@@ -507,26 +508,21 @@ impl SutureThread {
     }
 }
 
-/// The thread's pull on node `i` (held), world, N: the segments either side pull it along them with the
-/// tension their stretch carries (`EA` times the strain; a slack one pulls nothing). Read from the stretch, not
-/// from the length solve's multipliers: between two held nodes a thread pulled taut past its length and bent
-/// the least bit is not carried to convergence by the solve's Newton steps (they straighten it sideways and
-/// overshoot: docs/suturing.md, "A taut thread between two held points"), and its multipliers then read
-/// almost nothing while it is stretched.
-fn pull_on_node_n(chain: &ThreadChain, segment_mm: f32, i: usize) -> Vec3 {
+/// The thread's pull on node `i` (held), world, N: the segments either side pull it along them with their
+/// tension (a slack or compressed one pulls nothing).
+fn pull_on_node_n(chain: &ThreadChain, i: usize) -> Vec3 {
     let p = &chain.positions_mm;
+    let tension = chain.tension_n();
     let mut pull = Vec3::zeros();
     let Some(&at) = p.get(i) else {
         return pull;
     };
-    for neighbour in [i.wrapping_sub(1), i + 1] {
-        let Some(q) = p.get(neighbour) else {
+    for (segment, neighbour) in [(i.wrapping_sub(1), i.wrapping_sub(1)), (i, i + 1)] {
+        let (Some(&t), Some(q)) = (tension.get(segment), p.get(neighbour)) else {
             continue;
         };
-        let d = q - at;
-        let len = d.norm();
-        if len > segment_mm && len.is_finite() {
-            pull += d / len * (AXIAL_RIGIDITY_N * (len - segment_mm) / segment_mm);
+        if let Some(along) = (q - at).try_normalize(1e-9) {
+            pull += along * t.max(0.0);
         }
     }
     pull

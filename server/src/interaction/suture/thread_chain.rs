@@ -15,6 +15,7 @@
 //!
 //! Must not: allocate once built, or panic on any state (a non-finite step leaves the chain as it was).
 
+use super::thread_solve::{ChainTerms, PositionSolve, V64};
 use crate::tissue::{MM_PER_M, Vec3};
 
 /// A chain of `n` nodes and `n - 1` segments.
@@ -29,26 +30,24 @@ pub struct ThreadChain {
     /// Inverse masses, 1/kg (0: the node is held where it is, e.g. on the needle's tail).
     inverse_mass_per_kg: Vec<f32>,
     rest_mm: Vec<f32>,
-    /// Compliance of each segment, mm/N (`l / EA`).
-    compliance_mm_per_n: Vec<f32>,
     /// Viscous drag on every node, 1/s.
     drag_per_s: f32,
     /// Each segment's tension at the last step, N.
     tension_n: Vec<f32>,
     /// Bending stiffness of each hinge, N/mm (0: a rope; [`ThreadChain::set_bending`]).
     bend_stiffness_n_per_mm: f32,
-    // Scratch: the positions before the step, the directions, the system's diagonals and right-hand side.
+    /// The positions before the step (f32, as the caller sees them).
     previous_mm: Vec<Vec3>,
-    direction: Vec<Vec3>,
-    diag: Vec<f32>,
-    upper: Vec<f32>,
-    rhs: Vec<f32>,
-    lambda: Vec<f32>,
-    // This step's holds ([`ThreadChain::hold_node`]), per node: the inverse masses across and along the hold's
-    // direction (mm/N s^2), the direction and the hold.
-    across_w: Vec<f32>,
-    along_w: Vec<f32>,
-    hold_direction: Vec<Vec3>,
+    /// Each segment's spring, N/mm (`EA / l`).
+    stiffness_n_per_mm: Vec<f32>,
+    // The positions in f64 (the solve's; `positions_mm` is their f32 copy, and a change the caller makes to
+    // that copy is taken in), before the step, predicted, and the f32 copy as last written.
+    x64: Vec<V64>,
+    prev64: Vec<V64>,
+    predicted64: Vec<V64>,
+    mirror_mm: Vec<Vec3>,
+    solver: PositionSolve,
+    /// This step's holds ([`ThreadChain::hold_node`]), per node.
     hold: Vec<Option<NodeHold>>,
 }
 
@@ -91,20 +90,17 @@ impl ThreadChain {
             velocities_mm_s: vec![Vec3::zeros(); n],
             forces_n: vec![Vec3::zeros(); n],
             inverse_mass_per_kg: vec![1.0 / node_mass_kg; n],
-            compliance_mm_per_n: rest_mm.iter().map(|l| l / axial_rigidity_n).collect(),
-            rest_mm,
             drag_per_s,
             tension_n: vec![0.0; m],
             bend_stiffness_n_per_mm: 0.0,
             previous_mm: vec![Vec3::zeros(); n],
-            direction: vec![Vec3::zeros(); m],
-            diag: vec![0.0; m],
-            upper: vec![0.0; m],
-            rhs: vec![0.0; m],
-            lambda: vec![0.0; m],
-            across_w: vec![MM_PER_M / node_mass_kg; n],
-            along_w: vec![MM_PER_M / node_mass_kg; n],
-            hold_direction: vec![Vec3::zeros(); n],
+            stiffness_n_per_mm: rest_mm.iter().map(|l| axial_rigidity_n / l).collect(),
+            rest_mm,
+            x64: nodes_mm.iter().map(|p| p.cast::<f64>()).collect(),
+            prev64: vec![V64::zeros(); n],
+            predicted64: vec![V64::zeros(); n],
+            mirror_mm: nodes_mm.to_vec(),
+            solver: PositionSolve::new(n),
             hold: vec![None; n],
         })
     }
@@ -118,8 +114,6 @@ impl ThreadChain {
             } else {
                 1.0 / node_mass_kg
             };
-            self.across_w[i] = *w * MM_PER_M;
-            self.along_w[i] = *w * MM_PER_M;
         }
     }
 
@@ -211,26 +205,46 @@ impl ThreadChain {
             self.clear_holds();
             return;
         }
+        let h = f64::from(h_s);
         let drag = 1.0 / (1.0 + h_s * self.drag_per_s);
         for i in 0..n {
+            // A position the caller set since the last step (the tail, the jaws, a lay-out) is taken as given.
+            if self.positions_mm[i] != self.mirror_mm[i] {
+                self.x64[i] = self.positions_mm[i].cast::<f64>();
+            }
             self.previous_mm[i] = self.positions_mm[i];
+            self.prev64[i] = self.x64[i];
             let w = self.inverse_mass_per_kg[i];
             if w == 0.0 {
                 self.velocities_mm_s[i] = Vec3::zeros();
+                self.predicted64[i] = self.x64[i];
                 continue;
             }
             // a = F / m in mm/s^2: N/kg is m/s^2.
             let accel = gravity_mm_per_s2 + self.forces_n[i] * (w * MM_PER_M);
             self.velocities_mm_s[i] = self.velocities_mm_s[i] * drag + accel * h_s;
-            self.positions_mm[i] += self.velocities_mm_s[i] * h_s;
+            self.predicted64[i] = self.x64[i] + self.velocities_mm_s[i].cast::<f64>() * h;
         }
-        self.bend(h_s);
-        self.apply_holds(h_s);
-        self.lambda.fill(0.0);
-        for _ in 0..newton.max(1) {
-            self.solve_once(h_s);
-        }
+        let terms = ChainTerms {
+            inverse_mass_per_kg: &self.inverse_mass_per_kg,
+            holds: &self.hold,
+            rest_mm: &self.rest_mm,
+            stiffness_n_per_mm: &self.stiffness_n_per_mm,
+            bend_n_per_mm: self.bend_stiffness_n_per_mm,
+        };
+        self.solver
+            .solve(&mut self.x64, &self.predicted64, &terms, h, newton.max(1));
         self.clear_holds();
+        // The tension each segment's stretch carries, as the solve left it (the contacts after it move nodes
+        // without a force).
+        for s in 0..self.rest_mm.len() {
+            let stretch = (self.x64[s + 1] - self.x64[s]).norm() - f64::from(self.rest_mm[s]);
+            self.tension_n[s] = (stretch * f64::from(self.stiffness_n_per_mm[s])) as f32;
+        }
+        for i in 0..n {
+            self.positions_mm[i] = self.x64[i].cast::<f32>();
+            self.mirror_mm[i] = self.positions_mm[i];
+        }
         constrain(
             &self.previous_mm,
             &mut self.positions_mm,
@@ -239,165 +253,29 @@ impl ThreadChain {
         let finite = self
             .positions_mm
             .iter()
-            .all(|p| p.iter().all(|c| c.is_finite()));
+            .all(|p| p.iter().all(|c| c.is_finite()))
+            && self.x64.iter().all(|p| p.iter().all(|c| c.is_finite()));
         if !finite {
             self.positions_mm.copy_from_slice(&self.previous_mm);
+            self.mirror_mm.copy_from_slice(&self.previous_mm);
+            self.x64.copy_from_slice(&self.prev64);
             self.velocities_mm_s.fill(Vec3::zeros());
+            self.tension_n.fill(0.0);
             return;
         }
         for i in 0..n {
-            self.velocities_mm_s[i] = (self.positions_mm[i] - self.previous_mm[i]) / h_s;
-        }
-        // lambda is in N s^2 / kg-mm units of the mm-scaled system: tension = lambda / h^2 (see solve_once).
-        for (t, l) in self.tension_n.iter_mut().zip(&self.lambda) {
-            *t = -l / (h_s * h_s);
-        }
-    }
-
-    /// One Gauss-Seidel sweep of the hinges' XPBD constraints `C = x_i - (x_{i-1} + x_{i+1}) / 2` across the
-    /// chord `x_{i+1} - x_{i-1}` (a vector, gradients `I` and `-I/2` with the chord taken as fixed), each
-    /// starting from a zero multiplier: a soft constraint needs no more. The length solve that follows puts the
-    /// segments back to length.
-    fn bend(&mut self, h_s: f32) {
-        let k = self.bend_stiffness_n_per_mm;
-        if k <= 0.0 {
-            return;
-        }
-        let alpha = 1.0 / (k * h_s * h_s);
-        let n = self.positions_mm.len();
-        for i in 1..n.saturating_sub(1) {
-            let w = |j: usize| self.inverse_mass_per_kg[j] * MM_PER_M;
-            let (wa, wb, wc) = (w(i - 1), w(i), w(i + 1));
-            let effective = wb + 0.25 * (wa + wc);
-            if effective <= 0.0 {
-                continue;
+            // The contacts' moves, taken in as differences: a node they leave alone keeps its f64 place.
+            if self.positions_mm[i] != self.mirror_mm[i] {
+                self.x64[i] += (self.positions_mm[i] - self.mirror_mm[i]).cast::<f64>();
+                self.mirror_mm[i] = self.positions_mm[i];
             }
-            let p = &mut self.positions_mm;
-            // Only the part across the chord is bending: along it, the midpoint offset is uneven stretch, which
-            // is the length solve's (left in, it would carry part of the chain's load).
-            let chord = (p[i + 1] - p[i - 1])
-                .try_normalize(1e-9)
-                .unwrap_or_else(Vec3::zeros);
-            let offset = p[i] - (p[i - 1] + p[i + 1]) * 0.5;
-            let c = offset - chord * chord.dot(&offset);
-            let dl = -c / (effective + alpha);
-            p[i] += dl * wb;
-            p[i - 1] -= dl * (0.5 * wa);
-            p[i + 1] -= dl * (0.5 * wc);
-        }
-    }
-
-    /// The held nodes' predictions drawn toward their places, and their inverse masses across (and, pinned,
-    /// along) made the spring's (module doc of [`ThreadChain::hold_node`]).
-    fn apply_holds(&mut self, h_s: f32) {
-        let h2 = h_s * h_s;
-        for i in 0..self.positions_mm.len() {
-            let Some(hold) = self.hold[i] else {
-                continue;
-            };
-            let t = hold.direction;
-            self.hold_direction[i] = t;
-            let w = self.inverse_mass_per_kg[i] * MM_PER_M;
-            let across = w * h2 * hold.across_n_per_mm;
-            let along = w * h2 * hold.along_n_per_mm;
-            let off = hold.place_mm - self.positions_mm[i];
-            let off_along = t * t.dot(&off);
-            self.positions_mm[i] +=
-                (off - off_along) * (across / (1.0 + across)) + off_along * (along / (1.0 + along));
-            self.across_w[i] = w / (1.0 + across);
-            self.along_w[i] = w / (1.0 + along);
+            self.velocities_mm_s[i] = ((self.x64[i] - self.prev64[i]) / h).cast::<f32>();
         }
     }
 
     /// Every node free again (holds last one step).
     fn clear_holds(&mut self) {
-        for i in 0..self.positions_mm.len() {
-            if self.hold[i].take().is_some() {
-                let w = self.inverse_mass_per_kg[i] * MM_PER_M;
-                self.across_w[i] = w;
-                self.along_w[i] = w;
-            }
-        }
-    }
-
-    /// `a . W_i b` for node `i`'s inverse mass matrix (mm/N s^2): `w_across` across its hold's direction,
-    /// `w_along` along it.
-    fn weighted_dot(&self, i: usize, a: &Vec3, b: &Vec3) -> f32 {
-        let (across, along) = (self.across_w[i], self.along_w[i]);
-        let dot = a.dot(b);
-        if across == along {
-            return across * dot;
-        }
-        let t = &self.hold_direction[i];
-        across * dot + (along - across) * a.dot(t) * b.dot(t)
-    }
-
-    /// `n . W_i n` for node `i` and a unit `n` (exactly `w_i` for a node no hold makes a matrix).
-    fn weighted_square(&self, i: usize, n: &Vec3) -> f32 {
-        let (across, along) = (self.across_w[i], self.along_w[i]);
-        if across == along {
-            return across;
-        }
-        let t = n.dot(&self.hold_direction[i]);
-        across + (along - across) * t * t
-    }
-
-    /// `W_i v` for node `i` (mm/N s^2 times N s^2).
-    fn weighted(&self, i: usize, v: &Vec3) -> Vec3 {
-        let (across, along) = (self.across_w[i], self.along_w[i]);
-        if across == along {
-            return v * across;
-        }
-        let t = &self.hold_direction[i];
-        v * across + t * ((along - across) * t.dot(v))
-    }
-
-    /// One Newton step: build the tridiagonal system at the current positions and solve it (Thomas), each
-    /// node's inverse mass a matrix where a hold makes it one ([`ThreadChain::hold_node`]).
-    fn solve_once(&mut self, h_s: f32) {
-        let m = self.rest_mm.len();
-        let h2 = h_s * h_s;
-        for s in 0..m {
-            let d = self.positions_mm[s + 1] - self.positions_mm[s];
-            let len = d.norm();
-            self.direction[s] = if len > 1e-9 { d / len } else { Vec3::x() };
-        }
-        for s in 0..m {
-            let n = self.direction[s];
-            let alpha = self.compliance_mm_per_n[s] / h2;
-            let len = (self.positions_mm[s + 1] - self.positions_mm[s]).norm();
-            self.diag[s] = self.weighted_square(s, &n) + self.weighted_square(s + 1, &n) + alpha;
-            self.rhs[s] = -(len - self.rest_mm[s]) - alpha * self.lambda[s];
-        }
-        for s in 0..m.saturating_sub(1) {
-            self.upper[s] = -self.weighted_dot(s + 1, &self.direction[s], &self.direction[s + 1]);
-        }
-        // Thomas: forward elimination (upper is symmetric), back substitution into rhs.
-        for s in 1..m {
-            let factor = self.upper[s - 1] / self.diag[s - 1];
-            self.diag[s] -= factor * self.upper[s - 1];
-            self.rhs[s] -= factor * self.rhs[s - 1];
-        }
-        for s in (0..m).rev() {
-            let above = if s + 1 < m {
-                self.upper[s] * self.rhs[s + 1]
-            } else {
-                0.0
-            };
-            self.rhs[s] = (self.rhs[s] - above) / self.diag[s];
-        }
-        // dx = W J^T dlambda: segment s pulls node s along -n_s and node s + 1 along +n_s.
-        for s in 0..m {
-            let dl = self.rhs[s];
-            if !dl.is_finite() {
-                continue;
-            }
-            self.lambda[s] += dl;
-            let push = self.direction[s] * dl;
-            let (a, b) = (self.weighted(s, &push), self.weighted(s + 1, &push));
-            self.positions_mm[s] -= a;
-            self.positions_mm[s + 1] += b;
-        }
+        self.hold.fill(None);
     }
 }
 
