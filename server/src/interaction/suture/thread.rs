@@ -140,8 +140,6 @@ pub struct SutureThread {
     holes: Vec<ThreadHole>,
     /// The jaws holding it (`thread_grip.rs`).
     grips: Vec<ThreadGrip>,
-    /// Grips that slipped (the thread pulled out of the jaws) in the last tick.
-    grips_slipped: u32,
 }
 
 impl SutureThread {
@@ -180,7 +178,6 @@ impl SutureThread {
             self_contact: SelfContact::new(usize::from(spec.segments)),
             holes: Vec::with_capacity(MAX_HOLES),
             grips: Vec::with_capacity(MAX_GRIPS),
-            grips_slipped: 0,
         })
     }
 
@@ -201,12 +198,12 @@ impl SutureThread {
 
     /// The thread's pull on the needle's tail, world, N (the first segment's tension along it).
     pub fn pull_on_tail_n(&self) -> Vec3 {
-        let p = &self.chain.positions_mm;
-        let tension = self.chain.tension_n().first().copied().unwrap_or(0.0);
-        match (p[1] - p[0]).try_normalize(1e-9) {
-            Some(along) if tension.is_finite() => along * tension.max(0.0),
-            _ => Vec3::zeros(),
-        }
+        pull_on_node_n(&self.chain, 0)
+    }
+
+    /// A node's mass, kg.
+    fn node_mass_kg(&self) -> f32 {
+        LINEAR_DENSITY_KG_PER_MM * self.segment_mm
     }
 
     /// Lay the thread out straight and level from `tail_mm`, toward `away` (the way out of the tail) turned
@@ -233,7 +230,7 @@ impl SutureThread {
         }
         self.chain.velocities_mm_s.fill(Vec3::zeros());
         self.contacts.fill(None);
-        let node_mass_kg = LINEAR_DENSITY_KG_PER_MM * self.segment_mm;
+        let node_mass_kg = self.node_mass_kg();
         for grip in self.grips.drain(..) {
             self.chain.set_held(grip.node as usize, false, node_mass_kg);
         }
@@ -276,9 +273,8 @@ impl SutureThread {
                 .is_some_and(|(_, model, state)| hole.place(model, state))
         });
         // Where the jaws hold it this tick; a released tool lets go.
-        let before_grips = self.grips.len();
+        let node_mass_kg = self.node_mass_kg();
         let chain = &mut self.chain;
-        let node_mass_kg = LINEAR_DENSITY_KG_PER_MM * self.segment_mm;
         self.grips.retain_mut(|grip| {
             let kept = tool(2 * usize::from(grip.tool))
                 .is_some_and(|(_, position_mm, rotation)| grip.aim(&position_mm, &rotation));
@@ -287,7 +283,6 @@ impl SutureThread {
             }
             kept
         });
-        let mut slipped = (before_grips - self.grips.len()) as u32;
         let contacts = &mut self.contacts;
         let contact_inside = &mut self.contact_inside;
         let self_contact = &mut self.self_contact;
@@ -377,7 +372,6 @@ impl SutureThread {
             }
         }
         // The pull on each jaw; a thread pulled harder than the jaws hold slips out of them.
-        let aimed = self.grips.len();
         let chain = &mut self.chain;
         self.grips.retain_mut(|grip| {
             let kept = grip.after_step(pull_on_node_n(chain, grip.node as usize));
@@ -386,8 +380,6 @@ impl SutureThread {
             }
             kept
         });
-        slipped += (aimed - self.grips.len()) as u32;
-        self.grips_slipped = slipped;
         self.last_tail_mm = Some(*tail_mm);
         self.pairs_apart = pairs_apart;
     }
@@ -439,8 +431,8 @@ impl SutureThread {
     /// Tool `tool`'s jaws let go of the thread. Returns whether they held it.
     pub fn release_grip(&mut self, tool: u16) -> bool {
         let before = self.grips.len();
+        let node_mass_kg = self.node_mass_kg();
         let chain = &mut self.chain;
-        let node_mass_kg = LINEAR_DENSITY_KG_PER_MM * self.segment_mm;
         self.grips.retain(|g| {
             if g.tool == tool {
                 chain.set_held(g.node as usize, false, node_mass_kg);
@@ -458,11 +450,6 @@ impl SutureThread {
     /// Tool `tool`'s grip on it, if it holds it.
     pub fn grip_of(&self, tool: u16) -> Option<&ThreadGrip> {
         self.grips.iter().find(|g| g.tool == tool)
-    }
-
-    /// Grips that slipped or were let go by a released tool in the last tick.
-    pub fn grips_slipped(&self) -> u32 {
-        self.grips_slipped
     }
 
     /// A hole the needle's tail just left takes the thread there (at its tail, `u = 0`): `squeeze_n`,
@@ -508,8 +495,8 @@ impl SutureThread {
     }
 }
 
-/// The thread's pull on node `i` (held), world, N: the segments either side pull it along them with their
-/// tension (a slack or compressed one pulls nothing).
+/// The thread's pull on node `i` (held: the tail, a grip), world, N: the segments either side pull it along
+/// them with their tension (a slack or compressed one pulls nothing, nor one whose tension is not finite).
 fn pull_on_node_n(chain: &ThreadChain, i: usize) -> Vec3 {
     let p = &chain.positions_mm;
     let tension = chain.tension_n();
@@ -521,6 +508,9 @@ fn pull_on_node_n(chain: &ThreadChain, i: usize) -> Vec3 {
         let (Some(&t), Some(q)) = (tension.get(segment), p.get(neighbour)) else {
             continue;
         };
+        if !t.is_finite() {
+            continue;
+        }
         if let Some(along) = (q - at).try_normalize(1e-9) {
             pull += along * t.max(0.0);
         }
