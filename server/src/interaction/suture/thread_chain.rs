@@ -331,6 +331,70 @@ mod tests {
     }
 
     #[test]
+    fn a_thread_drawn_taut_between_two_held_nodes_stretches_straight_and_reads_ea_times_its_strain() {
+        // The suture thread's constants (thread.rs): 150 mm in 64 segments, 0.1 mg/mm, EA 1000 N, EI 0.5 N mm2.
+        // It hangs from node 0; node 10 is then held, carried 10 mm up and aside (the ten segments between go
+        // slack) and drawn down until the two held nodes are 16% further apart than those segments are long
+        // (examples/taut_thread.rs prints the whole run). A converged solve leaves them straight, each stretched
+        // alike, carrying EA times the strain; the old multiplier solve left a zigzag reading 0.05 N of 200.
+        let segment_mm = 150.0 / 64.0;
+        let nodes: Vec<Vec3> = (0..=64)
+            .map(|i| Vec3::new(0.0, 0.0, -segment_mm * i as f32))
+            .collect();
+        let mut chain = ThreadChain::new(&nodes, 1e-7 * segment_mm, 1000.0, 5.0).unwrap();
+        chain.set_held(0, true, 0.0);
+        chain.set_bending(0.5);
+        let g = Vec3::new(0.0, 0.0, -9810.0);
+        let h_s = 0.00025;
+        for _ in 0..2000 {
+            chain.step(h_s, &g, 2);
+        }
+        chain.set_held(10, true, 0.0);
+        let start = chain.positions_mm[10];
+        for k in 0..=16_000 {
+            let t = k as f32 * h_s;
+            let off = if t < 1.0 {
+                Vec3::new(-6.0 * t, 0.0, 8.0 * t)
+            } else {
+                Vec3::new(-6.0, 0.0, 8.0 - 4.0 * (t - 1.0))
+            };
+            chain.positions_mm[10] = start + off;
+            chain.step(h_s, &g, 2);
+        }
+        let between_mm = 10.0 * segment_mm;
+        let apart_mm = (chain.positions_mm[10] - chain.positions_mm[0]).norm();
+        let lengths: Vec<f32> = chain.positions_mm[..11]
+            .windows(2)
+            .map(|w| (w[1] - w[0]).norm())
+            .collect();
+        let (shortest, longest) = lengths
+            .iter()
+            .fold((f32::MAX, 0.0f32), |(a, b), &l| (a.min(l), b.max(l)));
+        let strain = (apart_mm - between_mm) / between_mm;
+        let straight_n = 1000.0 * strain;
+        let read_n = chain.tension_n()[..10].iter().fold(0.0f32, |a, &b| a.max(b));
+        println!(
+            "apart {apart_mm:.3} mm over {between_mm:.3} mm of thread (strain {strain:.4}); segments \
+             {shortest:.4}-{longest:.4} mm; tension read {read_n:.2} N, a straight stretch {straight_n:.2} N"
+        );
+        assert!(strain > 0.1, "strain {strain}: never drawn taut");
+        assert!(
+            longest <= shortest * 1.01,
+            "segments {shortest}-{longest} mm: not straight and even"
+        );
+        assert!(
+            (read_n - straight_n).abs() <= 0.05 * straight_n,
+            "read {read_n} N against {straight_n} N"
+        );
+        for t in &chain.tension_n()[..10] {
+            assert!(
+                (t - read_n).abs() <= 0.05 * read_n,
+                "tension {t} N along a stretch reading {read_n} N"
+            );
+        }
+    }
+
+    #[test]
     fn a_bad_chain_is_refused_and_a_bad_step_changes_nothing() {
         let p = [Vec3::zeros(), Vec3::x()];
         assert!(ThreadChain::new(&p[..1], 1e-6, 10.0, 0.0).is_none());
