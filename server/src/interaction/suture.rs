@@ -29,6 +29,7 @@ mod thread_hole;
 pub mod thread_self_contact;
 mod thread_solve;
 mod tip_contact;
+mod volume_point;
 
 pub use crate::tissue::PunctureSpec;
 pub use hole::Hole;
@@ -41,5 +42,6 @@ pub use thread::{
 };
 pub use thread_chain::{NodeHold, ThreadChain};
 pub use thread_grip::{GRIP_SLIP_N, MAX_GRIPS, ThreadGrip};
-pub use thread_hole::{ThreadHole, inside_by_holes};
+pub use thread_hole::{HolePoint, ThreadHole, inside_by_holes};
 pub use tip_contact::{SurfacePoint, TipContact};
+pub use volume_point::VolumePoint;

@@ -42,9 +42,9 @@
 use nalgebra::UnitQuaternion;
 
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
-use super::thread_hole::{ThreadHole, inside_by_holes};
+use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes};
 use super::thread_self_contact::SelfContact;
-use super::{MAX_HOLES, SurfacePoint, ThreadChain};
+use super::{MAX_HOLES, SurfacePoint, ThreadChain, VolumePoint};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -79,6 +79,11 @@ const HOLE_CLEARANCE_MM: f32 = 2.0;
 const GRIP_CLEAR_NODES: usize = 2;
 /// The tree's query box is loosened by this much for a node's path, mm.
 const CROSSING_MARGIN_MM: f32 = 0.5;
+/// The needle's track inside the tissue holds the thread in a ring every this far along it, mm (about a
+/// segment: the thread bends only at its nodes).
+const TRACK_SPACING_MM: f32 = 2.5;
+/// The most track rings a thread runs through.
+pub const MAX_TRACK_RINGS: usize = 64;
 
 /// A thread's size (the world's keys `thread_length_mm`, `thread_segments`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -138,6 +143,8 @@ pub struct SutureThread {
     self_contact: SelfContact,
     /// The holes the thread runs through, in the order it entered them.
     holes: Vec<ThreadHole>,
+    /// The rings of the needle's tracks inside the tissue it runs through, in the order it entered them.
+    tracks: Vec<ThreadHole>,
     /// The jaws holding it (`thread_grip.rs`).
     grips: Vec<ThreadGrip>,
 }
@@ -177,6 +184,7 @@ impl SutureThread {
             pairs_apart: 0,
             self_contact: SelfContact::new(usize::from(spec.segments)),
             holes: Vec::with_capacity(MAX_HOLES),
+            tracks: Vec::with_capacity(MAX_TRACK_RINGS),
             grips: Vec::with_capacity(MAX_GRIPS),
         })
     }
@@ -267,11 +275,23 @@ impl SutureThread {
             return;
         }
         let h_s = dt_s / SUBSTEPS as f32;
-        // Where the holes hold it this tick; a hole whose tissue is gone lets go.
-        self.holes.retain_mut(|hole| {
-            object(usize::from(hole.point.object))
+        // Where the holes and the tracks hold it this tick; one whose tissue is gone lets go.
+        let placed = |hole: &mut ThreadHole| {
+            object(usize::from(hole.point.object()))
                 .is_some_and(|(_, model, state)| hole.place(model, state))
+        };
+        self.holes.retain_mut(placed);
+        self.tracks.retain_mut(placed);
+        // A ring beside a hole of its object is the hole's (one laid as the tail reached the way out, before
+        // the needle had left that hole and handed it over).
+        let holes = &self.holes;
+        self.tracks.retain(|r| {
+            !holes.iter().any(|h| {
+                h.point.object() == r.point.object()
+                    && (h.place_mm() - r.place_mm()).norm() < 0.5 * TRACK_SPACING_MM
+            })
         });
+        self.lay_tracks(&from_tail, objects, &object);
         // Where the jaws hold it this tick; a released tool lets go.
         let node_mass_kg = self.node_mass_kg();
         let chain = &mut self.chain;
@@ -287,6 +307,7 @@ impl SutureThread {
         let contact_inside = &mut self.contact_inside;
         let self_contact = &mut self.self_contact;
         let holes = &mut self.holes;
+        let tracks = &mut self.tracks;
         let grips = &self.grips;
         let segment_mm = self.segment_mm;
         let mut pairs_apart = 0;
@@ -294,7 +315,18 @@ impl SutureThread {
             let s = k as f32 / SUBSTEPS as f32;
             self.chain.positions_mm[0] = from_tail + (tail_mm - from_tail) * s;
             // The holes hold their nodes inside the length solve (thread_hole.rs).
-            for hole in holes.iter_mut() {
+            // A ring on a segment a hole or an earlier ring holds already leaves it to that one: two rings on
+            // one segment hold its nodes at places that need not agree, and fight.
+            for k in 0..tracks.len() {
+                let segment = |h: &ThreadHole| (h.u_mm / segment_mm) as usize;
+                let mine = segment(&tracks[k]);
+                let taken = holes
+                    .iter()
+                    .chain(&tracks[..k])
+                    .any(|h| h.point.object() == tracks[k].point.object() && segment(h) == mine);
+                tracks[k].set_resting(taken);
+            }
+            for hole in holes.iter_mut().chain(tracks.iter_mut()) {
                 let chain = &self.chain;
                 let held = hole.node_holds(
                     &chain.positions_mm,
@@ -319,7 +351,7 @@ impl SutureThread {
                             if w[i] > 0.0 {
                                 // A node a hole holds is the hole's: a tool in the same hole (the needle, the
                                 // jaws following it through) does not push it out of it.
-                                if !holes.iter().any(|h| h.holds_node(i)) {
+                                if !holes.iter().chain(tracks.iter()).any(|h| h.holds_node(i)) {
                                     // The thread runs out between the jaws holding it: their
                                     // body does not push the nodes beside the one they hold.
                                     let jaws = grips
@@ -335,7 +367,7 @@ impl SutureThread {
                                 // stretch of thread further on that lies near it is kept out as any).
                                 let exempt = |o: usize, at: &Vec3| {
                                     holes.iter().any(|h| {
-                                        usize::from(h.point.object) == o
+                                        usize::from(h.point.object()) == o
                                             && (h.u_mm - u_mm).abs()
                                                 < HOLE_CLEARANCE_MM + segment_mm
                                             && (h.place_mm() - at).norm() < HOLE_CLEARANCE_MM
@@ -362,7 +394,7 @@ impl SutureThread {
                     contact_pass(now);
                     pairs_apart += self_contact.keep_apart(before, now, w, THREAD_DIAMETER_MM);
                 });
-            for hole in holes.iter_mut() {
+            for hole in holes.iter_mut().chain(tracks.iter_mut()) {
                 hole.after_substep(
                     &self.chain.positions_mm,
                     self.chain.tension_n(),
@@ -409,7 +441,11 @@ impl SutureThread {
             .enumerate()
             .filter(|(i, _)| {
                 chain.inverse_mass_per_kg()[*i] > 0.0
-                    && !self.holes.iter().any(|h| h.holds_node(*i))
+                    && !self
+                        .holes
+                        .iter()
+                        .chain(&self.tracks)
+                        .any(|h| h.holds_node(*i))
             })
             .map(|(i, p)| (i, distance_mm(p)))
             .filter(|(_, d)| *d <= reach_mm)
@@ -466,7 +502,7 @@ impl SutureThread {
             return false;
         }
         self.holes.push(ThreadHole::new(
-            point,
+            HolePoint::Surface(point),
             0.0,
             squeeze_n,
             friction,
@@ -475,18 +511,70 @@ impl SutureThread {
         true
     }
 
-    /// The holes the thread runs through.
+    /// The holes in the surface the thread runs through.
     pub fn holes(&self) -> &[ThreadHole] {
         &self.holes
     }
 
-    /// Let go of the holes in object `object` (it was reset, or its topology changed under them is handled by
-    /// each hole's place); all of them for `None`. Returns how many.
+    /// The rings of the needle's tracks inside the tissue it runs through.
+    pub fn tracks(&self) -> &[ThreadHole] {
+        &self.tracks
+    }
+
+    /// Let go of the holes (and the tracks) in object `object` (it was reset, or its topology changed under
+    /// them is handled by each hole's place); all of them for `None`. Returns how many holes.
     pub fn release_holes(&mut self, object: Option<usize>) -> u32 {
         let before = self.holes.len();
-        self.holes
-            .retain(|h| object.is_some_and(|o| usize::from(h.point.object) != o));
+        let kept = |h: &ThreadHole| object.is_some_and(|o| usize::from(h.point.object()) != o);
+        self.holes.retain(kept);
+        self.tracks.retain(kept);
         (before - self.holes.len()) as u32
+    }
+
+    /// Where the tail (at `tail_mm`) runs inside an object (by the holes' parity) and has come
+    /// [`TRACK_SPACING_MM`] from the last hole or ring there, the tissue there takes the thread in a ring
+    /// with the hole's friction, squeeze and stiffness (the needle's track). No allocation.
+    fn lay_tracks<'a>(
+        &mut self,
+        tail_mm: &Vec3,
+        objects: usize,
+        object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
+    ) {
+        for o in 0..objects {
+            let id = o as u16;
+            if self.tracks.len() >= MAX_TRACK_RINGS || !inside_by_holes(&self.holes, id, 0.0) {
+                continue;
+            }
+            let nearest = self
+                .holes
+                .iter()
+                .chain(&self.tracks)
+                .filter(|h| h.point.object() == id)
+                .map(|h| h.u_mm)
+                .fold(f32::INFINITY, f32::min);
+            let Some(entry) = self.holes.iter().rev().find(|h| h.point.object() == id) else {
+                continue;
+            };
+            if nearest < TRACK_SPACING_MM {
+                continue;
+            }
+            let Some((_, model, state)) = object(o) else {
+                continue;
+            };
+            let Some(point) = VolumePoint::locate(id, model, state, tail_mm) else {
+                continue;
+            };
+            let mut ring = ThreadHole::new(
+                HolePoint::Volume(point),
+                0.0,
+                entry.squeeze_n,
+                entry.friction,
+                entry.stiffness_n_per_mm,
+            );
+            if ring.place(model, state) {
+                self.tracks.push(ring);
+            }
+        }
     }
 
     /// Pairs of its segments held apart in the last tick (summed over its substeps).

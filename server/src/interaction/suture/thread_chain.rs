@@ -331,7 +331,8 @@ mod tests {
     }
 
     #[test]
-    fn a_thread_drawn_taut_between_two_held_nodes_stretches_straight_and_reads_ea_times_its_strain() {
+    fn a_thread_drawn_taut_between_two_held_nodes_stretches_straight_and_reads_ea_times_its_strain()
+    {
         // The suture thread's constants (thread.rs): 150 mm in 64 segments, 0.1 mg/mm, EA 1000 N, EI 0.5 N mm2.
         // It hangs from node 0; node 10 is then held, carried 10 mm up and aside (the ten segments between go
         // slack) and drawn down until the two held nodes are 16% further apart than those segments are long
@@ -372,7 +373,9 @@ mod tests {
             .fold((f32::MAX, 0.0f32), |(a, b), &l| (a.min(l), b.max(l)));
         let strain = (apart_mm - between_mm) / between_mm;
         let straight_n = 1000.0 * strain;
-        let read_n = chain.tension_n()[..10].iter().fold(0.0f32, |a, &b| a.max(b));
+        let read_n = chain.tension_n()[..10]
+            .iter()
+            .fold(0.0f32, |a, &b| a.max(b));
         println!(
             "apart {apart_mm:.3} mm over {between_mm:.3} mm of thread (strain {strain:.4}); segments \
              {shortest:.4}-{longest:.4} mm; tension read {read_n:.2} N, a straight stretch {straight_n:.2} N"

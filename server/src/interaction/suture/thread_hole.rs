@@ -1,8 +1,16 @@
-//! A puncture hole holding the thread once the needle has passed through it: a sliding ring.
+//! A puncture hole holding the thread once the needle has passed through it, or a point of the needle's track
+//! inside the tissue: a sliding ring.
 //!
-//! Owns: [`ThreadHole`] (a material point of the surface, where along the thread it holds it, its friction's
-//! state and its pull) and [`inside_by_holes`] (which of the thread's points lie inside an object, from the
-//! holes ahead of them).
+//! Owns: [`ThreadHole`] (a material point of the surface or the volume, [`HolePoint`], where along the thread it
+//! holds it, its friction's state and its pull) and [`inside_by_holes`] (which of the thread's points lie inside
+//! an object, from the surface holes ahead of them).
+//!
+//! Tracks: a thread held only at the two holes of a bite runs straight between them, and drawn tight it cuts
+//! up through the tissue as a sling does (the hole on a wound's face was dragged 5 mm up toward the skin's
+//! top, and closed nothing). The tissue holds a real suture all along the needle's path, so every few
+//! millimetres of that path the thread passes through a ring in the volume, with the same model as a hole
+//! (`thread.rs` lays them as the needle's tail passes). A ring inside does not change which side of the surface
+//! the thread is on.
 //!
 //! The model (`docs/suturing.md`, "Holes take the thread"):
 //! - **Where.** The hole holds the thread at an arc length `u_mm` from its tail node (a material point of the
@@ -27,6 +35,7 @@
 
 use super::SurfacePoint;
 use super::thread_chain::NodeHold;
+use super::volume_point::VolumePoint;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 /// A sliding hole sticks again when the thread moves through it slower than this, mm/s.
@@ -38,11 +47,71 @@ const REGULARISED_MM_S: f32 = 1.0;
 /// far below).
 const MAX_PULL_N: f32 = 20.0;
 
+/// Where a ring holds the thread: a hole in the surface, or a point of the needle's track inside.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HolePoint {
+    /// A puncture hole: the thread crosses the surface there.
+    Surface(SurfacePoint),
+    /// A point of the needle's track inside the volume.
+    Volume(VolumePoint),
+}
+
+impl HolePoint {
+    /// The object it is in.
+    pub fn object(&self) -> u16 {
+        match self {
+            HolePoint::Surface(p) => p.object,
+            HolePoint::Volume(p) => p.object,
+        }
+    }
+
+    /// A hole in the surface (not a point of a track inside).
+    pub fn is_surface(&self) -> bool {
+        matches!(self, HolePoint::Surface(_))
+    }
+
+    /// Where it is now, mm (None: its triangle or tetrahedron is gone).
+    pub fn position_mm(&self, model: &MassSpringModel, state: &TissueState) -> Option<Vec3> {
+        match self {
+            HolePoint::Surface(p) => p.position_mm(model, state),
+            HolePoint::Volume(p) => p.position_mm(model, state),
+        }
+    }
+
+    /// Spread `force_n` on the nodes carrying it, by their weights, into `forces_n` (a corner out of range is
+    /// skipped; a point whose element is gone spreads nothing).
+    pub fn spread(&self, model: &MassSpringModel, force_n: &Vec3, forces_n: &mut [Vec3]) {
+        let mut add = |c: u32, b: f32| {
+            if let Some(f) = forces_n.get_mut(c as usize) {
+                *f += force_n * b;
+            }
+        };
+        match self {
+            HolePoint::Surface(p) => {
+                if let Some(corners) = p.corners(model) {
+                    corners
+                        .iter()
+                        .zip(&p.barycentric)
+                        .for_each(|(&c, &b)| add(c, b));
+                }
+            }
+            HolePoint::Volume(p) => {
+                if let Some(corners) = p.corners(model) {
+                    corners
+                        .iter()
+                        .zip(&p.barycentric)
+                        .for_each(|(&c, &b)| add(c, b));
+                }
+            }
+        }
+    }
+}
+
 /// A hole holding the thread.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ThreadHole {
-    /// The punctured material point.
-    pub point: SurfacePoint,
+    /// The punctured material point of the surface, or a point of the track inside.
+    pub point: HolePoint,
     /// Where along the thread it holds it: the arc length from the tail node, mm (rest lengths).
     pub u_mm: f32,
     /// The tissue's squeeze on the thread, N (the friction's load with nothing pulling across).
@@ -65,13 +134,20 @@ pub struct ThreadHole {
     /// The pull on the tissue summed over this tick's substeps, N (mean: over `substeps`).
     pull_sum_n: Vec3,
     substeps: u32,
+    /// The springs' stiffness on the tissue's point at the last substep, N/mm: across the thread, and along it
+    /// (while it sticks), with the thread's direction there.
+    across_n_per_mm: f32,
+    along_n_per_mm: f32,
+    direction: Vec3,
+    /// It holds nothing (another ring holds its segment).
+    resting: bool,
 }
 
 impl ThreadHole {
     /// A hole at `point` holding the thread at `u_mm`, squeezing it with `squeeze_n`, with Coulomb coefficient
     /// `friction`, in tissue of stiffness `stiffness_n_per_mm` against a point. It starts sticking.
     pub fn new(
-        point: SurfacePoint,
+        point: HolePoint,
         u_mm: f32,
         squeeze_n: f32,
         friction: f32,
@@ -91,6 +167,10 @@ impl ThreadHole {
             drag_n: clean(friction) * clean(squeeze_n),
             pull_sum_n: Vec3::zeros(),
             substeps: 0,
+            across_n_per_mm: 0.0,
+            along_n_per_mm: 0.0,
+            direction: Vec3::zeros(),
+            resting: false,
         }
     }
 
@@ -106,6 +186,12 @@ impl ThreadHole {
             }
             _ => false,
         }
+    }
+
+    /// Whether it holds nothing this substep (another ring holds its segment): [`ThreadHole::node_holds`] then
+    /// returns none.
+    pub fn set_resting(&mut self, resting: bool) {
+        self.resting = resting;
     }
 
     /// Where it holds the thread this tick, mm.
@@ -127,6 +213,23 @@ impl ThreadHole {
         self.pull_sum_n / self.substeps as f32
     }
 
+    /// The pull on the tissue with its point at `now_mm` (a tissue substep's place, not the tick's): the
+    /// tick's mean pull, less the springs' stiffness times how far the point has moved since, held to 20 N.
+    /// The tissue then answers a spring, not a force fixed for the tick: a fixed force a tick late set a
+    /// hole on a wound's edge swinging 1.7 mm each way every tick.
+    pub fn pull_on_tissue_at_n(&self, now_mm: &Vec3) -> Vec3 {
+        let pull = self.pull_on_tissue_n();
+        let moved = now_mm - self.place_mm;
+        if self.substeps == 0 || !moved.iter().all(|c| c.is_finite()) {
+            return pull;
+        }
+        let t = self.direction;
+        let along = t.dot(&moved);
+        let back = (moved - t * along) * self.across_n_per_mm + t * (along * self.along_n_per_mm);
+        let pull = pull - back;
+        pull * (MAX_PULL_N / pull.norm().max(MAX_PULL_N))
+    }
+
     /// The nodes it holds this substep of `h_s` (the two ends of the segment through it) of a thread at `now`
     /// with inverse masses `w` and rest segment `segment_mm`, and how ([`NodeHold`]). A node held already (the
     /// tail on the needle) is left to its holder; with neither end free `u` is read again from the thread.
@@ -138,6 +241,9 @@ impl ThreadHole {
         h_s: f32,
     ) -> [Option<(usize, NodeHold)>; 2] {
         self.holds = [None, None];
+        if self.resting {
+            return self.holds;
+        }
         let segments = now.len().min(w.len()).saturating_sub(1);
         let k = self.stiffness_n_per_mm;
         if segments == 0 || !(segment_mm > 0.0 && h_s > 0.0) || k <= 0.0 {
@@ -193,15 +299,23 @@ impl ThreadHole {
         // The segment through the hole runs from node s to s + 1.
         let s = if holds[0].is_some() { first } else { first - 1 };
         let t = hold.direction;
-        let mut pull = Vec3::zeros();
+        let (mut across, mut along_n) = (Vec3::zeros(), 0.0f32);
         for (i, hold) in holds.iter().flatten() {
             let Some(x) = now.get(*i) else {
                 return;
             };
             let d = x - hold.place_mm;
             let d_along = t.dot(&d);
-            pull += (d - t * d_along) * hold.across_n_per_mm + t * (d_along * hold.along_n_per_mm);
+            across += (d - t * d_along) * hold.across_n_per_mm;
+            along_n += d_along * hold.along_n_per_mm;
         }
+        // Sliding, the tissue feels the friction's drag, no more: the damper standing for it in the solve is
+        // stiff (the drag over a millimetre a second), and a thread flicked through it would pass the tissue
+        // a pull that grows with the flick, and the tissue's answer would flick it back the next tick.
+        if self.slip != 0.0 {
+            along_n = along_n.clamp(-self.drag_n, self.drag_n);
+        }
+        let pull = across + t * along_n;
         // The capstan: the tensions either side (slack reads 0) and the angle the thread turns through at the
         // segment's two ends.
         let tension = |k: Option<usize>| {
@@ -256,6 +370,13 @@ impl ThreadHole {
         let magnitude = pull.norm();
         self.pull_sum_n += pull * (MAX_PULL_N / magnitude.max(MAX_PULL_N));
         self.substeps += 1;
+        self.direction = t;
+        self.across_n_per_mm = holds.iter().flatten().map(|(_, h)| h.across_n_per_mm).sum();
+        self.along_n_per_mm = if self.slip == 0.0 {
+            holds.iter().flatten().map(|(_, h)| h.along_n_per_mm).sum()
+        } else {
+            0.0
+        };
     }
 }
 
@@ -285,7 +406,7 @@ fn nearest_arc_length(nodes: &[Vec3], k: usize, segment_mm: f32, to_mm: &Vec3) -
 pub fn inside_by_holes(holes: &[ThreadHole], object: u16, u_mm: f32) -> bool {
     holes
         .iter()
-        .filter(|h| h.point.object == object && h.u_mm > u_mm)
+        .filter(|h| h.point.is_surface() && h.point.object() == object && h.u_mm > u_mm)
         .count()
         % 2
         == 1
@@ -298,11 +419,11 @@ mod tests {
 
     fn hole_at(place: Vec3, u_mm: f32, squeeze_n: f32, friction: f32) -> ThreadHole {
         let mut h = ThreadHole::new(
-            SurfacePoint {
+            HolePoint::Surface(SurfacePoint {
                 object: 0,
                 triangle: 0,
                 barycentric: [1.0, 0.0, 0.0],
-            },
+            }),
             u_mm,
             squeeze_n,
             friction,
@@ -479,6 +600,40 @@ mod tests {
         hole.after_substep(&broken, &[0.0; 20], 2.0, 0.00025);
         assert_eq!(hole.pull_on_tissue_n(), Vec3::zeros());
         assert!(hole.u_mm.is_finite());
+    }
+
+    #[test]
+    fn the_tissue_answers_a_hole_as_a_spring_and_a_sliding_hole_passes_it_the_drag_only() {
+        // A thread held still along x through a sticking hole at 20 mm, pulled 0.2 N (within the 0.3 N
+        // friction): the tissue's point where the hole is feels the tick's pull; moved 0.1 mm across the thread
+        // and 0.1 mm along it, it feels the springs' pull less their stiffness times that.
+        let nodes: Vec<Vec3> = (0..=20)
+            .map(|i| Vec3::new(2.0 * i as f32, 0.0, 0.0))
+            .collect();
+        let mut chain = ThreadChain::new(&nodes, 2e-4, 1000.0, 5.0).unwrap();
+        let place = Vec3::new(20.0, 0.0, 0.0);
+        let mut hole = hole_at(place, 20.0, 1.0, 0.3);
+        hole.stiffness_n_per_mm = 2.0;
+        chain.forces_n[20] = Vec3::new(0.2, 0.0, 0.0);
+        for _ in 0..400 {
+            hole.pull_sum_n = Vec3::zeros();
+            hole.substeps = 0;
+            substep(&mut chain, std::slice::from_mut(&mut hole));
+        }
+        assert_eq!(hole.slip, 0.0, "it slid within the friction");
+        let pull = hole.pull_on_tissue_n();
+        assert_eq!(hole.pull_on_tissue_at_n(&place), pull);
+        let moved = Vec3::new(0.1, 0.1, 0.0);
+        let at = hole.pull_on_tissue_at_n(&(place + moved));
+        // Two nodes, each held by half the stiffness, across and (sticking) along.
+        let expected = pull - moved * 2.0;
+        println!("pull {pull:?} N; moved {moved:?} mm: {at:?} N (expected {expected:?})");
+        assert!((at - expected).norm() < 1e-4, "{at:?} vs {expected:?}");
+        // Sliding, the tissue feels the drag (0.3 N here) along the thread however fast the thread is flicked
+        // through: a pull of 5 N drawn through in one go.
+        let (_, pull) = pull_through(5.0, 0.3, 6, &[20.0]);
+        println!("flicked through at 5 N: the tissue feels {pull:?} N");
+        assert!(pull.x.abs() <= 0.3 * 1.001, "{pull:?}");
     }
 
     #[test]

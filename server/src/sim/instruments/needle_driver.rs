@@ -197,17 +197,15 @@ impl Instrument for NeedleDriver {
         for hole in thread
             .holes()
             .iter()
-            .filter(|h| usize::from(h.point.object) == object)
+            .chain(thread.tracks())
+            .filter(|h| usize::from(h.point.object()) == object)
         {
-            let pull = hole.pull_on_tissue_n();
-            let Some(corners) = hole.point.corners(model) else {
+            let Some(now_mm) = hole.point.position_mm(model, state) else {
                 continue;
             };
-            for (&c, &b) in corners.iter().zip(&hole.point.barycentric) {
-                if let Some(f) = state.external_forces_n.get_mut(c as usize) {
-                    *f += pull * b;
-                }
-            }
+            let pull = hole.pull_on_tissue_at_n(&now_mm);
+            hole.point
+                .spread(model, &pull, &mut state.external_forces_n);
         }
     }
 
