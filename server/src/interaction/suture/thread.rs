@@ -79,9 +79,9 @@ const HOLE_CLEARANCE_MM: f32 = 2.0;
 const GRIP_CLEAR_NODES: usize = 2;
 /// The tree's query box is loosened by this much for a node's path, mm.
 const CROSSING_MARGIN_MM: f32 = 0.5;
-/// The needle's track inside the tissue holds the thread in a ring every this far along it, mm (about a
-/// segment: the thread bends only at its nodes).
-const TRACK_SPACING_MM: f32 = 2.5;
+/// The needle's track inside the tissue holds the thread in a ring every this far along it, mm (two segments:
+/// a ring holds both ends of its segment, and two rings holding one node fight).
+const TRACK_SPACING_MM: f32 = 5.0;
 /// The most track rings a thread runs through.
 pub const MAX_TRACK_RINGS: usize = 64;
 
@@ -315,15 +315,16 @@ impl SutureThread {
             let s = k as f32 / SUBSTEPS as f32;
             self.chain.positions_mm[0] = from_tail + (tail_mm - from_tail) * s;
             // The holes hold their nodes inside the length solve (thread_hole.rs).
-            // A ring on a segment a hole or an earlier ring holds already leaves it to that one: two rings on
-            // one segment hold its nodes at places that need not agree, and fight.
+            // A ring whose segment shares a node with one a hole or an earlier ring holds leaves it to that one:
+            // two holds on one node at places that need not agree fight, and set the thread restless.
             for k in 0..tracks.len() {
                 let segment = |h: &ThreadHole| (h.u_mm / segment_mm) as usize;
                 let mine = segment(&tracks[k]);
                 let taken = holes
                     .iter()
                     .chain(&tracks[..k])
-                    .any(|h| h.point.object() == tracks[k].point.object() && segment(h) == mine);
+                    .filter(|h| !h.is_resting())
+                    .any(|h| segment(h).abs_diff(mine) <= 1);
                 tracks[k].set_resting(taken);
             }
             for hole in holes.iter_mut().chain(tracks.iter_mut()) {

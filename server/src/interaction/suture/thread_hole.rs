@@ -194,6 +194,11 @@ impl ThreadHole {
         self.resting = resting;
     }
 
+    /// Whether it holds nothing this substep ([`ThreadHole::set_resting`]).
+    pub fn is_resting(&self) -> bool {
+        self.resting
+    }
+
     /// Where it holds the thread this tick, mm.
     pub fn place_mm(&self) -> Vec3 {
         self.place_mm
