@@ -11,7 +11,10 @@
 //!   held: it has no inverse mass);
 //! - the chain predicts under gravity and drag, bends back a little ([`ThreadChain::set_bending`]) and is held
 //!   to length by its direct solve, the holes it runs through holding their nodes inside that solve
-//!   (`thread_hole.rs`);
+//!   (`thread_hole.rs`), and so do the rings of the needle's track inside the tissue: while the tail runs
+//!   inside an object, the tissue where it is takes the thread every 5 mm of the path (a tetrahedron's
+//!   material point, `volume_point.rs`); a ring whose segment shares a node with one a hole or another ring
+//!   holds rests;
 //! - **itself**: no two segments closer than its diameter, none passing through another
 //!   (`thread_self_contact.rs`), before the contacts and once more after them;
 //! - **jaws**: a grasper's jaws clamp the node they closed on as the tail is held, and move it with them
