@@ -28,6 +28,7 @@ mod thread_grip;
 mod thread_hole;
 pub mod thread_self_contact;
 mod thread_solve;
+mod thread_track;
 mod tip_contact;
 mod volume_point;
 

@@ -11,10 +11,7 @@
 //!   held: it has no inverse mass);
 //! - the chain predicts under gravity and drag, bends back a little ([`ThreadChain::set_bending`]) and is held
 //!   to length by its direct solve, the holes it runs through holding their nodes inside that solve
-//!   (`thread_hole.rs`), and so do the rings of the needle's track inside the tissue: while the tail runs
-//!   inside an object, the tissue where it is takes the thread every 5 mm of the path (a tetrahedron's
-//!   material point, `volume_point.rs`); a ring whose segment shares a node with one a hole or another ring
-//!   holds rests;
+//!   (`thread_hole.rs`), and so do the rings of the needle's track inside the tissue (`thread_track.rs`);
 //! - **itself**: no two segments closer than its diameter, none passing through another
 //!   (`thread_self_contact.rs`), before the contacts and once more after them;
 //! - **jaws**: a grasper's jaws clamp the node they closed on as the tail is held, and move it with them
@@ -47,7 +44,10 @@ use nalgebra::UnitQuaternion;
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes};
 use super::thread_self_contact::SelfContact;
-use super::{MAX_HOLES, SurfacePoint, ThreadChain, VolumePoint};
+use super::thread_track::{
+    MAX_TRACK_RINGS, drop_rings_beside_holes, lay_tracks, rest_rings_sharing_nodes,
+};
+use super::{MAX_HOLES, SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -82,11 +82,6 @@ const HOLE_CLEARANCE_MM: f32 = 2.0;
 const GRIP_CLEAR_NODES: usize = 2;
 /// The tree's query box is loosened by this much for a node's path, mm.
 const CROSSING_MARGIN_MM: f32 = 0.5;
-/// The needle's track inside the tissue holds the thread in a ring every this far along it, mm (two segments:
-/// a ring holds both ends of its segment, and two rings holding one node fight).
-const TRACK_SPACING_MM: f32 = 5.0;
-/// The most track rings a thread runs through.
-pub const MAX_TRACK_RINGS: usize = 64;
 
 /// A thread's size (the world's keys `thread_length_mm`, `thread_segments`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -285,16 +280,8 @@ impl SutureThread {
         };
         self.holes.retain_mut(placed);
         self.tracks.retain_mut(placed);
-        // A ring beside a hole of its object is the hole's (one laid as the tail reached the way out, before
-        // the needle had left that hole and handed it over).
-        let holes = &self.holes;
-        self.tracks.retain(|r| {
-            !holes.iter().any(|h| {
-                h.point.object() == r.point.object()
-                    && (h.place_mm() - r.place_mm()).norm() < 0.5 * TRACK_SPACING_MM
-            })
-        });
-        self.lay_tracks(&from_tail, objects, &object);
+        drop_rings_beside_holes(&self.holes, &mut self.tracks);
+        lay_tracks(&self.holes, &mut self.tracks, &from_tail, objects, &object);
         // Where the jaws hold it this tick; a released tool lets go.
         let node_mass_kg = self.node_mass_kg();
         let chain = &mut self.chain;
@@ -318,18 +305,7 @@ impl SutureThread {
             let s = k as f32 / SUBSTEPS as f32;
             self.chain.positions_mm[0] = from_tail + (tail_mm - from_tail) * s;
             // The holes hold their nodes inside the length solve (thread_hole.rs).
-            // A ring whose segment shares a node with one a hole or an earlier ring holds leaves it to that one:
-            // two holds on one node at places that need not agree fight, and set the thread restless.
-            for k in 0..tracks.len() {
-                let segment = |h: &ThreadHole| (h.u_mm / segment_mm) as usize;
-                let mine = segment(&tracks[k]);
-                let taken = holes
-                    .iter()
-                    .chain(&tracks[..k])
-                    .filter(|h| !h.is_resting())
-                    .any(|h| segment(h).abs_diff(mine) <= 1);
-                tracks[k].set_resting(taken);
-            }
+            rest_rings_sharing_nodes(holes, tracks, segment_mm);
             for hole in holes.iter_mut().chain(tracks.iter_mut()) {
                 let chain = &self.chain;
                 let held = hole.node_holds(
@@ -533,52 +509,6 @@ impl SutureThread {
         self.holes.retain(kept);
         self.tracks.retain(kept);
         (before - self.holes.len()) as u32
-    }
-
-    /// Where the tail (at `tail_mm`) runs inside an object (by the holes' parity) and has come
-    /// [`TRACK_SPACING_MM`] from the last hole or ring there, the tissue there takes the thread in a ring
-    /// with the hole's friction, squeeze and stiffness (the needle's track). No allocation.
-    fn lay_tracks<'a>(
-        &mut self,
-        tail_mm: &Vec3,
-        objects: usize,
-        object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
-    ) {
-        for o in 0..objects {
-            let id = o as u16;
-            if self.tracks.len() >= MAX_TRACK_RINGS || !inside_by_holes(&self.holes, id, 0.0) {
-                continue;
-            }
-            let nearest = self
-                .holes
-                .iter()
-                .chain(&self.tracks)
-                .filter(|h| h.point.object() == id)
-                .map(|h| h.u_mm)
-                .fold(f32::INFINITY, f32::min);
-            let Some(entry) = self.holes.iter().rev().find(|h| h.point.object() == id) else {
-                continue;
-            };
-            if nearest < TRACK_SPACING_MM {
-                continue;
-            }
-            let Some((_, model, state)) = object(o) else {
-                continue;
-            };
-            let Some(point) = VolumePoint::locate(id, model, state, tail_mm) else {
-                continue;
-            };
-            let mut ring = ThreadHole::new(
-                HolePoint::Volume(point),
-                0.0,
-                entry.squeeze_n,
-                entry.friction,
-                entry.stiffness_n_per_mm,
-            );
-            if ring.place(model, state) {
-                self.tracks.push(ring);
-            }
-        }
     }
 
     /// Pairs of its segments held apart in the last tick (summed over its substeps).

@@ -335,8 +335,8 @@ mod tests {
     {
         // The suture thread's constants (thread.rs): 150 mm in 64 segments, 0.1 mg/mm, EA 1000 N, EI 0.5 N mm2.
         // It hangs from node 0; node 10 is then held, carried 10 mm up and aside (the ten segments between go
-        // slack) and drawn down until the two held nodes are 16% further apart than those segments are long
-        // (examples/taut_thread.rs prints the whole run). A converged solve leaves them straight, each stretched
+        // slack) and drawn down until the two held nodes are 16% further apart than those segments are long.
+        // A converged solve leaves them straight, each stretched
         // alike, carrying EA times the strain; the old multiplier solve left a zigzag reading 0.05 N of 200.
         let segment_mm = 150.0 / 64.0;
         let nodes: Vec<Vec3> = (0..=64)

@@ -81,27 +81,23 @@ impl HolePoint {
     /// Spread `force_n` on the nodes carrying it, by their weights, into `forces_n` (a corner out of range is
     /// skipped; a point whose element is gone spreads nothing).
     pub fn spread(&self, model: &MassSpringModel, force_n: &Vec3, forces_n: &mut [Vec3]) {
-        let mut add = |c: u32, b: f32| {
+        // The corners and their weights: a triangle's three, or a tetrahedron's four.
+        let (corners, weights): ([u32; 4], [f32; 4]) = match self {
+            HolePoint::Surface(p) => match p.corners(model) {
+                Some([a, b, c]) => (
+                    [a, b, c, 0],
+                    [p.barycentric[0], p.barycentric[1], p.barycentric[2], 0.0],
+                ),
+                None => return,
+            },
+            HolePoint::Volume(p) => match p.corners(model) {
+                Some(corners) => (corners, p.barycentric),
+                None => return,
+            },
+        };
+        for (&c, &b) in corners.iter().zip(&weights).filter(|(_, b)| **b != 0.0) {
             if let Some(f) = forces_n.get_mut(c as usize) {
                 *f += force_n * b;
-            }
-        };
-        match self {
-            HolePoint::Surface(p) => {
-                if let Some(corners) = p.corners(model) {
-                    corners
-                        .iter()
-                        .zip(&p.barycentric)
-                        .for_each(|(&c, &b)| add(c, b));
-                }
-            }
-            HolePoint::Volume(p) => {
-                if let Some(corners) = p.corners(model) {
-                    corners
-                        .iter()
-                        .zip(&p.barycentric)
-                        .for_each(|(&c, &b)| add(c, b));
-                }
             }
         }
     }

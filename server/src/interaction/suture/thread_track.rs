@@ -1,0 +1,96 @@
+//! The needle's track inside the tissue: the rings that hold the thread between its holes.
+//!
+//! Owns: when a ring is laid ([`lay_tracks`]), dropped ([`drop_rings_beside_holes`]) and rests for a substep
+//! ([`rest_rings_sharing_nodes`]). A ring is a [`ThreadHole`] on a material point of the volume
+//! ([`HolePoint::Volume`], `volume_point.rs`): it holds the thread as a hole does and does not change its side.
+//!
+//! Why: a thread held only at the two holes of a bite runs straight between them, and drawn tight it lifted the
+//! holes on a wound's faces from 7.3 mm deep to 1.9 mm, as a sling cuts up through what it holds
+//! (`docs/suturing.md`, "Next, in detail"). While the needle's tail runs inside an object, the tissue where it
+//! is takes the thread every [`TRACK_SPACING_MM`] of the path.
+//!
+//! Must not: allocate (rings are capped at [`MAX_TRACK_RINGS`]) or panic.
+
+use super::thread::ThreadObject;
+use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes};
+use super::volume_point::VolumePoint;
+use crate::tissue::Vec3;
+
+/// A ring every this far along the track, mm (two segments: a ring holds both ends of its segment, and two
+/// rings holding one node fight).
+pub const TRACK_SPACING_MM: f32 = 5.0;
+/// The most track rings a thread runs through.
+pub const MAX_TRACK_RINGS: usize = 64;
+
+/// Where the tail (at `tail_mm`) runs inside an object (by the `holes`' parity) and has come
+/// [`TRACK_SPACING_MM`] from the last hole or ring there, the tissue there takes the thread in a ring with
+/// the latest hole's friction, squeeze and stiffness, pushed on `tracks`.
+pub fn lay_tracks<'a>(
+    holes: &[ThreadHole],
+    tracks: &mut Vec<ThreadHole>,
+    tail_mm: &Vec3,
+    objects: usize,
+    object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
+) {
+    for o in 0..objects {
+        let id = o as u16;
+        if tracks.len() >= MAX_TRACK_RINGS || !inside_by_holes(holes, id, 0.0) {
+            continue;
+        }
+        let nearest = holes
+            .iter()
+            .chain(tracks.iter())
+            .filter(|h| h.point.object() == id)
+            .map(|h| h.u_mm)
+            .fold(f32::INFINITY, f32::min);
+        let Some(entry) = holes.iter().rev().find(|h| h.point.object() == id) else {
+            continue;
+        };
+        if nearest < TRACK_SPACING_MM {
+            continue;
+        }
+        let Some((_, model, state)) = object(o) else {
+            continue;
+        };
+        let Some(point) = VolumePoint::locate(id, model, state, tail_mm) else {
+            continue;
+        };
+        let mut ring = ThreadHole::new(
+            HolePoint::Volume(point),
+            0.0,
+            entry.squeeze_n,
+            entry.friction,
+            entry.stiffness_n_per_mm,
+        );
+        if ring.place(model, state) {
+            tracks.push(ring);
+        }
+    }
+}
+
+/// A ring beside a hole of its object is the hole's: one laid as the tail reached the way out, before the
+/// needle had left that hole and handed it over, is dropped.
+pub fn drop_rings_beside_holes(holes: &[ThreadHole], tracks: &mut Vec<ThreadHole>) {
+    tracks.retain(|r| {
+        !holes.iter().any(|h| {
+            h.point.object() == r.point.object()
+                && (h.place_mm() - r.place_mm()).norm() < 0.5 * TRACK_SPACING_MM
+        })
+    });
+}
+
+/// Before a substep: a ring whose segment (of `segment_mm`) shares a node with one a hole or an earlier ring
+/// holds leaves it to that one. Two holds on one node at places that need not agree fight, and set the thread
+/// restless.
+pub fn rest_rings_sharing_nodes(holes: &[ThreadHole], tracks: &mut [ThreadHole], segment_mm: f32) {
+    let segment = |h: &ThreadHole| (h.u_mm / segment_mm) as usize;
+    for k in 0..tracks.len() {
+        let mine = segment(&tracks[k]);
+        let taken = holes
+            .iter()
+            .chain(&tracks[..k])
+            .filter(|h| !h.is_resting())
+            .any(|h| segment(h).abs_diff(mine) <= 1);
+        tracks[k].set_resting(taken);
+    }
+}
