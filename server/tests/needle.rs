@@ -21,7 +21,7 @@ use counting_allocator::{Counting, assert_counting_works, count_this_thread};
 static GLOBAL: Counting = Counting;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use sinew_server::interaction::suture::{NeedleArc, TipPhase};
+use sinew_server::interaction::suture::{HolePoint, NeedleArc, TipPhase};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::{InstrumentSpec, load_world};
 
@@ -469,8 +469,7 @@ fn a_needle_driven_through_a_bite_leaves_its_thread_in_both_holes_and_the_thread
         );
         let l = thread.chain().rest_length_mm() / (thread.nodes_mm().len() - 1) as f32;
         let mut wrong = 0;
-        for (i, p) in thread.nodes_mm().iter().enumerate() {
-            let u = l * i as f32;
+        for (p, &u) in thread.nodes_mm().iter().zip(thread.chain().node_u_mm()) {
             let inside = depth_in_block_mm(p) > 0.0;
             let between = u > lo + l && u < hi - l;
             let beside = u < lo - l || u > hi + l;
@@ -493,7 +492,19 @@ fn a_needle_driven_through_a_bite_leaves_its_thread_in_both_holes_and_the_thread
         let exit = thread.holes()[1].point;
         exit.position_mm(&skin.model, &skin.state).unwrap().z
     };
-    let before = exit_z(&bite);
+    // Where the exit hole's material point lies on the skin at rest.
+    let before = {
+        let skin = &bite.driver.sim.objects[0];
+        let thread = bite.driver.sim.tools[0].thread().unwrap();
+        let HolePoint::Surface(exit) = thread.holes()[1].point else {
+            panic!("the exit is not a surface hole");
+        };
+        let rest = skin.model.rest_positions_mm();
+        let corners = exit.corners(&skin.model).unwrap();
+        (0..3)
+            .map(|k| rest[corners[k] as usize].z * exit.barycentric[k])
+            .sum::<f32>()
+    };
     let (mut lift_mm, mut exit_pull_z_n, mut tension_n) = (0.0f32, 0.0f32, 0.0f32);
     let mut slid_through = 0;
     let allocations = count_this_thread(|| {
@@ -510,7 +521,7 @@ fn a_needle_driven_through_a_bite_leaves_its_thread_in_both_holes_and_the_thread
     let (lo2, hi2, wrong2) = inside_between(&bite);
     println!(
         "drawn up 30 mm: the holes at {lo2:.1} and {hi2:.1} mm, both sliding {slid_through} ticks, tension at the tail \
-         up to {tension_n:.3} N, the exit pulled up {exit_pull_z_n:.3} N on average and lifted up to {lift_mm:.3} mm, \
+         up to {tension_n:.3} N, the exit pulled up {exit_pull_z_n:.3} N on average and up to {lift_mm:.3} mm above its place at rest, \
          {wrong2} nodes on the wrong side, {allocations} allocations"
     );
     assert_eq!(allocations, 0, "drawing the thread through allocated");

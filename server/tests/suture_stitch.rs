@@ -32,6 +32,14 @@ const CENTRE_HEIGHT_MM: f32 = 3.0;
 /// The wound's faces, mm.
 const FACE_X_MM: f32 = 2.5;
 
+/// What [`Wound::pass`] did: the gap before it, the punctures, and the driver's pose at its end.
+struct Pass {
+    gap_before_mm: f32,
+    punctures: u32,
+    rotation: UnitQuaternion<f32>,
+    origin_mm: Vector3<f32>,
+}
+
 /// The wound world with the needle driver (tool 0) holding a half-circle needle at its tail in small jaws
 /// (so it follows the needle through), and the grasper (tool 1).
 struct Wound {
@@ -82,6 +90,43 @@ impl Wound {
     fn tip_at(&self, turn_rad: f32) -> Vector3<f32> {
         let (rotation, origin) = self.pose_at(turn_rad);
         origin + rotation * self.tip_tool
+    }
+
+    /// The pass: the grasper parked aside, the driver 8 degrees before the skin for 1.5 s, then on along the
+    /// needle's curve at 40 degrees a second until the tail has left all four holes, and 0.5 s more.
+    fn pass(&mut self) -> Pass {
+        self.aim_grasper(&Vector3::new(30.0, 0.0, 30.0), false);
+        let (start, sign) = self.start();
+        let (rotation, origin) = self.pose_at(start);
+        for _ in 0..1500 {
+            self.step_at(&rotation, &origin);
+        }
+        let gap_before_mm = self.gap_mm();
+        let mut turn = 0.0f32;
+        let mut after = None;
+        let mut punctures = 0;
+        while after.is_none_or(|ticks| ticks < 500) {
+            turn += DT_S * 40f32.to_radians();
+            let (rotation, origin) = self.pose_at(start + sign * turn);
+            let (_, report) = self.step_at(&rotation, &origin);
+            punctures += report.punctures;
+            if self.thread().holes().len() == 4 {
+                after = Some(after.map_or(0, |t| t + 1));
+            }
+            // (The tail leaves the fourth hole about 340 degrees on: a turn and a quarter is the bound.)
+            assert!(
+                turn < 2.5 * std::f32::consts::PI,
+                "the tail never left four holes ({} taken, {punctures} punctures)",
+                self.thread().holes().len()
+            );
+        }
+        let (rotation, origin_mm) = self.pose_at(start + sign * turn);
+        Pass {
+            gap_before_mm,
+            punctures,
+            rotation,
+            origin_mm,
+        }
     }
 
     /// The turn 8 degrees before the tip meets the skin going down, and the way to turn to go on.
@@ -170,32 +215,8 @@ impl Wound {
 #[test]
 fn a_needle_driven_across_the_wound_punctures_both_edges_and_leaves_its_thread_in_four_holes() {
     let mut wound = Wound::new();
-    wound.aim_grasper(&Vector3::new(30.0, 0.0, 30.0), false);
-    let (start, sign) = wound.start();
-    let (rotation, origin) = wound.pose_at(start);
-    for _ in 0..1500 {
-        wound.step_at(&rotation, &origin);
-    }
-    let gap_before = wound.gap_mm();
-    // On along the curve at 40 degrees a second until the tail has left all four holes, and a little more.
-    let mut turn = 0.0f32;
-    let mut after = None;
-    let mut punctures = 0;
-    while after.is_none_or(|ticks| ticks < 500) {
-        turn += DT_S * 40f32.to_radians();
-        let (rotation, origin) = wound.pose_at(start + sign * turn);
-        let (_, report) = wound.step_at(&rotation, &origin);
-        punctures += report.punctures;
-        if wound.thread().holes().len() == 4 {
-            after = Some(after.map_or(0, |t| t + 1));
-        }
-        // (The tail leaves the fourth hole about 340 degrees on: a turn and a quarter is the bound.)
-        assert!(
-            turn < 2.5 * std::f32::consts::PI,
-            "the tail never left four holes ({} taken, {punctures} punctures)",
-            wound.thread().holes().len()
-        );
-    }
+    let pass = wound.pass();
+    let (gap_before, punctures) = (pass.gap_before_mm, pass.punctures);
     let holes = wound.thread().holes();
     let objects: Vec<u16> = holes.iter().map(|h| h.point.object()).collect();
     let places: Vec<Vector3<f32>> = holes.iter().map(|h| h.place_mm()).collect();
@@ -277,7 +298,7 @@ fn a_needle_driven_across_the_wound_punctures_both_edges_and_leaves_its_thread_i
     }
     // Left alone, the thread rests in its holes and rings: none slides (rings holding nodes a hole or another
     // ring held too set it sliding back and forth, and the rings bunched up).
-    let (rotation, origin) = wound.pose_at(start + sign * turn);
+    let (rotation, origin) = (pass.rotation, pass.origin_mm);
     let u_of = |wound: &Wound| -> Vec<f32> {
         let thread = wound.thread();
         thread
@@ -449,4 +470,143 @@ fn a_grasper_takes_the_thread_carries_it_feels_its_pull_and_the_thread_slips_out
     assert_eq!(report_sum.grasps_taken, 1);
     assert_eq!(report_sum.attachments_released, 1);
     assert!(wound.thread().grips().is_empty());
+}
+
+#[test]
+fn a_stitch_drawn_crossed_by_hands_that_stop_at_4_5_n_closes_the_wound_to_under_a_millimetre() {
+    let mut wound = Wound::new();
+    let pass = wound.pass();
+    let (rotation, driver_from) = (pass.rotation, pass.origin_mm);
+    // The grasper takes the thread 15 mm past the entry hole, coming down on it from 20 mm above.
+    let thread = wound.thread();
+    let entry_u = thread.holes()[0].u_mm;
+    let node = thread
+        .chain()
+        .node_u_mm()
+        .iter()
+        .position(|&u| u >= entry_u + 15.0)
+        .unwrap();
+    let beside = Vector3::new(1.5 + 0.3, 0.0, 0.0);
+    let mut aim = wound.sim.tools[1].position_mm;
+    for lift in [20.0, 0.0] {
+        for _ in 0..20_000 {
+            let waypoint = wound.thread().nodes_mm()[node] + beside + Vector3::new(0.0, 0.0, lift);
+            let to = waypoint - aim;
+            aim += to * (0.02 / to.norm().max(0.02));
+            wound.aim_grasper(&aim, false);
+            wound.step_at(&rotation, &driver_from);
+            if (wound.sim.tools[1].position_mm - waypoint).norm() < 0.02 {
+                break;
+            }
+        }
+    }
+    for _ in 0..200 {
+        wound.aim_grasper(&aim, true);
+        wound.step_at(&rotation, &driver_from);
+    }
+    assert!(
+        wound.thread().grip_of(1).is_some(),
+        "the jaws did not take the thread"
+    );
+    // Crossed, as a throw is laid: each end drawn over the wound to the other side (20 mm out, 15 mm up, 3 mm
+    // apart in y) over 6 s, each hand drawing on only while it feels the thread pull under 4.5 N (a surgeon
+    // does not yank a stitch shut).
+    const MOST_N: f32 = 4.5;
+    let side = wound.thread().holes()[3].place_mm().x.signum();
+    let grasper_from = aim;
+    let grasper_to = Vector3::new(side * 20.0, 3.0, 15.0);
+    let driver_to = Vector3::new(-side * 20.0, -3.0, 15.0);
+    let (mut drawn, mut felt) = ([0.0f32; 2], [0.0f32; 2]);
+    let (mut inverted, mut felt_at_1_s, mut output_at_1_s) = (0, [0.0f32; 2], [0.0f32; 2]);
+    let mut output = [0.0f32; 2];
+    let mut u_before_rest = Vec::new();
+    const TICKS: usize = 6000;
+    for k in 0..TICKS {
+        for (hand, d) in drawn.iter_mut().enumerate() {
+            if felt[hand] < MOST_N {
+                *d = (*d + 1.0 / 6000.0).min(1.0);
+            }
+        }
+        wound.aim_grasper(
+            &(grasper_from + (grasper_to - grasper_from) * drawn[1]),
+            true,
+        );
+        let (out, _) = wound.step_at(
+            &rotation,
+            &(driver_from + (driver_to - driver_from) * drawn[0]),
+        );
+        let thread = wound.thread();
+        // The thread's pull on each: the needle's tail (the driver), and the jaws.
+        felt = [
+            thread.pull_on_tail_n().norm(),
+            thread.grip_of(1).map_or(0.0, |g| g.pull_n().norm()),
+        ];
+        output = [out[0].force_world_n.norm(), out[1].force_world_n.norm()];
+        if k == 1000 {
+            (felt_at_1_s, output_at_1_s) = (felt, output);
+        }
+        if k == TICKS - 1000 {
+            u_before_rest = thread.holes().iter().map(|h| h.u_mm).collect();
+        }
+        if k % 250 == 0 {
+            inverted = inverted.max(wound.inverted());
+        }
+    }
+    let thread = wound.thread();
+    let holes = thread.holes();
+    let u: Vec<f32> = holes.iter().map(|h| h.u_mm).collect();
+    let off: Vec<f32> = holes
+        .iter()
+        .map(|h| (thread.nodes_mm()[h.node().unwrap()] - h.place_mm()).norm())
+        .collect();
+    let gap = wound.gap_mm();
+    println!(
+        "drawn crossed: the gap {:.2} -> {gap:.2} mm; the thread pulls the driver {:.2} N and the jaws {:.2} N \
+         ({:.2} and {:.2} at 1 s), the devices output {:.2} and {:.2} N ({:.2} and {:.2} at 1 s); the hands drew \
+         {:.0}% and {:.0}% of the way; the holes at {u:.2?} mm along the thread ({u_before_rest:.2?} a second \
+         before), its nodes {off:.2?} mm from them; {inverted} inverted tetrahedra at worst",
+        pass.gap_before_mm,
+        felt[0],
+        felt[1],
+        felt_at_1_s[0],
+        felt_at_1_s[1],
+        output[0],
+        output[1],
+        output_at_1_s[0],
+        output_at_1_s[1],
+        100.0 * drawn[0],
+        100.0 * drawn[1],
+    );
+    assert!(
+        (pass.gap_before_mm - 5.0).abs() < 0.2,
+        "{}",
+        pass.gap_before_mm
+    );
+    assert!(gap <= 1.0, "the stitch closed the gap only to {gap} mm");
+    assert!(gap > -0.5, "the edges overlap: {gap} mm");
+    assert_eq!(inverted, 0, "tetrahedra turned inside out");
+    // The tension rose in both hands to where they stopped drawing, and the devices render it (to their most).
+    for hand in 0..2 {
+        assert!(
+            felt[hand] > 0.9 * MOST_N && felt[hand] > 2.0 * felt_at_1_s[hand],
+            "hand {hand}: {} N at the end, {} N at 1 s",
+            felt[hand],
+            felt_at_1_s[hand]
+        );
+        assert!(
+            output[hand] > 3.0 && output[hand] > output_at_1_s[hand],
+            "hand {hand}: the device renders {} N ({} at 1 s)",
+            output[hand],
+            output_at_1_s[hand]
+        );
+    }
+    // The thread runs through its holes, in their order along it, and rests there once the hands stop.
+    assert!(off.iter().all(|d| *d < 0.3), "{off:?}");
+    assert!(u.windows(2).all(|w| w[0] > w[1]), "{u:?}");
+    assert!(
+        u.iter()
+            .zip(&u_before_rest)
+            .all(|(a, b)| (a - b).abs() < 0.2),
+        "{u_before_rest:?} -> {u:?}"
+    );
 }

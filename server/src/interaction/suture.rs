@@ -44,5 +44,6 @@ pub use thread::{
 pub use thread_chain::{NodeHold, ThreadChain};
 pub use thread_grip::{GRIP_SLIP_N, MAX_GRIPS, ThreadGrip};
 pub use thread_hole::{HolePoint, ThreadHole, inside_by_holes};
+pub use thread_solve::NodeSlide;
 pub use tip_contact::{SurfacePoint, TipContact};
 pub use volume_point::VolumePoint;

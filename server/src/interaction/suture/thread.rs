@@ -44,9 +44,7 @@ use nalgebra::UnitQuaternion;
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes};
 use super::thread_self_contact::SelfContact;
-use super::thread_track::{
-    MAX_TRACK_RINGS, drop_rings_beside_holes, lay_tracks, rest_rings_sharing_nodes,
-};
+use super::thread_track::{MAX_TRACK_RINGS, drop_rings_beside_holes, lay_tracks};
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -145,6 +143,10 @@ pub struct SutureThread {
     tracks: Vec<ThreadHole>,
     /// The jaws holding it (`thread_grip.rs`).
     grips: Vec<ThreadGrip>,
+    /// Per node, whether a hole or a ring holds it (scratch, kept up through a tick).
+    claimed: Vec<bool>,
+    /// Per node, its material coordinate (scratch: the chain's, for the contacts inside its step), mm.
+    node_u_mm: Vec<f32>,
 }
 
 impl SutureThread {
@@ -184,6 +186,8 @@ impl SutureThread {
             holes: Vec::with_capacity(MAX_HOLES),
             tracks: Vec::with_capacity(MAX_TRACK_RINGS),
             grips: Vec::with_capacity(MAX_GRIPS),
+            claimed: vec![false; nodes.len()],
+            node_u_mm: vec![0.0; nodes.len()],
         })
     }
 
@@ -231,8 +235,9 @@ impl SutureThread {
         if !tail_mm.iter().all(|c| c.is_finite()) {
             return;
         }
-        for (i, p) in self.chain.positions_mm.iter_mut().enumerate() {
-            *p = tail_mm + away * (self.segment_mm * i as f32);
+        let node_u_mm = self.chain.node_u_mm().to_vec();
+        for (p, u_mm) in self.chain.positions_mm.iter_mut().zip(node_u_mm) {
+            *p = tail_mm + away * u_mm;
         }
         self.chain.velocities_mm_s.fill(Vec3::zeros());
         self.contacts.fill(None);
@@ -282,6 +287,21 @@ impl SutureThread {
         self.tracks.retain_mut(placed);
         drop_rings_beside_holes(&self.holes, &mut self.tracks);
         lay_tracks(&self.holes, &mut self.tracks, &from_tail, objects, &object);
+        // Each hole and ring holds a node of its own (thread_hole.rs): the holes first.
+        self.claimed.fill(false);
+        for i in self
+            .holes
+            .iter()
+            .chain(&self.tracks)
+            .filter_map(|h| h.node())
+        {
+            if let Some(c) = self.claimed.get_mut(i) {
+                *c = true;
+            }
+        }
+        for hole in self.holes.iter_mut().chain(self.tracks.iter_mut()) {
+            hole.take_node(&mut self.chain, &mut self.claimed);
+        }
         // Where the jaws hold it this tick; a released tool lets go.
         let node_mass_kg = self.node_mass_kg();
         let chain = &mut self.chain;
@@ -300,24 +320,22 @@ impl SutureThread {
         let tracks = &mut self.tracks;
         let grips = &self.grips;
         let segment_mm = self.segment_mm;
+        let claimed = &mut self.claimed;
+        let node_u_mm = &mut self.node_u_mm;
         let mut pairs_apart = 0;
         for k in 1..=SUBSTEPS {
             let s = k as f32 / SUBSTEPS as f32;
             self.chain.positions_mm[0] = from_tail + (tail_mm - from_tail) * s;
             // The holes hold their nodes inside the length solve (thread_hole.rs).
-            rest_rings_sharing_nodes(holes, tracks, segment_mm);
-            for hole in holes.iter_mut().chain(tracks.iter_mut()) {
-                let chain = &self.chain;
-                let held = hole.node_holds(
-                    &chain.positions_mm,
-                    chain.inverse_mass_per_kg(),
-                    segment_mm,
-                    h_s,
-                );
-                for (i, hold) in held.into_iter().flatten() {
+            for hole in holes.iter().chain(tracks.iter()) {
+                if let Some((i, hold)) = hole.node_hold() {
                     self.chain.hold_node(i, hold);
                 }
+                if let Some((i, slide)) = hole.node_slide(&self.chain, h_s) {
+                    self.chain.slide_node(i, slide);
+                }
             }
+            node_u_mm.copy_from_slice(self.chain.node_u_mm());
             // The jaws carry theirs.
             for grip in grips {
                 if let Some(p) = self.chain.positions_mm.get_mut(grip.node as usize) {
@@ -342,7 +360,7 @@ impl SutureThread {
                                 }
                                 // Kept inside an object it runs through (between its holes there), and free to
                                 // cross a surface beside one of its holes.
-                                let u_mm = segment_mm * i as f32;
+                                let u_mm = node_u_mm[i];
                                 // Beside a hole: near it both on the surface and along the thread (a
                                 // stretch of thread further on that lies near it is kept out as any).
                                 let exempt = |o: usize, at: &Vec3| {
@@ -374,13 +392,9 @@ impl SutureThread {
                     contact_pass(now);
                     pairs_apart += self_contact.keep_apart(before, now, w, THREAD_DIAMETER_MM);
                 });
+            // Then the thread slides through them.
             for hole in holes.iter_mut().chain(tracks.iter_mut()) {
-                hole.after_substep(
-                    &self.chain.positions_mm,
-                    self.chain.tension_n(),
-                    segment_mm,
-                    h_s,
-                );
+                hole.after_substep(&mut self.chain, claimed, h_s);
             }
         }
         // The pull on each jaw; a thread pulled harder than the jaws hold slips out of them.

@@ -15,7 +15,7 @@
 //!
 //! Must not: allocate once built, or panic on any state (a non-finite step leaves the chain as it was).
 
-use super::thread_solve::{ChainTerms, PositionSolve, V64};
+use super::thread_solve::{ChainTerms, NodeSlide, PositionSolve, V64};
 use crate::tissue::{MM_PER_M, Vec3};
 
 /// A chain of `n` nodes and `n - 1` segments.
@@ -30,6 +30,12 @@ pub struct ThreadChain {
     /// Inverse masses, 1/kg (0: the node is held where it is, e.g. on the needle's tail).
     inverse_mass_per_kg: Vec<f32>,
     rest_mm: Vec<f32>,
+    /// Each node's material coordinate: the rest length from node 0 to it, mm (the prefix sums of `rest_mm`), and
+    /// in f64 (the solve's).
+    node_u_mm: Vec<f32>,
+    u64: Vec<f64>,
+    /// Axial rigidity EA, N (a segment's spring is `EA / l`).
+    axial_rigidity_n: f32,
     /// Viscous drag on every node, 1/s.
     drag_per_s: f32,
     /// Each segment's tension at the last step, N.
@@ -47,8 +53,9 @@ pub struct ThreadChain {
     predicted64: Vec<V64>,
     mirror_mm: Vec<Vec3>,
     solver: PositionSolve,
-    /// This step's holds ([`ThreadChain::hold_node`]), per node.
+    /// This step's holds ([`ThreadChain::hold_node`]) and slides ([`ThreadChain::slide_node`]), per node.
     hold: Vec<Option<NodeHold>>,
+    slides: Vec<Option<NodeSlide>>,
 }
 
 /// How a node is held for one step ([`ThreadChain::hold_node`]): a hole in the tissue around it, springs
@@ -85,6 +92,12 @@ impl ThreadChain {
             return None;
         }
         let m = n - 1;
+        let node_u_mm: Vec<f32> = std::iter::once(0.0)
+            .chain(rest_mm.iter().scan(0.0, |u, l| {
+                *u += l;
+                Some(*u)
+            }))
+            .collect();
         Some(Self {
             positions_mm: nodes_mm.to_vec(),
             velocities_mm_s: vec![Vec3::zeros(); n],
@@ -95,6 +108,9 @@ impl ThreadChain {
             bend_stiffness_n_per_mm: 0.0,
             previous_mm: vec![Vec3::zeros(); n],
             stiffness_n_per_mm: rest_mm.iter().map(|l| axial_rigidity_n / l).collect(),
+            u64: node_u_mm.iter().map(|&u| f64::from(u)).collect(),
+            node_u_mm,
+            axial_rigidity_n,
             rest_mm,
             x64: nodes_mm.iter().map(|p| p.cast::<f64>()).collect(),
             prev64: vec![V64::zeros(); n],
@@ -102,6 +118,7 @@ impl ThreadChain {
             mirror_mm: nodes_mm.to_vec(),
             solver: PositionSolve::new(n),
             hold: vec![None; n],
+            slides: vec![None; n],
         })
     }
 
@@ -170,6 +187,11 @@ impl ThreadChain {
         &self.tension_n
     }
 
+    /// Each segment's spring, N/mm (`EA / l`).
+    pub fn stiffness_n_per_mm(&self) -> &[f32] {
+        &self.stiffness_n_per_mm
+    }
+
     /// The chain's length now, mm.
     pub fn length_mm(&self) -> f32 {
         self.positions_mm
@@ -181,6 +203,125 @@ impl ThreadChain {
     /// The chain's rest length, mm.
     pub fn rest_length_mm(&self) -> f32 {
         self.rest_mm.iter().sum()
+    }
+
+    /// Each segment's rest length, mm (they change as the thread slides through a hole: [`ThreadChain::slide`]).
+    pub fn rest_mm(&self) -> &[f32] {
+        &self.rest_mm
+    }
+
+    /// Each node's material coordinate: the rest length from node 0 to it, mm.
+    pub fn node_u_mm(&self) -> &[f32] {
+        &self.node_u_mm
+    }
+
+    /// Let the material slide through interior node `i` for the next step only ([`NodeSlide`]: its material
+    /// coordinate a variable of the solve, `thread_solve.rs`); the segments either side take and give rest
+    /// length as it moves, their springs following after the step. False (nothing taken) for an end node, a
+    /// held one, or a non-finite or empty range.
+    pub fn slide_node(&mut self, i: usize, slide: NodeSlide) -> bool {
+        let usable = i > 0
+            && i + 1 < self.positions_mm.len()
+            && self.inverse_mass_per_kg[i] != 0.0
+            && slide.predicted_u_mm.is_finite()
+            && slide.friction_n.is_finite()
+            && slide.tangent.iter().all(|c| c.is_finite())
+            && slide.lo_mm <= slide.hi_mm
+            && slide.lo_mm > self.u64[i - 1]
+            && slide.hi_mm < self.u64[i + 1];
+        if usable {
+            self.slides[i] = Some(slide);
+        }
+        usable
+    }
+
+    /// Hand interior node `to` (a neighbour of interior node `from`) the place, motion and material coordinate
+    /// of `from`, and make `from` a node halfway along the material between that coordinate and the node beyond
+    /// `from` (placed and moving halfway between the two): a sliding node passing a free one, as the thread
+    /// runs through its hole, so no segment shrinks to nothing (`thread_hole.rs`). False (nothing changed)
+    /// for nodes that are not neighbours, an end node, or `to` held.
+    pub fn hand_across(&mut self, from: usize, to: usize) -> bool {
+        let n = self.positions_mm.len();
+        let interior = |i: usize| i > 0 && i + 1 < n;
+        if !(interior(from) && interior(to) && from.abs_diff(to) == 1)
+            || self.inverse_mass_per_kg[to] == 0.0
+        {
+            return false;
+        }
+        let beyond = if to < from { from + 1 } else { from - 1 };
+        let (u_from, u_beyond) = (self.u64[from], self.u64[beyond]);
+        self.x64[to] = self.x64[from];
+        self.velocities_mm_s[to] = self.velocities_mm_s[from];
+        self.set_u(to, u_from);
+        self.x64[from] = (self.x64[from] + self.x64[beyond]) * 0.5;
+        self.velocities_mm_s[from] =
+            (self.velocities_mm_s[from] + self.velocities_mm_s[beyond]) * 0.5;
+        self.set_u(from, 0.5 * (u_from + u_beyond));
+        for i in [to, from] {
+            self.positions_mm[i] = self.x64[i].cast::<f32>();
+            self.mirror_mm[i] = self.positions_mm[i];
+        }
+        // The segments touching the two nodes.
+        let (lo, hi) = (from.min(to), from.max(to));
+        self.segments_changed(lo - 1, hi);
+        true
+    }
+
+    /// Move node `i`'s material coordinate to `u_mm` (kept `min_mm` from its neighbours') and the node to the
+    /// point of the chain at that coordinate as it lies: a hole taking the thread at `u_mm` makes that node its
+    /// own (`thread_hole.rs`). Returns the coordinate taken (None for an end node or a non-finite input).
+    pub fn place_node_at(&mut self, i: usize, u_mm: f32, min_mm: f32) -> Option<f32> {
+        let n = self.positions_mm.len();
+        if i == 0 || i + 1 >= n || !u_mm.is_finite() {
+            return None;
+        }
+        let min_mm = f64::from(min_mm);
+        let (lo, hi) = (self.u64[i - 1] + min_mm, self.u64[i + 1] - min_mm);
+        if lo > hi {
+            return None;
+        }
+        let u = f64::from(u_mm).clamp(lo, hi);
+        // The point at u on the segment either side of node i, by the rest lengths as they are.
+        let (a, b, t) = if u <= self.u64[i] {
+            (
+                i - 1,
+                i,
+                (u - self.u64[i - 1]) / (self.u64[i] - self.u64[i - 1]),
+            )
+        } else {
+            (
+                i,
+                i + 1,
+                (u - self.u64[i]) / (self.u64[i + 1] - self.u64[i]),
+            )
+        };
+        let t = t.clamp(0.0, 1.0);
+        self.x64[i] = self.x64[a] + (self.x64[b] - self.x64[a]) * t;
+        self.velocities_mm_s[i] = self.velocities_mm_s[a]
+            + (self.velocities_mm_s[b] - self.velocities_mm_s[a]) * t as f32;
+        self.positions_mm[i] = self.x64[i].cast::<f32>();
+        self.mirror_mm[i] = self.positions_mm[i];
+        self.set_u(i, u);
+        self.segments_changed(i - 1, i);
+        Some(u as f32)
+    }
+
+    /// Node `i`'s material coordinate becomes `u_mm` (the rest lengths then follow: `segments_changed`).
+    fn set_u(&mut self, i: usize, u_mm: f64) {
+        self.u64[i] = u_mm;
+        self.node_u_mm[i] = u_mm as f32;
+    }
+
+    /// The material coordinates of the nodes of segments `first..=last` changed: their rest lengths, springs and
+    /// tensions follow.
+    fn segments_changed(&mut self, first: usize, last: usize) {
+        for s in first..=last.min(self.rest_mm.len() - 1) {
+            let l = (self.u64[s + 1] - self.u64[s]) as f32;
+            self.rest_mm[s] = l;
+            self.stiffness_n_per_mm[s] = self.axial_rigidity_n / l;
+            let stretch = (self.x64[s + 1] - self.x64[s]).norm() - f64::from(l);
+            self.tension_n[s] = (stretch * f64::from(self.stiffness_n_per_mm[s])) as f32;
+        }
     }
 
     /// One step of `h_s` under gravity `gravity_mm_per_s2` and `forces_n`: predict, then `newton` direct solves
@@ -228,12 +369,29 @@ impl ThreadChain {
         let terms = ChainTerms {
             inverse_mass_per_kg: &self.inverse_mass_per_kg,
             holds: &self.hold,
-            rest_mm: &self.rest_mm,
+            slides: &self.slides,
             stiffness_n_per_mm: &self.stiffness_n_per_mm,
             bend_n_per_mm: self.bend_stiffness_n_per_mm,
         };
-        self.solver
-            .solve(&mut self.x64, &self.predicted64, &terms, h, newton.max(1));
+        self.solver.solve(
+            &mut self.x64,
+            &mut self.u64,
+            &self.predicted64,
+            &terms,
+            h,
+            newton.max(1),
+        );
+        // The material coordinates the slides moved, and the rest lengths and springs with them.
+        for i in 0..n {
+            if self.slides[i].is_some() {
+                if self.u64[i].is_finite() {
+                    self.set_u(i, self.u64[i]);
+                    self.segments_changed(i - 1, i);
+                } else {
+                    self.u64[i] = f64::from(self.node_u_mm[i]);
+                }
+            }
+        }
         self.clear_holds();
         // The tension each segment's stretch carries, as the solve left it (the contacts after it move nodes
         // without a force).
@@ -273,9 +431,10 @@ impl ThreadChain {
         }
     }
 
-    /// Every node free again (holds last one step).
+    /// Every node free again (holds and slides last one step).
     fn clear_holds(&mut self) {
         self.hold.fill(None);
+        self.slides.fill(None);
     }
 }
 

@@ -1,48 +1,59 @@
 //! A puncture hole holding the thread once the needle has passed through it, or a point of the needle's track
-//! inside the tissue: a sliding ring.
+//! inside the tissue: a sliding node.
 //!
-//! Owns: [`ThreadHole`] (a material point of the surface or the volume, [`HolePoint`], where along the thread it
-//! holds it, its friction's state and its pull) and [`inside_by_holes`] (which of the thread's points lie inside
-//! an object, from the surface holes ahead of them).
+//! Owns: [`ThreadHole`] (a material point of the surface or the volume, [`HolePoint`], the thread's node it
+//! holds and that node's material coordinate, its friction's state and its pull) and [`inside_by_holes`] (which
+//! of the thread's points lie inside an object, from the surface holes ahead of them).
 //!
 //! Tracks: a thread held only at the two holes of a bite runs straight between them, and drawn tight it cuts
 //! up through the tissue as a sling does (the hole on a wound's face was dragged 5 mm up toward the skin's
 //! top, and closed nothing). The tissue holds a real suture all along the needle's path, so every few
 //! millimetres of that path the thread passes through a ring in the volume, with the same model as a hole
-//! (`thread.rs` lays them as the needle's tail passes). A ring inside does not change which side of the surface
-//! the thread is on.
+//! (`thread_track.rs` lays them as the needle's tail passes). A ring inside does not change which side of the
+//! surface the thread is on.
 //!
-//! The model (`docs/suturing.md`, "Holes take the thread"):
-//! - **Where.** The hole holds the thread at an arc length `u_mm` from its tail node (a material point of the
-//!   thread). It starts at 0 when the needle's tail leaves it. Each substep it holds the two end nodes of the
-//!   segment through it, each by half the tissue's stiffness, so the segment passes through the hole however
-//!   the thread bends there.
-//! - **In the solve, not after it.** The nodes are held by implicit springs inside the chain's direct length
-//!   solve ([`ThreadChain::hold_node`](super::ThreadChain::hold_node)): light nodes put back after the solve
-//!   would show only their own inertia, and a thread drawn through would never read more than a micronewton
-//!   against the friction.
-//! - **Sticking** the ends are pinned at the places of their material points. It slides when the tensions the
-//!   solve found beyond them differ by more than the capstan holds: `(e^(mu theta) - 1)` times the lower plus
-//!   `mu` times the tissue's squeeze on the thread, `theta` the angle the thread turns through at the ends.
-//! - **Sliding** the ends run on the segment's line through the hole (the springs across only), the friction a
-//!   damper along it, implicit and as stiff as gives that drag at the speed it slid at: the tensions either
-//!   side then differ by the drag, and a thread drawn through several holes drags by the sum. `u` is read
-//!   again from where the ends lie on the line; it sticks again when the thread stops or turns back.
-//! - **The tissue's side** is the mean over the substeps of the springs' pull (across, and the drag along while
-//!   sliding; [`ThreadHole::pull_on_tissue_n`]), applied the next tick, held to 20 N.
+//! The model, a sliding node (Sueda et al. 2011, "Eulerian-on-Lagrangian" rods; `docs/suturing.md`):
+//! - **A node at the hole.** The hole owns one node of the chain, and that node's material coordinate `u_mm`
+//!   (rest length from the tail) is where along the thread the hole holds it. The thread bends at the hole
+//!   however it slides, and `u` is the thread's own coordinate: a hole cannot pass a neighbour, and holes keep
+//!   their order along the thread by construction. (The first model held the two ends of the segment through
+//!   the hole by springs and read `u` back from the geometry: drawn tight round a bend the thread ran
+//!   1-4.7 mm beside its holes and their order flipped.)
+//! - **Held by the tissue's give.** Inside the chain's direct solve the node is drawn by an implicit spring of
+//!   the tissue's stiffness against a point ([`ThreadChain::hold_node`](super::ThreadChain::hold_node)), the
+//!   same every way: the spring stands for the tissue, which is stepped apart from the thread (a stiffer one
+//!   made the two swing a tick apart). It is anchored where the tissue's point would be without the pull it
+//!   already carries (its place less last tick's pull over the stiffness), so once the tissue has taken the
+//!   pull the node is in the hole: anchored at the place itself, the tissue's give counted twice and the node
+//!   sat 2-5 mm beside its hole at 3 N. (A tissue far softer at the point than the stiffness says, by more than
+//!   twice, would overshoot tick to tick: the stiffness is the squeeze over the needle's diameter.)
+//! - **Sliding** is the material moving through the node, once per substep after the solve: the tensions
+//!   either side, `T_prev` and `T_next`, against the capstan's drag `(e^(mu theta) - 1) T_low + mu N` (`theta`
+//!   the thread's turn at the node, `N` the tissue's squeeze). Within the drag it sticks; past it `u` moves
+//!   by `(|T_prev - T_next| - drag) / (k_prev + k_next)` toward the higher tension (`k` each side's `EA / l`),
+//!   which leaves the two differing by the drag ([`ThreadChain::slide`](super::ThreadChain::slide)).
+//! - **Passing nodes.** When a side's rest length falls under a quarter of a segment, the free node on that
+//!   side takes the hole's place and material coordinate, and the old node goes halfway along the other side
+//!   ([`ThreadChain::hand_across`](super::ThreadChain::hand_across)); next to a node that is not free (the
+//!   tail, jaws, another hole) the hole stops a tenth of a segment short.
+//! - **The tissue's side** is the spring's pull (the thread's pull on the node: across it, and the drag along
+//!   it), meaned over the substeps and applied the next tick, answering as a spring
+//!   ([`ThreadHole::pull_on_tissue_at_n`]), held to 20 N.
 //!
 //! Must not: allocate or panic; a hole whose triangle is gone, or a non-finite value, leaves the thread alone.
 
 use super::SurfacePoint;
-use super::thread_chain::NodeHold;
+use super::thread_chain::{NodeHold, ThreadChain};
+use super::thread_solve::NodeSlide;
 use super::volume_point::VolumePoint;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 /// A sliding hole sticks again when the thread moves through it slower than this, mm/s.
 const STOPPED_MM_S: f32 = 0.5;
-/// The friction of a sliding hole is a damper giving `mu N` at the speed it slides, taken as at least this,
-/// mm/s (slower, less: it cannot push the thread back).
-const REGULARISED_MM_S: f32 = 1.0;
+/// A hole's node stops this fraction of a segment short of a neighbour that is not free.
+const MIN_SEGMENT_FRACTION: f32 = 0.1;
+/// A side shorter than this fraction of a segment hands its free node across.
+const HAND_ACROSS_FRACTION: f32 = 0.25;
 /// A hole's pull on the tissue is held to this, N (a 3-0 suture breaks at about 19 N knotted; the skin tears
 /// far below).
 const MAX_PULL_N: f32 = 20.0;
@@ -108,7 +119,7 @@ impl HolePoint {
 pub struct ThreadHole {
     /// The punctured material point of the surface, or a point of the track inside.
     pub point: HolePoint,
-    /// Where along the thread it holds it: the arc length from the tail node, mm (rest lengths).
+    /// Where along the thread it holds it: its node's material coordinate, the rest length from the tail, mm.
     pub u_mm: f32,
     /// The tissue's squeeze on the thread, N (the friction's load with nothing pulling across).
     pub squeeze_n: f32,
@@ -116,32 +127,28 @@ pub struct ThreadHole {
     pub friction: f32,
     /// The tissue's stiffness against the point, N/mm: the spring holding the thread's node.
     pub stiffness_n_per_mm: f32,
-    /// The thread slides through it: the direction its node moves along the thread (+1: toward the free end's
-    /// side, `u` falling; -1: toward the tail's), 0 while it sticks.
+    /// The thread slid through it at the last substep: the direction its node moved along the thread (+1:
+    /// toward the free end's side, `u` falling; -1: toward the tail's), 0 while it sticks.
     pub slip: f32,
+    /// The node of the chain it holds (None: none taken yet).
+    node: Option<usize>,
     /// The place it holds the thread this tick, mm.
     place_mm: Vec3,
-    /// This substep's holds: the segment's end nodes and how.
-    holds: [Option<(usize, NodeHold)>; 2],
     /// How fast the thread slid through it at the last substep, mm/s (`u`'s rate).
     speed_mm_s: f32,
-    /// What it held back at the last substep, N (its drag while sliding).
+    /// What it held back at the last substep, N (the capstan's drag).
     drag_n: f32,
     /// The pull on the tissue summed over this tick's substeps, N (mean: over `substeps`).
     pull_sum_n: Vec3,
     substeps: u32,
-    /// The springs' stiffness on the tissue's point at the last substep, N/mm: across the thread, and along it
-    /// (while it sticks), with the thread's direction there.
-    across_n_per_mm: f32,
-    along_n_per_mm: f32,
-    direction: Vec3,
-    /// It holds nothing (another ring holds its segment).
-    resting: bool,
+    /// The mean pull of the tick before, N: the tissue carries it (`anchor_mm`).
+    carried_n: Vec3,
 }
 
 impl ThreadHole {
     /// A hole at `point` holding the thread at `u_mm`, squeezing it with `squeeze_n`, with Coulomb coefficient
-    /// `friction`, in tissue of stiffness `stiffness_n_per_mm` against a point. It starts sticking.
+    /// `friction`, in tissue of stiffness `stiffness_n_per_mm` against a point. It starts sticking, and takes
+    /// its node at the first [`ThreadHole::take_node`].
     pub fn new(
         point: HolePoint,
         u_mm: f32,
@@ -157,22 +164,20 @@ impl ThreadHole {
             u_mm: clean(u_mm),
             squeeze_n: clean(squeeze_n),
             slip: 0.0,
+            node: None,
             place_mm: Vec3::zeros(),
-            holds: [None, None],
             speed_mm_s: 0.0,
             drag_n: clean(friction) * clean(squeeze_n),
             pull_sum_n: Vec3::zeros(),
             substeps: 0,
-            across_n_per_mm: 0.0,
-            along_n_per_mm: 0.0,
-            direction: Vec3::zeros(),
-            resting: false,
+            carried_n: Vec3::zeros(),
         }
     }
 
     /// Before the thread's substeps: read where the tissue holds the hole now. False when it cannot (its
     /// triangle is gone): the hole is to be let go.
     pub fn place(&mut self, model: &MassSpringModel, state: &TissueState) -> bool {
+        self.carried_n = self.pull_on_tissue_n();
         self.pull_sum_n = Vec3::zeros();
         self.substeps = 0;
         match self.point.position_mm(model, state) {
@@ -184,26 +189,29 @@ impl ThreadHole {
         }
     }
 
-    /// Whether it holds nothing this substep (another ring holds its segment): [`ThreadHole::node_holds`] then
-    /// returns none.
-    pub fn set_resting(&mut self, resting: bool) {
-        self.resting = resting;
-    }
-
-    /// Whether it holds nothing this substep ([`ThreadHole::set_resting`]).
-    pub fn is_resting(&self) -> bool {
-        self.resting
-    }
-
     /// Where it holds the thread this tick, mm.
     pub fn place_mm(&self) -> Vec3 {
         self.place_mm
     }
 
-    /// Whether it holds node `i` this substep (between [`ThreadHole::node_holds`] and
-    /// [`ThreadHole::after_substep`]).
+    /// The node of the chain it holds (None: none taken yet).
+    pub fn node(&self) -> Option<usize> {
+        self.node
+    }
+
+    /// Whether it holds node `i`.
     pub fn holds_node(&self, i: usize) -> bool {
-        self.holds.iter().flatten().any(|(k, _)| *k == i)
+        self.node == Some(i)
+    }
+
+    /// How fast the thread slid through it at the last substep, mm/s (`u`'s rate).
+    pub fn speed_mm_s(&self) -> f32 {
+        self.speed_mm_s
+    }
+
+    /// What it held back at the last substep, N (the capstan's drag).
+    pub fn drag_n(&self) -> f32 {
+        self.drag_n
     }
 
     /// The mean pull of the thread on the tissue through it over the last tick, world, N.
@@ -215,7 +223,7 @@ impl ThreadHole {
     }
 
     /// The pull on the tissue with its point at `now_mm` (a tissue substep's place, not the tick's): the
-    /// tick's mean pull, less the springs' stiffness times how far the point has moved since, held to 20 N.
+    /// tick's mean pull, less the spring's stiffness times how far the point has moved since, held to 20 N.
     /// The tissue then answers a spring, not a force fixed for the tick: a fixed force a tick late set a
     /// hole on a wound's edge swinging 1.7 mm each way every tick.
     pub fn pull_on_tissue_at_n(&self, now_mm: &Vec3) -> Vec3 {
@@ -224,181 +232,173 @@ impl ThreadHole {
         if self.substeps == 0 || !moved.iter().all(|c| c.is_finite()) {
             return pull;
         }
-        let t = self.direction;
-        let along = t.dot(&moved);
-        let back = (moved - t * along) * self.across_n_per_mm + t * (along * self.along_n_per_mm);
-        let pull = pull - back;
+        let pull = pull - moved * self.stiffness_n_per_mm;
         pull * (MAX_PULL_N / pull.norm().max(MAX_PULL_N))
     }
 
-    /// The nodes it holds this substep of `h_s` (the two ends of the segment through it) of a thread at `now`
-    /// with inverse masses `w` and rest segment `segment_mm`, and how ([`NodeHold`]). A node held already (the
-    /// tail on the needle) is left to its holder; with neither end free `u` is read again from the thread.
-    pub fn node_holds(
-        &mut self,
-        now: &[Vec3],
-        w: &[f32],
-        segment_mm: f32,
-        h_s: f32,
-    ) -> [Option<(usize, NodeHold)>; 2] {
-        self.holds = [None, None];
-        if self.resting {
-            return self.holds;
+    /// Take a node of `chain` for the hole at its `u_mm` (once; true when it has one): of the two nodes either
+    /// side of that coordinate, the nearer one that is interior, not held and not `claimed` (by other holes),
+    /// moved there on the thread as it lies ([`ThreadChain::place_node_at`]); `claimed` is marked. A hole with
+    /// no free node near holds nothing until one is.
+    pub fn take_node(&mut self, chain: &mut ThreadChain, claimed: &mut [bool]) -> bool {
+        if self.node.is_some() {
+            return true;
         }
-        let segments = now.len().min(w.len()).saturating_sub(1);
-        let k = self.stiffness_n_per_mm;
-        if segments == 0 || !(segment_mm > 0.0 && h_s > 0.0) || k <= 0.0 {
-            return self.holds;
+        let n = chain.positions_mm.len();
+        if n < 3 || claimed.len() < n {
+            return false;
         }
-        let s = ((self.u_mm / segment_mm) as usize).min(segments - 1);
-        let Some(direction) = (now[s + 1] - now[s]).try_normalize(1e-6) else {
-            return self.holds;
-        };
-        if w[s] == 0.0 && w[s + 1] == 0.0 {
-            self.u_mm = nearest_arc_length(now, s, segment_mm, &self.place_mm).unwrap_or(self.u_mm);
-            return self.holds;
+        let nominal = chain.rest_length_mm() / (n - 1) as f32;
+        let u = self.u_mm;
+        let node_u = chain.node_u_mm();
+        let after = node_u.partition_point(|&c| c <= u).clamp(1, n - 1);
+        let mut candidates = [after - 1, after];
+        if (node_u[after - 1] - u).abs() > (node_u[after] - u).abs() {
+            candidates.swap(0, 1);
         }
-        // Each end by a spring of half the tissue's stiffness: the two hold the segment through the place.
-        for (slot, i) in [s, s + 1].into_iter().enumerate() {
-            if w[i] == 0.0 {
+        for i in candidates {
+            let free = i > 0 && i + 1 < n && chain.inverse_mass_per_kg()[i] != 0.0 && !claimed[i];
+            if !free {
                 continue;
             }
-            let (place_mm, along_n_per_mm) = if self.slip == 0.0 {
-                // Sticking: its material point on the place, the node that far along from it.
-                (
-                    self.place_mm + direction * (i as f32 * segment_mm - self.u_mm),
-                    0.5 * k,
-                )
-            } else {
-                // Sliding: on the rail, the friction a damper from where the node is now along it, as stiff
-                // as gives the drag at the speed it slid at.
-                let on_rail = self.place_mm + direction * direction.dot(&(now[i] - self.place_mm));
-                let speed = self.speed_mm_s.abs().max(REGULARISED_MM_S);
-                (on_rail, 0.5 * self.drag_n / speed / h_s)
-            };
-            self.holds[slot] = Some((
-                i,
-                NodeHold {
-                    direction,
-                    place_mm,
-                    across_n_per_mm: 0.5 * k,
-                    along_n_per_mm,
-                },
-            ));
+            if let Some(u) = chain.place_node_at(i, u, MIN_SEGMENT_FRACTION * nominal) {
+                self.u_mm = u;
+                self.node = Some(i);
+                claimed[i] = true;
+                return true;
+            }
         }
-        self.holds
+        false
     }
 
-    /// After the substep of `h_s`: the springs' pull, the stick or slide test and `u` read again, from where the
-    /// held nodes ended (`now`, rest segment `segment_mm`) and the segments' tensions `tension_n` (the solve's,
-    /// with the nodes held).
-    pub fn after_substep(&mut self, now: &[Vec3], tension_n: &[f32], segment_mm: f32, h_s: f32) {
-        let holds = std::mem::take(&mut self.holds);
-        let Some(&(first, hold)) = holds.iter().flatten().next() else {
+    /// Where the tissue's point would be without the pull it carries (the last tick's): its place, less that
+    /// pull over its stiffness, mm. The spring standing for the tissue's give is anchored there, so the thread
+    /// feels the tissue's compliance and still runs through the hole itself once the tissue has taken the pull
+    /// (anchored at the place, the node sat the pull over the stiffness beside it: 2-5 mm at 3 N on skin).
+    fn anchor_mm(&self) -> Vec3 {
+        let k = self.stiffness_n_per_mm;
+        if k > 0.0 {
+            self.place_mm - self.carried_n / k
+        } else {
+            self.place_mm
+        }
+    }
+
+    /// How it holds its node in the next substep: a spring of the tissue's stiffness toward its anchor (the
+    /// tissue's point unloaded), the same every way (None: no node, or no stiffness).
+    pub fn node_hold(&self) -> Option<(usize, NodeHold)> {
+        let k = self.stiffness_n_per_mm;
+        let node = self.node?;
+        (k > 0.0).then_some((
+            node,
+            NodeHold {
+                direction: Vec3::x(),
+                place_mm: self.anchor_mm(),
+                across_n_per_mm: k,
+                along_n_per_mm: k,
+            },
+        ))
+    }
+
+    /// How the thread slides through its node in the next substep of `h_s`, while it slides (None: it sticks,
+    /// or has no node): its material coordinate a variable of the chain's solve, with the drag against the way
+    /// it slides, and the node's neighbours no nearer than a tenth of a segment ([`NodeSlide`]).
+    pub fn node_slide(&self, chain: &ThreadChain, h_s: f32) -> Option<(usize, NodeSlide)> {
+        let i = self.node?;
+        let node_u = chain.node_u_mm();
+        let n = node_u.len();
+        if self.slip == 0.0 || i == 0 || i + 1 >= n || h_s.is_nan() || h_s <= 0.0 {
+            return None;
+        }
+        let min = MIN_SEGMENT_FRACTION * chain.rest_length_mm() / (n - 1) as f32;
+        let u = f64::from(node_u[i]);
+        // `slip` +1: `u` falling.
+        let (lo, hi) = if self.slip > 0.0 {
+            (f64::from(node_u[i - 1] + min), u)
+        } else {
+            (u, f64::from(node_u[i + 1] - min))
+        };
+        let x = &chain.positions_mm;
+        let tangent = (x[i + 1] - x[i - 1]).try_normalize(1e-9)?.cast::<f64>();
+        (lo <= hi).then_some((
+            i,
+            NodeSlide {
+                predicted_u_mm: u + f64::from(self.speed_mm_s * h_s),
+                friction_n: f64::from(-self.slip * self.drag_n),
+                lo_mm: lo,
+                hi_mm: hi,
+                tangent,
+            },
+        ))
+    }
+
+    /// After a substep of `h_s` (its node held, and slid if it slides): how far the thread slid; the stick or
+    /// slide test for the next substep (it slides when the tensions either side differ by more than the
+    /// capstan's drag, and sticks again when it stops); a free node handed across when a side has grown short
+    /// (`claimed`, per node, kept up); and the pull on the tissue, its spring's, summed.
+    pub fn after_substep(&mut self, chain: &mut ThreadChain, claimed: &mut [bool], h_s: f32) {
+        let Some(i) = self.node else {
             return;
         };
-        // The segment through the hole runs from node s to s + 1.
-        let s = if holds[0].is_some() { first } else { first - 1 };
-        let t = hold.direction;
-        let (mut across, mut along_n) = (Vec3::zeros(), 0.0f32);
-        for (i, hold) in holds.iter().flatten() {
-            let Some(x) = now.get(*i) else {
-                return;
-            };
-            let d = x - hold.place_mm;
-            let d_along = t.dot(&d);
-            across += (d - t * d_along) * hold.across_n_per_mm;
-            along_n += d_along * hold.along_n_per_mm;
+        let n = chain.positions_mm.len();
+        if i == 0 || i + 1 >= n || claimed.len() < n || h_s.is_nan() || h_s <= 0.0 {
+            return;
         }
-        // Sliding, the tissue feels the friction's drag, no more: the damper standing for it in the solve is
-        // stiff (the drag over a millimetre a second), and a thread flicked through it would pass the tissue
-        // a pull that grows with the flick, and the tissue's answer would flick it back the next tick.
-        if self.slip != 0.0 {
-            along_n = along_n.clamp(-self.drag_n, self.drag_n);
-        }
-        let pull = across + t * along_n;
-        // The capstan: the tensions either side (slack reads 0) and the angle the thread turns through at the
-        // segment's two ends.
-        let tension = |k: Option<usize>| {
-            k.and_then(|k| tension_n.get(k))
-                .map_or(0.0, |t: &f32| t.max(0.0))
+        let nominal = chain.rest_length_mm() / (n - 1) as f32;
+        let x = &chain.positions_mm;
+        let tension = |s: usize| {
+            let t = chain.tension_n()[s];
+            if t.is_finite() { t.max(0.0) } else { 0.0 }
         };
-        // Beyond the held ends: segment s itself pulls where one end is not the hole's (the needle's tail).
-        let behind_n = tension(if holds[0].is_some() {
-            s.checked_sub(1)
-        } else {
-            Some(s)
-        });
-        let ahead_n = tension(Some(if holds[1].is_some() { s + 1 } else { s }));
-        let turn = |a: Option<usize>, b: usize, c: usize| -> f32 {
-            let (Some(a), Some(pb), Some(pc)) =
-                (a.and_then(|a| now.get(a)), now.get(b), now.get(c))
-            else {
-                return 0.0;
-            };
-            (pb - a)
-                .try_normalize(1e-9)
-                .zip((pc - pb).try_normalize(1e-9))
-                .map_or(0.0, |(n0, n1)| n0.dot(&n1).clamp(-1.0, 1.0).acos())
-        };
-        let turn_rad = turn(s.checked_sub(1), s, s + 1) + turn(Some(s), s + 1, s + 2);
-        let wrap = (self.friction * turn_rad).exp();
-        let (high_n, low_n) = (behind_n.max(ahead_n), behind_n.min(ahead_n));
-        // What the hole holds back: the capstan's share of the lower tension, and the squeeze's.
-        let drag_n = (wrap - 1.0) * low_n + self.friction * self.squeeze_n;
-        if !(drag_n.is_finite() && high_n.is_finite() && pull.iter().all(|c| c.is_finite())) {
+        let (behind_n, ahead_n) = (tension(i - 1), tension(i));
+        let turn_rad = (x[i] - x[i - 1])
+            .try_normalize(1e-9)
+            .zip((x[i + 1] - x[i]).try_normalize(1e-9))
+            .map_or(0.0, |(a, b)| a.dot(&b).clamp(-1.0, 1.0).acos());
+        let drag_n = ((self.friction * turn_rad).exp() - 1.0) * behind_n.min(ahead_n)
+            + self.friction * self.squeeze_n;
+        let u = chain.node_u_mm()[i];
+        let spring_n = (x[i] - self.anchor_mm()) * self.stiffness_n_per_mm;
+        if !(drag_n.is_finite() && u.is_finite() && spring_n.iter().all(|c| c.is_finite())) {
             return;
         }
         if self.slip == 0.0 {
-            if high_n - low_n > drag_n {
-                // It slides toward the higher tension: the nodes back along the thread when it is behind.
+            // It slides toward the higher tension (+1: `u` falling, toward the free end's side).
+            if (behind_n - ahead_n).abs() > drag_n {
                 self.slip = if behind_n > ahead_n { -1.0 } else { 1.0 };
-                self.speed_mm_s = 0.0;
             }
+            self.speed_mm_s = 0.0;
         } else {
-            let x = now[first];
-            let u = first as f32 * segment_mm - t.dot(&(x - self.place_mm));
             self.speed_mm_s = (u - self.u_mm) / h_s;
-            self.u_mm = u.max(0.0);
-            if self.speed_mm_s.abs() < STOPPED_MM_S {
+            if -self.speed_mm_s * self.slip < STOPPED_MM_S {
                 self.slip = 0.0;
-            } else {
-                self.slip = -self.speed_mm_s.signum();
+                self.speed_mm_s = 0.0;
             }
         }
         self.drag_n = drag_n;
-        // The thread's pull on the tissue is the springs' (the tissue's pull on the nodes, reversed).
-        let magnitude = pull.norm();
-        self.pull_sum_n += pull * (MAX_PULL_N / magnitude.max(MAX_PULL_N));
-        self.substeps += 1;
-        self.direction = t;
-        self.across_n_per_mm = holds.iter().flatten().map(|(_, h)| h.across_n_per_mm).sum();
-        self.along_n_per_mm = if self.slip == 0.0 {
-            holds.iter().flatten().map(|(_, h)| h.along_n_per_mm).sum()
+        // A side grown short: its free node takes the hole's place.
+        let free =
+            |j: usize| j > 0 && j + 1 < n && chain.inverse_mass_per_kg()[j] != 0.0 && !claimed[j];
+        let short = HAND_ACROSS_FRACTION * nominal;
+        let to = if chain.rest_mm()[i - 1] < short && free(i - 1) {
+            Some(i - 1)
+        } else if chain.rest_mm()[i] < short && free(i + 1) {
+            Some(i + 1)
         } else {
-            0.0
+            None
         };
-    }
-}
-
-/// The arc length (rest lengths, mm) of the point of segments `k - 1 ..= k + 1` of the polyline `nodes` nearest
-/// `to_mm`. None for a degenerate polyline.
-fn nearest_arc_length(nodes: &[Vec3], k: usize, segment_mm: f32, to_mm: &Vec3) -> Option<f32> {
-    let segments = nodes.len().checked_sub(1)?;
-    let mut best: Option<(f32, f32)> = None;
-    for s in k.saturating_sub(1)..(k + 2).min(segments) {
-        let d = nodes[s + 1] - nodes[s];
-        let len2 = d.norm_squared();
-        if len2.is_nan() || len2 <= 1e-12 {
-            continue;
+        if let Some(to) = to
+            && chain.hand_across(i, to)
+        {
+            claimed[i] = false;
+            claimed[to] = true;
+            self.node = Some(to);
         }
-        let t = ((to_mm - nodes[s]).dot(&d) / len2).clamp(0.0, 1.0);
-        let distance = (nodes[s] + d * t - to_mm).norm();
-        if best.is_none_or(|(b, _)| distance < b) {
-            best = Some((distance, (s as f32 + t) * segment_mm));
-        }
+        self.u_mm = u;
+        // The tissue feels its spring's pull toward the node (the thread's pull on the node).
+        self.pull_sum_n += spring_n * (MAX_PULL_N / spring_n.norm().max(MAX_PULL_N));
+        self.substeps += 1;
     }
-    best.map(|(_, u)| u)
 }
 
 /// Whether the thread's point at arc length `u_mm` lies inside object `object`, from the holes: the thread starts
@@ -437,35 +437,37 @@ mod tests {
     /// One substep of 0.25 ms of a chain of 2 mm segments through `holes`, as `SutureThread::step` takes it
     /// (without gravity or contacts).
     fn substep(chain: &mut ThreadChain, holes: &mut [ThreadHole]) {
+        let mut claimed = vec![false; chain.positions_mm.len()];
+        for i in holes.iter().filter_map(|h| h.node()) {
+            claimed[i] = true;
+        }
         for hole in holes.iter_mut() {
-            let held = hole.node_holds(
-                &chain.positions_mm,
-                chain.inverse_mass_per_kg(),
-                2.0,
-                0.00025,
-            );
-            for (i, hold) in held.into_iter().flatten() {
-                assert!(chain.hold_node(i, hold));
+            assert!(hole.take_node(chain, &mut claimed), "no node for {hole:?}");
+            let (i, hold) = hole.node_hold().unwrap();
+            assert!(chain.hold_node(i, hold));
+            if let Some((i, slide)) = hole.node_slide(chain, 0.00025) {
+                assert!(chain.slide_node(i, slide), "{slide:?} refused");
             }
         }
         chain.step(0.00025, &Vec3::zeros(), 2);
         for hole in holes.iter_mut() {
-            hole.after_substep(&chain.positions_mm, chain.tension_n(), 2.0, 0.00025);
+            hole.after_substep(chain, &mut claimed, 0.00025);
         }
     }
 
-    /// A free 40 mm thread (0.2 g a node: the drag is read before it has run through) along x through holes at
-    /// `at_mm` along it (squeeze 1 N, `mu`), its far end pulled along +x with `pull_n` (ramped up over the first
-    /// half) for `ticks` ms (no gravity): the first hole's arc length at the end, and the holes' summed mean
-    /// pull on the tissue over the second half.
+    /// A free 80 mm thread (0.2 g a node: the drag is read before it has run through) along x through holes at
+    /// `at_mm` from its middle (squeeze 1 N, `mu`), its far end pulled along +x with `pull_n` (ramped up over the
+    /// first half) for `ticks` ms (no gravity): the first hole's arc length at the end, from the middle, and the
+    /// holes' summed mean pull on the tissue over the second half. (A thread sliding freely at 0.2 N runs 13 mm
+    /// through in 40 ms: it has 40 mm to run before its end reaches a hole.)
     fn pull_through(pull_n: f32, mu: f32, ticks: usize, at_mm: &[f32]) -> (f32, Vec3) {
-        let nodes: Vec<Vec3> = (0..=20)
+        let nodes: Vec<Vec3> = (0..=40)
             .map(|i| Vec3::new(2.0 * i as f32, 0.0, 0.0))
             .collect();
         let mut chain = ThreadChain::new(&nodes, 2e-4, 1000.0, 5.0).unwrap();
         let mut holes: Vec<ThreadHole> = at_mm
             .iter()
-            .map(|&u| hole_at(Vec3::new(u, 0.0, 0.0), u, 1.0, mu))
+            .map(|&u| hole_at(Vec3::new(40.0 + u, 0.0, 0.0), 40.0 + u, 1.0, mu))
             .collect();
         let mut pull_sum = Vec3::zeros();
         for tick in 0..ticks {
@@ -476,14 +478,14 @@ mod tests {
             for _ in 0..4 {
                 // Ramped over the first half (a step would overshoot the spring twice over).
                 let ramp = (tick as f32 / (ticks / 2) as f32).min(1.0);
-                chain.forces_n[20] = Vec3::new(pull_n * ramp, 0.0, 0.0);
+                chain.forces_n[40] = Vec3::new(pull_n * ramp, 0.0, 0.0);
                 substep(&mut chain, &mut holes);
             }
             if tick >= ticks / 2 {
                 pull_sum += holes.iter().map(|h| h.pull_on_tissue_n()).sum::<Vec3>();
             }
         }
-        (holes[0].u_mm, pull_sum / (ticks - ticks / 2) as f32)
+        (holes[0].u_mm - 40.0, pull_sum / (ticks - ticks / 2) as f32)
     }
 
     #[test]
@@ -584,23 +586,17 @@ mod tests {
         assert!(pull.iter().all(|c| c.is_finite()));
         assert!(pull.norm() <= MAX_PULL_N * 1.0001, "{pull:?}");
         assert!(pull.norm() > 1.0, "the far hole did not pull: {pull:?}");
-        // A non-finite thread: the hole holds nothing and pulls nothing.
-        let mut broken = nodes.clone();
-        broken[10] = Vec3::new(f32::NAN, 0.0, 0.0);
-        let mut hole = hole_at(Vec3::new(20.0, 0.0, 0.0), 20.0, 1.0, 0.3);
-        let w = vec![5e6; broken.len()];
-        let held = hole.node_holds(&broken, &w, 2.0, 0.00025);
+        // A non-finite thread: the hole slides nothing and pulls nothing.
         let mut chain = ThreadChain::new(&nodes, 2e-7, 1000.0, 5.0).unwrap();
-        let mut offered = 0;
-        for (i, hold) in held.into_iter().flatten() {
-            // A hold built on a non-finite node is refused by the chain.
-            assert!(!chain.hold_node(i, hold), "{hold:?} was taken");
-            offered += 1;
-        }
-        assert!(offered > 0, "the test meant the chain to refuse a hold");
-        hole.after_substep(&broken, &[0.0; 20], 2.0, 0.00025);
+        let mut hole = hole_at(Vec3::new(20.0, 0.0, 0.0), 20.0, 1.0, 0.3);
+        let mut claimed = vec![false; nodes.len()];
+        assert!(hole.take_node(&mut chain, &mut claimed));
+        assert_eq!(hole.node(), Some(10));
+        chain.positions_mm[10] = Vec3::new(f32::NAN, 0.0, 0.0);
+        hole.after_substep(&mut chain, &mut claimed, 0.00025);
         assert_eq!(hole.pull_on_tissue_n(), Vec3::zeros());
         assert!(hole.u_mm.is_finite());
+        assert_eq!(chain.rest_mm(), &[2.0; 20][..]);
     }
 
     #[test]
@@ -626,7 +622,7 @@ mod tests {
         assert_eq!(hole.pull_on_tissue_at_n(&place), pull);
         let moved = Vec3::new(0.1, 0.1, 0.0);
         let at = hole.pull_on_tissue_at_n(&(place + moved));
-        // Two nodes, each held by half the stiffness, across and (sticking) along.
+        // Its node, held by the tissue's stiffness every way.
         let expected = pull - moved * 2.0;
         println!("pull {pull:?} N; moved {moved:?} mm: {at:?} N (expected {expected:?})");
         assert!((at - expected).norm() < 1e-4, "{at:?} vs {expected:?}");
@@ -635,6 +631,45 @@ mod tests {
         let (_, pull) = pull_through(5.0, 0.3, 6, &[20.0]);
         println!("flicked through at 5 N: the tissue feels {pull:?} N");
         assert!(pull.x.abs() <= 0.3 * 1.001, "{pull:?}");
+    }
+
+    #[test]
+    fn once_the_tissue_has_taken_the_pull_the_thread_runs_through_the_hole_itself() {
+        // A thread along x held by a sticking hole at 20 mm (2 N/mm), drawn 0.2 N along x at its far end (within
+        // the 0.3 N friction), in a tissue as stiff at the point as the hole says: each tick the hole's place
+        // is where the last tick's pull took the tissue's point. The spring anchored at the place itself would
+        // leave the node 0.1 mm (the pull over the stiffness) beyond it.
+        let nodes: Vec<Vec3> = (0..=20)
+            .map(|i| Vec3::new(2.0 * i as f32, 0.0, 0.0))
+            .collect();
+        let mut chain = ThreadChain::new(&nodes, 2e-4, 1000.0, 5.0).unwrap();
+        let rest = Vec3::new(20.0, 0.0, 0.0);
+        let mut hole = hole_at(rest, 20.0, 1.0, 0.3);
+        hole.stiffness_n_per_mm = 2.0;
+        for _ in 0..400 {
+            hole.carried_n = hole.pull_on_tissue_n();
+            hole.place_mm = rest + hole.carried_n / 2.0;
+            hole.pull_sum_n = Vec3::zeros();
+            hole.substeps = 0;
+            for _ in 0..4 {
+                chain.forces_n[20] = Vec3::new(0.2, 0.0, 0.0);
+                substep(&mut chain, std::slice::from_mut(&mut hole));
+            }
+        }
+        let node = chain.positions_mm[hole.node().unwrap()];
+        let pull = hole.pull_on_tissue_n();
+        println!(
+            "pull {pull:?} N; the tissue's point at {:?}, the thread's node at {node:?}",
+            hole.place_mm
+        );
+        assert_eq!(hole.slip, 0.0);
+        assert!((pull.x - 0.2).abs() < 0.01, "{pull:?}");
+        assert!(
+            (hole.place_mm.x - 20.1).abs() < 0.005,
+            "{:?}",
+            hole.place_mm
+        );
+        assert!((node - hole.place_mm).norm() < 0.005, "{node:?}");
     }
 
     #[test]

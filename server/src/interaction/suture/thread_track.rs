@@ -1,7 +1,6 @@
 //! The needle's track inside the tissue: the rings that hold the thread between its holes.
 //!
-//! Owns: when a ring is laid ([`lay_tracks`]), dropped ([`drop_rings_beside_holes`]) and rests for a substep
-//! ([`rest_rings_sharing_nodes`]). A ring is a [`ThreadHole`] on a material point of the volume
+//! Owns: when a ring is laid ([`lay_tracks`]) and dropped ([`drop_rings_beside_holes`]). A ring is a [`ThreadHole`] on a material point of the volume
 //! ([`HolePoint::Volume`], `volume_point.rs`): it holds the thread as a hole does and does not change its side.
 //!
 //! Why: a thread held only at the two holes of a bite runs straight between them, and drawn tight it lifted the
@@ -16,8 +15,8 @@ use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes};
 use super::volume_point::VolumePoint;
 use crate::tissue::Vec3;
 
-/// A ring every this far along the track, mm (two segments: a ring holds both ends of its segment, and two
-/// rings holding one node fight).
+/// A ring every this far along the track, mm (two segments: each ring holds a node of its own, and a node
+/// between two keeps the thread free to bend between them).
 pub const TRACK_SPACING_MM: f32 = 5.0;
 /// The most track rings a thread runs through.
 pub const MAX_TRACK_RINGS: usize = 64;
@@ -68,29 +67,13 @@ pub fn lay_tracks<'a>(
     }
 }
 
-/// A ring beside a hole of its object is the hole's: one laid as the tail reached the way out, before the
-/// needle had left that hole and handed it over, is dropped.
+/// A ring beside a hole of its object along the thread is the hole's: one laid as the tail reached the way out,
+/// before the needle had left that hole and handed it over, is dropped. (Along the thread, not in space: a stitch
+/// drawn tight brings its rings near its holes.)
 pub fn drop_rings_beside_holes(holes: &[ThreadHole], tracks: &mut Vec<ThreadHole>) {
     tracks.retain(|r| {
         !holes.iter().any(|h| {
-            h.point.object() == r.point.object()
-                && (h.place_mm() - r.place_mm()).norm() < 0.5 * TRACK_SPACING_MM
+            h.point.object() == r.point.object() && (h.u_mm - r.u_mm).abs() < 0.5 * TRACK_SPACING_MM
         })
     });
-}
-
-/// Before a substep: a ring whose segment (of `segment_mm`) shares a node with one a hole or an earlier ring
-/// holds leaves it to that one. Two holds on one node at places that need not agree fight, and set the thread
-/// restless.
-pub fn rest_rings_sharing_nodes(holes: &[ThreadHole], tracks: &mut [ThreadHole], segment_mm: f32) {
-    let segment = |h: &ThreadHole| (h.u_mm / segment_mm) as usize;
-    for k in 0..tracks.len() {
-        let mine = segment(&tracks[k]);
-        let taken = holes
-            .iter()
-            .chain(&tracks[..k])
-            .filter(|h| !h.is_resting())
-            .any(|h| segment(h).abs_diff(mine) <= 1);
-        tracks[k].set_resting(taken);
-    }
 }
