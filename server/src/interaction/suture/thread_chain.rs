@@ -1,9 +1,11 @@
 //! A suture thread's chain of segments, held to length by a direct solve: the core of the thread's dynamics.
 //!
-//! Owns: [`ThreadChain`] (node positions and velocities, inverse masses, rest lengths, the segments' XPBD
-//! multipliers and the tridiagonal solver's scratch) and its step, and [`NodeHold`] (a node held for one step
-//! by implicit springs inside the solve: a hole around it). Bending, collisions and holes build on it
-//! (`docs/suturing.md`, "Thread").
+//! Owns: [`ThreadChain`] (node positions and velocities, inverse masses, the nodes' material coordinates and the
+//! segments' rest lengths between them, the solver's scratch) and its step, and [`NodeHold`] (a node held for
+//! one step by implicit springs inside the solve: a hole around it). A node the thread slides through
+//! ([`ThreadChain::slide_node`], [`NodeSlide`]) has its material coordinate solved with the positions; a hole
+//! takes a node ([`ThreadChain::place_node_at`]) and hands it on as the thread runs
+//! ([`ThreadChain::hand_across`]). Bending, collisions and holes build on it (`docs/suturing.md`, "Thread").
 //!
 //! Why a direct solve. A segment's distance constraint couples only its two nodes, so the chain's linearised
 //! constraint system is tridiagonal: `(J W J^T + alpha / h^2) dlambda = -C - alpha lambda / h^2`, with
@@ -68,8 +70,7 @@ pub struct NodeHold {
     pub place_mm: Vec3,
     /// The spring across the direction, N/mm (the tissue's stiffness against the point; more than 0).
     pub across_n_per_mm: f32,
-    /// The spring along it, N/mm (0: free along, a frictionless ring; a sliding hole's friction is a damper,
-    /// a spring toward where the node starts the step).
+    /// The spring along it, N/mm (0: free along; a hole holds its node the same every way).
     pub along_n_per_mm: f32,
 }
 
