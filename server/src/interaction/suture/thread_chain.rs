@@ -558,6 +558,68 @@ mod tests {
     }
 
     #[test]
+    fn a_hole_takes_a_node_on_the_thread_hands_it_on_and_slides_through_it_keeping_the_material() {
+        // Ten 2 mm segments along x.
+        let nodes: Vec<Vec3> = (0..=10)
+            .map(|i| Vec3::new(2.0 * i as f32, 0.0, 0.0))
+            .collect();
+        let mut chain = ThreadChain::new(&nodes, 1e-6, 1000.0, 0.0).unwrap();
+        // Node 5 taken for a hole at 9.3 mm: it moves there on the thread, the segments either side follow.
+        assert_eq!(chain.place_node_at(5, 9.3, 0.2), Some(9.3));
+        assert!((chain.positions_mm[5].x - 9.3).abs() < 1e-5);
+        assert!((chain.rest_mm()[4] - 1.3).abs() < 1e-5 && (chain.rest_mm()[5] - 2.7).abs() < 1e-5);
+        // Kept 0.2 mm from its neighbours; an end node is refused.
+        assert_eq!(chain.place_node_at(5, 7.0, 0.2), Some(8.2));
+        assert_eq!(chain.place_node_at(0, 1.0, 0.2), None);
+        assert_eq!(chain.place_node_at(10, 19.0, 0.2), None);
+        assert_eq!(chain.place_node_at(5, f32::NAN, 0.2), None);
+        // Handed on toward the tail: node 4 takes the hole's place and coordinate, node 5 goes halfway to node 6.
+        let (at, u) = (chain.positions_mm[5], chain.node_u_mm()[5]);
+        assert!(chain.hand_across(5, 4));
+        assert_eq!(chain.positions_mm[4], at);
+        assert_eq!(chain.node_u_mm()[4], u);
+        assert!((chain.node_u_mm()[5] - 0.5 * (u + 12.0)).abs() < 1e-5);
+        assert!((chain.positions_mm[5].x - 0.5 * (at.x + 12.0)).abs() < 1e-5);
+        assert!((chain.rest_length_mm() - 20.0).abs() < 1e-4);
+        // Not to a node that is not a neighbour, is an end, or is held.
+        assert!(!chain.hand_across(4, 6));
+        assert!(!chain.hand_across(1, 0));
+        chain.set_held(3, true, 0.0);
+        assert!(!chain.hand_across(4, 3));
+        // A slide is refused at an end, at a held node, past a neighbour or when not finite.
+        let slide = |lo_mm: f64, hi_mm: f64| NodeSlide {
+            predicted_u_mm: 0.5 * (lo_mm + hi_mm),
+            friction_n: 0.0,
+            lo_mm,
+            hi_mm,
+            tangent: V64::x(),
+        };
+        let u4 = f64::from(chain.node_u_mm()[4]);
+        assert!(!chain.slide_node(0, slide(0.0, 0.1)));
+        assert!(!chain.slide_node(3, slide(6.0, 6.1)));
+        assert!(!chain.slide_node(4, slide(u4 - 10.0, u4)));
+        assert!(!chain.slide_node(4, slide(f64::NAN, u4)));
+        // Pulled along +x at its far end, the thread slides through node 4 (a frictionless hole holding it in
+        // place): its coordinate falls as the material runs toward the pull, and the material is kept.
+        assert!(chain.hold_node(
+            4,
+            NodeHold {
+                direction: Vec3::x(),
+                place_mm: chain.positions_mm[4],
+                across_n_per_mm: 10.0,
+                along_n_per_mm: 10.0,
+            }
+        ));
+        assert!(chain.slide_node(4, slide(u4 - 1.0, u4)));
+        chain.forces_n[10] = Vec3::new(0.5, 0.0, 0.0);
+        chain.step(0.00025, &Vec3::zeros(), 8);
+        let slid = f64::from(chain.node_u_mm()[4]) - u4;
+        println!("slid {slid:.5} mm in a step");
+        assert!(slid < -1e-4, "it did not slide: {slid} mm");
+        assert!((chain.rest_length_mm() - 20.0).abs() < 1e-4);
+    }
+
+    #[test]
     fn a_bad_chain_is_refused_and_a_bad_step_changes_nothing() {
         let p = [Vec3::zeros(), Vec3::x()];
         assert!(ThreadChain::new(&p[..1], 1e-6, 10.0, 0.0).is_none());
