@@ -19,6 +19,7 @@
 //! Must not: hold tick state beyond what each type owns, or allocate in a tick without a topology change.
 
 mod hole;
+mod hole_point;
 mod needle;
 mod needle_arc;
 mod puncture;

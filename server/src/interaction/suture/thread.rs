@@ -42,7 +42,7 @@
 use nalgebra::UnitQuaternion;
 
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
-use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes};
+use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes, take_nodes};
 use super::thread_self_contact::SelfContact;
 use super::thread_track::{MAX_TRACK_RINGS, drop_rings_beside_holes, lay_tracks};
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
@@ -235,9 +235,9 @@ impl SutureThread {
         if !tail_mm.iter().all(|c| c.is_finite()) {
             return;
         }
-        let node_u_mm = self.chain.node_u_mm().to_vec();
-        for (p, u_mm) in self.chain.positions_mm.iter_mut().zip(node_u_mm) {
-            *p = tail_mm + away * u_mm;
+        self.node_u_mm.copy_from_slice(self.chain.node_u_mm());
+        for (p, u_mm) in self.chain.positions_mm.iter_mut().zip(&self.node_u_mm) {
+            *p = tail_mm + away * *u_mm;
         }
         self.chain.velocities_mm_s.fill(Vec3::zeros());
         self.contacts.fill(None);
@@ -287,21 +287,13 @@ impl SutureThread {
         self.tracks.retain_mut(placed);
         drop_rings_beside_holes(&self.holes, &mut self.tracks);
         lay_tracks(&self.holes, &mut self.tracks, &from_tail, objects, &object);
-        // Each hole and ring holds a node of its own (thread_hole.rs): the holes first.
-        self.claimed.fill(false);
-        for i in self
-            .holes
-            .iter()
-            .chain(&self.tracks)
-            .filter_map(|h| h.node())
-        {
-            if let Some(c) = self.claimed.get_mut(i) {
-                *c = true;
-            }
-        }
-        for hole in self.holes.iter_mut().chain(self.tracks.iter_mut()) {
-            hole.take_node(&mut self.chain, &mut self.claimed);
-        }
+        // Each hole and ring holds a node of its own: the holes first.
+        take_nodes(
+            &mut self.holes,
+            &mut self.tracks,
+            &mut self.chain,
+            &mut self.claimed,
+        );
         // Where the jaws hold it this tick; a released tool lets go.
         let node_mass_kg = self.node_mass_kg();
         let chain = &mut self.chain;

@@ -1,7 +1,7 @@
 //! A puncture hole holding the thread once the needle has passed through it, or a point of the needle's track
 //! inside the tissue: a sliding node.
 //!
-//! Owns: [`ThreadHole`] (a material point of the surface or the volume, [`HolePoint`], the thread's node it
+//! Owns: [`ThreadHole`] (a material point of the surface or the volume, [`HolePoint`] in `hole_point.rs`, the thread's node it
 //! holds and that node's material coordinate, its friction's state and its pull) and [`inside_by_holes`] (which
 //! of the thread's points lie inside an object, from the surface holes ahead of them).
 //!
@@ -42,10 +42,9 @@
 //!
 //! Must not: allocate or panic; a hole whose triangle is gone, or a non-finite value, leaves the thread alone.
 
-use super::SurfacePoint;
+pub use super::hole_point::HolePoint;
 use super::thread_chain::{NodeHold, ThreadChain};
 use super::thread_solve::NodeSlide;
-use super::volume_point::VolumePoint;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 /// A sliding hole sticks again when the thread moves through it slower than this, mm/s.
@@ -57,62 +56,6 @@ const HAND_ACROSS_FRACTION: f32 = 0.25;
 /// A hole's pull on the tissue is held to this, N (a 3-0 suture breaks at about 19 N knotted; the skin tears
 /// far below).
 const MAX_PULL_N: f32 = 20.0;
-
-/// Where a ring holds the thread: a hole in the surface, or a point of the needle's track inside.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum HolePoint {
-    /// A puncture hole: the thread crosses the surface there.
-    Surface(SurfacePoint),
-    /// A point of the needle's track inside the volume.
-    Volume(VolumePoint),
-}
-
-impl HolePoint {
-    /// The object it is in.
-    pub fn object(&self) -> u16 {
-        match self {
-            HolePoint::Surface(p) => p.object,
-            HolePoint::Volume(p) => p.object,
-        }
-    }
-
-    /// A hole in the surface (not a point of a track inside).
-    pub fn is_surface(&self) -> bool {
-        matches!(self, HolePoint::Surface(_))
-    }
-
-    /// Where it is now, mm (None: its triangle or tetrahedron is gone).
-    pub fn position_mm(&self, model: &MassSpringModel, state: &TissueState) -> Option<Vec3> {
-        match self {
-            HolePoint::Surface(p) => p.position_mm(model, state),
-            HolePoint::Volume(p) => p.position_mm(model, state),
-        }
-    }
-
-    /// Spread `force_n` on the nodes carrying it, by their weights, into `forces_n` (a corner out of range is
-    /// skipped; a point whose element is gone spreads nothing).
-    pub fn spread(&self, model: &MassSpringModel, force_n: &Vec3, forces_n: &mut [Vec3]) {
-        // The corners and their weights: a triangle's three, or a tetrahedron's four.
-        let (corners, weights): ([u32; 4], [f32; 4]) = match self {
-            HolePoint::Surface(p) => match p.corners(model) {
-                Some([a, b, c]) => (
-                    [a, b, c, 0],
-                    [p.barycentric[0], p.barycentric[1], p.barycentric[2], 0.0],
-                ),
-                None => return,
-            },
-            HolePoint::Volume(p) => match p.corners(model) {
-                Some(corners) => (corners, p.barycentric),
-                None => return,
-            },
-        };
-        for (&c, &b) in corners.iter().zip(&weights).filter(|(_, b)| **b != 0.0) {
-            if let Some(f) = forces_n.get_mut(c as usize) {
-                *f += force_n * b;
-            }
-        }
-    }
-}
 
 /// A hole holding the thread.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -401,6 +344,25 @@ impl ThreadHole {
     }
 }
 
+/// Before a tick's substeps: mark in `claimed` (per node) the nodes the `holes` and `rings` hold, then give
+/// each without one a node of `chain` ([`ThreadHole::take_node`]), the holes first.
+pub fn take_nodes(
+    holes: &mut [ThreadHole],
+    rings: &mut [ThreadHole],
+    chain: &mut ThreadChain,
+    claimed: &mut [bool],
+) {
+    claimed.fill(false);
+    for i in holes.iter().chain(rings.iter()).filter_map(|h| h.node()) {
+        if let Some(c) = claimed.get_mut(i) {
+            *c = true;
+        }
+    }
+    for hole in holes.iter_mut().chain(rings.iter_mut()) {
+        hole.take_node(chain, claimed);
+    }
+}
+
 /// Whether the thread's point at arc length `u_mm` lies inside object `object`, from the holes: the thread starts
 /// (at its tail) inside an object when an odd number of its holes in that object lie ahead along it, and each
 /// hole it passes takes it through the surface. Holes are in any order.
@@ -415,6 +377,7 @@ pub fn inside_by_holes(holes: &[ThreadHole], object: u16, u_mm: f32) -> bool {
 
 #[cfg(test)]
 mod tests {
+    use super::super::SurfacePoint;
     use super::super::ThreadChain;
     use super::*;
 
