@@ -100,6 +100,18 @@ pub fn final_line(stdout: &str) -> Option<&str> {
     stdout.lines().rev().find(|l| l.starts_with("final:"))
 }
 
+/// A finished hapticserver's `final:` line; panics with its output and status when there is none.
+pub fn expect_final_line(output: &std::process::Output) -> String {
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    final_line(&stdout).map(str::to_owned).unwrap_or_else(|| {
+        panic!(
+            "no `final:` line ({}):\n{stdout}\n{}",
+            output.status,
+            String::from_utf8_lossy(&output.stderr)
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -72,6 +72,14 @@ pub enum NetemError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A scripted drop did not parse.
+    #[error("scripted drop `{spec}`: {reason} (expected `tcp:N` or `udp:N`, N >= 1)")]
+    BadDrop {
+        /// The drop as given.
+        spec: String,
+        /// What is wrong with it.
+        reason: String,
+    },
 }
 
 /// Parse a direction spec `delay=MS,jitter=MS,loss=P,seed=N` (any subset, any order; missing keys keep
@@ -239,6 +247,9 @@ pub struct BridgeConfig {
     pub b_to_a: EmulationConfig,
     /// spin_sleep native accuracy of the send threads, ns (0: plain sleep).
     pub spin_ns: u32,
+    /// Scripted loss on top of the emulation, per direction (`a->b`, `b->a`): frames dropped (and counted
+    /// as lost) by their ordinal among the direction's TCP or UDP frames.
+    pub drops: [Vec<ScriptedDrop>; 2],
 }
 
 /// Counters of one direction, read while the bridge runs.
@@ -406,9 +417,82 @@ fn open(interface: &str) -> Result<Channels, NetemError> {
     }
 }
 
+/// One scripted loss: the `ordinal`-th (from 1) frame of `kind` in a direction. Written `tcp:N` or `udp:N`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ScriptedDrop {
+    /// TCP or UDP.
+    pub kind: FrameKind,
+    /// Which frame of that kind, from 1.
+    pub ordinal: u64,
+}
+
+impl std::str::FromStr for ScriptedDrop {
+    type Err = NetemError;
+
+    fn from_str(spec: &str) -> Result<Self, Self::Err> {
+        let bad = |reason: &str| NetemError::BadDrop {
+            spec: spec.to_owned(),
+            reason: reason.to_owned(),
+        };
+        let (kind, ordinal) = spec.trim().split_once(':').ok_or_else(|| bad("no `:`"))?;
+        let kind = match kind {
+            "tcp" => FrameKind::Tcp,
+            "udp" => FrameKind::Udp,
+            other => return Err(bad(&format!("unknown kind `{other}`"))),
+        };
+        let ordinal: u64 = ordinal
+            .parse()
+            .map_err(|_| bad("the ordinal is not a whole number"))?;
+        if ordinal == 0 {
+            return Err(bad("ordinals count from 1"));
+        }
+        Ok(Self { kind, ordinal })
+    }
+}
+
+impl fmt::Display for ScriptedDrop {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let kind = match self.kind {
+            FrameKind::Tcp => "tcp",
+            FrameKind::Udp => "udp",
+            FrameKind::Other => "other",
+        };
+        write!(f, "{kind}:{}", self.ordinal)
+    }
+}
+
+/// What one direction does to a frame: the seeded delay line, then the scripted drops.
+struct Path {
+    line: DelayLine,
+    drops: Vec<ScriptedDrop>,
+    tcp_seen: u64,
+    udp_seen: u64,
+}
+
+impl Path {
+    /// When `frame`, received at `now_ns`, is due out; `None`: lost.
+    fn schedule(&mut self, frame: &[u8], now_ns: u64) -> Option<u64> {
+        let kind = frame_kind(frame);
+        let seen = match kind {
+            FrameKind::Tcp => &mut self.tcp_seen,
+            FrameKind::Udp => &mut self.udp_seen,
+            FrameKind::Other => &mut 0,
+        };
+        *seen += 1;
+        let ordinal = *seen;
+        let scripted_drop = kind != FrameKind::Other
+            && self
+                .drops
+                .iter()
+                .any(|d| d.kind == kind && d.ordinal == ordinal);
+        // The line draws for every frame, so a scripted drop leaves the seeded draws of the rest unchanged.
+        self.line.schedule(now_ns).filter(|_| !scripted_drop)
+    }
+}
+
 fn receive_loop(
     mut rx: Box<dyn DataLinkReceiver>,
-    mut line: DelayLine,
+    mut path: Path,
     origin: Instant,
     queue: SyncSender<Queued>,
     recycled: Receiver<Vec<u8>>,
@@ -433,7 +517,7 @@ fn receive_loop(
         }
         let now = Instant::now();
         let now_ns = u64::try_from(now.duration_since(origin).as_nanos()).unwrap_or(u64::MAX);
-        let Some(due_ns) = line.schedule(now_ns) else {
+        let Some(due_ns) = path.schedule(frame, now_ns) else {
             bump(&counters.lost);
             continue;
         };
@@ -520,7 +604,8 @@ impl Bridge {
                 tx_a,
             ),
         ];
-        for (name, thread, emulation, rx, tx) in plan {
+        for ((name, thread, emulation, rx, tx), drops) in plan.into_iter().zip(config.drops.clone())
+        {
             let counters = Arc::new(SharedCounters::default());
             let (queue_tx, queue_rx) = sync_channel(QUEUE_CAPACITY);
             let (recycle_tx, recycle_rx) = sync_channel(QUEUE_CAPACITY);
@@ -537,10 +622,15 @@ impl Bridge {
                 .spawn(move || send_loop(tx, queue_rx, recycle_tx, spin_ns, c, s))
                 .map_err(spawn_error(format!("{thread}-send")))?;
             let (c, s) = (counters.clone(), stop.clone());
-            let line = DelayLine::new(emulation);
+            let path = Path {
+                line: DelayLine::new(emulation),
+                drops,
+                tcp_seen: 0,
+                udp_seen: 0,
+            };
             let receive = std::thread::Builder::new()
                 .name(format!("{thread}-recv"))
-                .spawn(move || receive_loop(rx, line, origin, queue_tx, recycle_rx, c, s))
+                .spawn(move || receive_loop(rx, path, origin, queue_tx, recycle_rx, c, s))
                 .map_err(spawn_error(format!("{thread}-recv")))?;
             bridge.directions.push(Direction {
                 name,
@@ -716,6 +806,36 @@ mod tests {
             assert!(!fix_transport_checksum(&mut truncated), "cut at {cut}");
             assert_eq!(truncated, before);
         }
+    }
+
+    #[test]
+    fn scripted_drops_parse_print_and_hit_only_their_frame() {
+        let drop: ScriptedDrop = "udp:2".parse().unwrap();
+        assert_eq!(
+            drop,
+            ScriptedDrop {
+                kind: FrameKind::Udp,
+                ordinal: 2
+            }
+        );
+        assert_eq!(drop.to_string(), "udp:2");
+        for bad in ["udp", "icmp:1", "tcp:0", "tcp:x"] {
+            let message = bad.parse::<ScriptedDrop>().unwrap_err().to_string();
+            assert!(message.contains(bad), "{message}");
+        }
+        let mut path = Path {
+            line: DelayLine::new(EmulationConfig::default()),
+            drops: vec![drop],
+            tcp_seen: 0,
+            udp_seen: 0,
+        };
+        let udp = ipv4_frame(17, &udp_segment(&[1, 2, 3]));
+        let tcp = ipv4_frame(6, &[0u8; 20]);
+        let kept: Vec<bool> = [&udp, &tcp, &udp, &udp]
+            .iter()
+            .map(|frame| path.schedule(frame, 0).is_some())
+            .collect();
+        assert_eq!(kept, [true, true, false, true]);
     }
 
     #[test]

@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 
 use sinew_protocol::rt::EmulationConfig;
 
-use crate::netem::format_direction;
+use crate::netem::{ScriptedDrop, format_direction};
 
 /// Every lab namespace's name starts with this, then `<pid>-<n>-{srv,dev,rly}`.
 pub const NAMESPACE_PREFIX: &str = "sinewlab-";
@@ -40,7 +40,7 @@ const RELAY_PRIORITY: &str = "50";
 const RELAY_START_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// The path between the two sides: one emulation per direction (RTT = the sum of the two delays).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LabConfig {
     /// Frames from the server side to the device side.
     pub server_to_device: EmulationConfig,
@@ -56,6 +56,11 @@ pub struct LabConfig {
     /// lets a namespace pick only algorithms in the host's `net.ipv4.tcp_allowed_congestion_control` (`reno bbr`
     /// here; the lab does not widen it).
     pub tcp_congestion_control: Option<&'static str>,
+    /// Scripted loss on top of `server_to_device`: frames dropped by their ordinal among the TCP or UDP
+    /// frames of that direction (a handshake's reply, say).
+    pub drops_to_device: Vec<ScriptedDrop>,
+    /// Scripted loss on top of `device_to_server`.
+    pub drops_to_server: Vec<ScriptedDrop>,
 }
 
 impl LabConfig {
@@ -76,8 +81,19 @@ impl LabConfig {
             relay_realtime: true,
             relay_spin_ns: crate::netem::DEFAULT_SPIN_NS,
             tcp_congestion_control: None,
+            drops_to_device: Vec::new(),
+            drops_to_server: Vec::new(),
         }
     }
+}
+
+/// The relay's option for `drops` (nothing when there are none).
+fn scripted_drops(option: &str, drops: &[ScriptedDrop]) -> Vec<String> {
+    if drops.is_empty() {
+        return Vec::new();
+    }
+    let list: Vec<String> = drops.iter().map(ScriptedDrop::to_string).collect();
+    vec![option.to_owned(), list.join(",")]
 }
 
 /// What can go wrong building or using a lab.
@@ -439,6 +455,14 @@ impl NetnsLab {
             .arg(format_direction(&self.config.server_to_device))
             .arg("--b-to-a")
             .arg(format_direction(&self.config.device_to_server))
+            .args(scripted_drops(
+                "--drop-a-to-b",
+                &self.config.drops_to_device,
+            ))
+            .args(scripted_drops(
+                "--drop-b-to-a",
+                &self.config.drops_to_server,
+            ))
             .stdin(Stdio::null())
             .stdout(log)
             .stderr(log_err);

@@ -40,9 +40,28 @@ pub fn zenoh_config(network: &NetworkOptions) -> Result<zenoh::Config, HapticErr
             .map_err(HapticError::zenoh(
                 "setting open/return_conditions/connect_scouted",
             ))?;
+        // The lease this device announces is how long the server keeps a link it hears nothing on. A UDP link
+        // can be left half open: the server adds it to the transport and then its last handshake reply is
+        // lost, so the device never has it while the server sends every best-effort force down it. zenoh's
+        // default lease (10 s) left the device deaf that long (and refused its next UDP link, the transport
+        // being at `max_links`); with this one the server lets the dead link go within DEVICE_LINK_LEASE and
+        // the device's next try (every 250 ms at most) opens a UDP link that works.
+        config
+            .insert_json5(
+                "transport/link/tx/lease",
+                &DEVICE_LINK_LEASE.as_millis().to_string(),
+            )
+            .map_err(HapticError::zenoh("setting transport/link/tx/lease"))?;
     }
     Ok(config)
 }
+
+/// The link lease a device announces (zenoh's default: 10 s): the server drops a link of this device's that
+/// has carried nothing for this long. The device sends a keep-alive every quarter lease on a link that
+/// carries nothing else; poses (1 kHz) keep their link alive. Over a 100 ms path with 5% loss a TCP link
+/// stalls this long only if one segment is lost four times running (retransmits after about 0.3, 0.6, 1.2
+/// s).
+pub const DEVICE_LINK_LEASE: Duration = Duration::from_secs(3);
 
 /// Open a session for `network`.
 pub fn open_session(network: &NetworkOptions) -> Result<zenoh::Session, HapticError> {
@@ -56,7 +75,9 @@ pub fn open_session(network: &NetworkOptions) -> Result<zenoh::Session, HapticEr
 /// zenoh opens the TCP link first and the UDP one a few round trips later (or, when a handshake packet is lost,
 /// after the 1 s link timeout); until then poses and forces ride TCP, where one lost segment holds later forces
 /// past the 50 ms silence rule (seen as silences at contact onset through a lossy 100 ms path).
-pub const UDP_LINK_WAIT: Duration = Duration::from_secs(3);
+/// Longer than [`DEVICE_LINK_LEASE`], so a device whose first UDP link was left half open starts on the
+/// UDP link that replaces it.
+pub const UDP_LINK_WAIT: Duration = Duration::from_secs(4);
 
 /// Whether `network` asks for a UDP link (a `udp/...` connect endpoint).
 pub fn wants_udp_link(network: &NetworkOptions) -> bool {
@@ -101,6 +122,11 @@ mod tests {
         };
         let err = zenoh_config(&network).unwrap_err().to_string();
         assert!(err.contains("/nonexistent/zenoh.json5"), "{err}");
-        assert!(zenoh_config(&NetworkOptions::device_default()).is_ok());
+        let config = zenoh_config(&NetworkOptions::device_default()).unwrap();
+        assert_eq!(
+            config.get_json("transport/link/tx/lease").unwrap(),
+            DEVICE_LINK_LEASE.as_millis().to_string()
+        );
+        assert!(UDP_LINK_WAIT > DEVICE_LINK_LEASE);
     }
 }

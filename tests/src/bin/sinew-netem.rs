@@ -15,7 +15,7 @@ use anyhow::Context as _;
 use clap::Parser;
 use sinew_protocol::rt::EmulationConfig;
 use sinew_testkit::netem::{
-    Bridge, BridgeConfig, DEFAULT_SPIN_NS, format_direction, parse_direction,
+    Bridge, BridgeConfig, DEFAULT_SPIN_NS, ScriptedDrop, format_direction, parse_direction,
 };
 
 /// Bridge Ethernet frames between two interfaces with one-way delay, jitter and Bernoulli loss.
@@ -37,6 +37,13 @@ struct Args {
     /// spin_sleep native accuracy of the send threads, ns (0: plain sleep).
     #[arg(long, default_value_t = DEFAULT_SPIN_NS)]
     spin_ns: u32,
+    /// Also drop these frames from --a to --b, by ordinal among their kind: e.g. `tcp:1,udp:2` drops the
+    /// first TCP frame and the second UDP frame.
+    #[arg(long, value_delimiter = ',')]
+    drop_a_to_b: Vec<ScriptedDrop>,
+    /// Also drop these frames from --b to --a, same syntax.
+    #[arg(long, value_delimiter = ',')]
+    drop_b_to_a: Vec<ScriptedDrop>,
     /// Stop after this many seconds (default: run until SIGTERM/SIGINT).
     #[arg(long)]
     duration_s: Option<f64>,
@@ -65,6 +72,7 @@ fn main() -> anyhow::Result<()> {
         a_to_b: args.a_to_b,
         b_to_a: args.b_to_a,
         spin_ns: args.spin_ns,
+        drops: [args.drop_a_to_b.clone(), args.drop_b_to_a.clone()],
     })
     .context("starting the bridge")?;
     println!(
