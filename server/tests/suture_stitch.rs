@@ -473,7 +473,7 @@ fn a_grasper_takes_the_thread_carries_it_feels_its_pull_and_the_thread_slips_out
 }
 
 #[test]
-fn a_stitch_drawn_crossed_by_hands_that_stop_at_4_5_n_closes_the_wound_to_under_a_millimetre() {
+fn a_stitch_drawn_crossed_by_hands_that_stop_at_3_n_closes_the_wound_to_under_a_millimetre() {
     let mut wound = Wound::new();
     let pass = wound.pass();
     let (rotation, driver_from) = (pass.rotation, pass.origin_mm);
@@ -509,9 +509,9 @@ fn a_stitch_drawn_crossed_by_hands_that_stop_at_4_5_n_closes_the_wound_to_under_
         "the jaws did not take the thread"
     );
     // Crossed, as a throw is laid: each end drawn over the wound to the other side (20 mm out, 15 mm up, 3 mm
-    // apart in y) over 6 s, each hand drawing on only while it feels the thread pull under 4.5 N (a surgeon
+    // apart in y) over 6 s, each hand drawing on only while it feels the thread pull under 3 N (a surgeon
     // does not yank a stitch shut).
-    const MOST_N: f32 = 4.5;
+    const MOST_N: f32 = 3.0;
     let side = wound.thread().holes()[3].place_mm().x.signum();
     let grasper_from = aim;
     let grasper_to = Vector3::new(side * 20.0, 3.0, 15.0);
@@ -585,7 +585,7 @@ fn a_stitch_drawn_crossed_by_hands_that_stop_at_4_5_n_closes_the_wound_to_under_
     assert!(gap <= 1.0, "the stitch closed the gap only to {gap} mm");
     assert!(gap > -0.5, "the edges overlap: {gap} mm");
     assert_eq!(inverted, 0, "tetrahedra turned inside out");
-    // The tension rose in both hands to where they stopped drawing, and the devices render it (to their most).
+    // The tension rose in both hands to where they stopped drawing, and the devices render it.
     for hand in 0..2 {
         assert!(
             felt[hand] > 0.9 * MOST_N && felt[hand] > 2.0 * felt_at_1_s[hand],
@@ -594,7 +594,7 @@ fn a_stitch_drawn_crossed_by_hands_that_stop_at_4_5_n_closes_the_wound_to_under_
             felt_at_1_s[hand]
         );
         assert!(
-            output[hand] > 3.0 && output[hand] > output_at_1_s[hand],
+            output[hand] > 0.9 * MOST_N && output[hand] > output_at_1_s[hand],
             "hand {hand}: the device renders {} N ({} at 1 s)",
             output[hand],
             output_at_1_s[hand]
