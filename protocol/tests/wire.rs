@@ -112,6 +112,12 @@ fn tool_states(rng: &mut fastrand::Rng) -> ToolStates {
                 attachments: rng.u16(..),
             })
             .collect(),
+        threads: (0..rng.usize(0..3))
+            .map(|_| {
+                let nodes: Vec<[f32; 3]> = (0..rng.usize(0..70)).map(|_| v3(rng)).collect();
+                ThreadState::from_nodes_mm(rng.u16(0..4), &nodes)
+            })
+            .collect(),
     }
 }
 

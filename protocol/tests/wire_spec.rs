@@ -114,6 +114,10 @@ fn tool_states() -> ToolStates {
             jaw_angle_rad: 0.5,
             attachments: 12,
         }],
+        threads: vec![ThreadState::from_nodes_mm(
+            0,
+            &[[-18.0, 0.0, -2.0], [-16.0, 0.0, -2.5]],
+        )],
     }
 }
 

@@ -77,3 +77,47 @@ fn the_sim_threads_whole_tick_allocates_nothing_once_warm() {
     let summary = recorder.join();
     assert!(summary.ticks > 0, "the recorder wrote no tick");
 }
+
+/// The frame hand-off copies a suture thread's polyline too (wire v14) without allocating once warm:
+/// `worlds/suture.toml`'s needle driver held above the skin, its thread laid out and hanging.
+#[test]
+fn handing_off_a_frame_with_a_thread_allocates_nothing_once_warm() {
+    assert_counting_works();
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
+    let world = load_world(&path).unwrap();
+    let mut tick = common::server_tick(&world);
+    let frames = FrameExchange::new(tick.sim());
+    let limits = [Some(3.3f32), Some(3.3)];
+    let mut commands: [Option<ForceCommand>; 2] = [None; 2];
+    let mut frames_offered = 0u64;
+    let mut run = |ticks: std::ops::Range<u64>, frames_offered: &mut u64| {
+        for k in ticks {
+            let inputs = [common::pose_at(k + 1, [0.0, 0.0, 20.0]), None];
+            tick.step(&inputs, &limits, &mut commands);
+            if k % 16 == 0 && frames.try_offer(tick.sim(), tick.outputs()) {
+                *frames_offered += 1;
+            }
+            tick.finish_tick();
+        }
+    };
+    run(0..200, &mut frames_offered);
+    let warm = frames_offered;
+    let allocations = count_this_thread(|| run(200..1200, &mut frames_offered));
+    let nodes = frames.with_frame(|f| {
+        f.threads
+            .iter()
+            .map(|t| t.nodes_q.len())
+            .collect::<Vec<_>>()
+    });
+    println!(
+        "{allocations} allocations in 1000 warm ticks ({} frames offered), threads' nodes {nodes:?}",
+        frames_offered - warm
+    );
+    assert_eq!(nodes, Some(vec![65]), "the frame does not hold the thread");
+    assert!(
+        frames_offered - warm > 50,
+        "{} frames offered",
+        frames_offered - warm
+    );
+    assert_eq!(allocations, 0, "the sim thread allocated in a warm tick");
+}

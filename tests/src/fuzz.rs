@@ -128,6 +128,10 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
             orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
             ..ToolState::default()
         }],
+        threads: vec![ThreadState::from_nodes_mm(
+            0,
+            &[[0.0, 0.0, 1.0], [0.0, 2.0, 1.0], [0.0, 4.0, 0.5]],
+        )],
     };
     vec![
         encode_to_vec(sender, &pose),

@@ -24,6 +24,7 @@ mod sync_state;
 #[cfg(test)]
 #[path = "../tests/common/fixtures.rs"]
 mod test_fixtures;
+pub mod thread_view;
 pub mod viewer_stats;
 pub mod window;
 

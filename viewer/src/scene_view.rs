@@ -1,4 +1,5 @@
-//! kiss3d scene nodes mirroring a [`SceneReplica`]: one mesh per object, one sphere or capsule per tool.
+//! kiss3d scene nodes mirroring a [`SceneReplica`]: one mesh per object, one sphere or capsule per tool, the
+//! suture threads (in [`crate::thread_view`]).
 //!
 //! Owns: the look of the scene (colours, materials, lights, background) and keeping the nodes in step with the
 //! replica: new vertex positions are written into the existing GPU meshes (and normals recomputed) when only
@@ -19,6 +20,7 @@ use sinew_protocol::{ToolInfo, ToolShape, ToolState};
 
 use crate::camera_framing::{CameraFraming, FIELD_OF_VIEW_RAD};
 use crate::replica::{ReplicaObject, SceneReplica};
+use crate::thread_view::ThreadView;
 
 /// Background, 8-bit RGB as it appears in the rendered image.
 pub const BACKGROUND_RGB: [u8; 3] = [28, 31, 38];
@@ -357,6 +359,8 @@ pub struct SceneView {
     scratch: Vec<Vec3>,
     /// Per object, the burnt triangles drawn over its mesh (None while nothing is burnt).
     burns: Vec<Option<SceneNode3d>>,
+    /// The suture threads.
+    threads: ThreadView,
 }
 
 impl Default for SceneView {
@@ -374,6 +378,8 @@ pub struct SceneViewCounts {
     pub triangles: usize,
     /// Tool nodes.
     pub tools: usize,
+    /// Thread segments, over all threads.
+    pub thread_segments: usize,
 }
 
 impl SceneView {
@@ -389,6 +395,7 @@ impl SceneView {
             object_frames: Vec::new(),
             scratch: Vec::new(),
             burns: Vec::new(),
+            threads: ThreadView::default(),
         }
     }
 
@@ -424,6 +431,7 @@ impl SceneView {
             objects: self.objects.iter().flatten().count(),
             triangles: layout.map_or(0, |l| l.objects.iter().map(|o| o.2.len()).sum()),
             tools: self.tools.len(),
+            thread_segments: self.threads.segments(),
         }
     }
 
@@ -431,6 +439,8 @@ impl SceneView {
         if let Some(mut old) = self.group.take() {
             old.remove();
         }
+        // Their nodes went with the group.
+        self.threads = ThreadView::default();
         let mut group = scene.add_group();
         self.objects = replica
             .objects()
@@ -494,6 +504,9 @@ impl SceneView {
     }
 
     fn update_tools(&mut self, replica: &SceneReplica) {
+        if let Some(group) = self.group.as_mut() {
+            self.threads.sync(group, &replica.tool_states().threads);
+        }
         let states = &replica.tool_states().tools;
         for tool in &mut self.tools {
             match states.iter().find(|s| s.tool == tool.tool) {

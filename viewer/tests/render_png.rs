@@ -239,3 +239,54 @@ fn draws_a_needle_drivers_needle_in_its_jaws() {
         after - before
     );
 }
+
+/// Violet, as a suture thread is drawn: blue well above green, and above red.
+fn thread_like(p: &image::Rgb<u8>) -> bool {
+    let [r, g, b] = p.0.map(i32::from);
+    b > 50 && b > g + 40 && b > r + 10
+}
+
+#[test]
+fn draws_a_suture_thread_where_the_tool_states_lay_it_and_follows_it() {
+    let n = 20;
+    let flat_q = quantize_all(&sheet_positions_mm(n));
+    let snapshot = sheet_snapshot(flat_q, n, 1, [30.0, 30.0, 20.0]);
+    let mut replica = SceneReplica::from_snapshot(snapshot);
+    let framing = frame_replica(&replica);
+    let bare = render(&replica, &framing);
+    // A thread lying across the sheet from (-20, -5) to (20, -5), 1 mm above it, 41 nodes.
+    let lie = |y_mm: f32| -> Vec<[f32; 3]> {
+        (0..=40)
+            .map(|i| [-20.0 + i as f32, y_mm, 1.0 + 0.5 * (i as f32 * 0.3).sin()])
+            .collect()
+    };
+    let mut states = replica.tool_states().clone();
+    states.frame += 1;
+    states.threads = vec![sinew_protocol::ThreadState::from_nodes_mm(0, &lie(-5.0))];
+    assert!(replica.apply_tools(states.clone()));
+    let laid = render(&replica, &framing);
+    let violet = |image: &RgbImage| image.pixels().filter(|p| thread_like(p)).count();
+    let (before, after) = (violet(&bare), violet(&laid));
+    // Moved 10 mm across the sheet: the drawn thread follows.
+    states.frame += 1;
+    states.threads[0] = sinew_protocol::ThreadState::from_nodes_mm(0, &lie(5.0));
+    assert!(replica.apply_tools(states));
+    let moved = render(&replica, &framing);
+    let changed = laid
+        .pixels()
+        .zip(moved.pixels())
+        .filter(|(a, b)| thread_like(a) != thread_like(b))
+        .count();
+    println!(
+        "thread pixels: {before} without, {after} with; {changed} changed when it moved 10 mm"
+    );
+    assert_eq!(before, 0, "violet pixels with no thread");
+    assert!(
+        after > 80,
+        "only {after} thread pixels: the thread is not drawn"
+    );
+    assert!(
+        changed > after,
+        "moving the thread changed only {changed} pixels"
+    );
+}

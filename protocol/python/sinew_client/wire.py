@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 13
+PROTOCOL_VERSION = 14
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -311,6 +311,27 @@ class ToolState:
 
 
 @dataclass
+class QuantBounds:
+    min_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    max_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def dequantize(self, q: List[int]) -> List[float]:
+        return [self.min_mm[a] + q[a] / 65535.0 * (self.max_mm[a] - self.min_mm[a]) for a in range(3)]
+
+
+@dataclass
+class ThreadState:
+    """A suture thread as it lies: its polyline in the world, mm, from the needle's tail (protocol 14)."""
+
+    tool: int = wire_field("u16", default=0)
+    bounds: QuantBounds = wire_field(QuantBounds, default_factory=lambda: QuantBounds([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]))
+    nodes_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
+
+    def nodes_mm(self) -> List[List[float]]:
+        return [self.bounds.dequantize(q) for q in self.nodes_q]
+
+
+@dataclass
 class ToolStates:
     """Server -> viewers on sinew/<scene>/tools, every publish frame."""
 
@@ -318,15 +339,7 @@ class ToolStates:
     frame: int = wire_field("u64", default=0)
     sim_time_s: float = wire_field("f64", default=0.0)
     tools: List[ToolState] = wire_field(("vec", ToolState), default_factory=list)
-
-
-@dataclass
-class QuantBounds:
-    min_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
-    max_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
-
-    def dequantize(self, q: List[int]) -> List[float]:
-        return [self.min_mm[a] + q[a] / 65535.0 * (self.max_mm[a] - self.min_mm[a]) for a in range(3)]
+    threads: List[ThreadState] = wire_field(("vec", ThreadState), default_factory=list)
 
 
 @dataclass

@@ -51,6 +51,10 @@ def main():
     assert snapshot.tools[0].shape == {"kind": "sphere", "radius_mm": 4.0}
     assert snapshot.tools[0].instrument == {"kind": "grasper", "jaw_length_mm": 8.0, "open_angle_rad": 0.5}
     assert snapshot.tool_states.tools[0].attachments == 12 and snapshot.tool_states.tools[0].jaw_angle_rad == 0.5
+    assert snapshot.tool_states.threads[0].tool == 0
+    nodes = snapshot.tool_states.threads[0].nodes_mm()
+    expected = [[-18.0, 0.0, -2.0], [-16.0, 0.0, -2.5]]
+    assert all(abs(a - b) < 1e-3 for n, e in zip(nodes, expected) for a, b in zip(n, e)), nodes
     assert snapshot.objects[0].bounds.dequantize([65535, 0, 32768])[0] == 40.0
     _, delta = wire.decode(vectors["MeshDelta"], wire.MeshDelta)
     assert delta.topology is not None and delta.topology.parents == [5] and delta.topology.added == [[301, 6, 7]]

@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::codec::{FieldError, Message, MessageKind, check};
+use crate::quantize::QuantBounds;
 
 /// One tool's state in the world frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
@@ -25,6 +26,96 @@ pub struct ToolState {
     pub attachments: u16,
 }
 
+/// A suture thread as it lies: the polyline from the tail of a needle (the tool that carries it) to its free
+/// end, quantized like a mesh in bounds of its own (a quantum is the bounds' extent / 65535 per axis: 0.002 mm
+/// across a 150 mm thread). Protocol 14.
+#[derive(Debug, PartialEq, Serialize, Deserialize)]
+pub struct ThreadState {
+    /// The tool whose needle carries the thread (matches [`crate::ToolInfo::tool`]).
+    pub tool: u16,
+    /// The nodes' quantization bounds, world mm: their box, grown by [`ThreadState::MARGIN_MM`] each way.
+    pub bounds: QuantBounds,
+    /// The thread's nodes from the needle's tail to the free end, quantized in `bounds`.
+    pub nodes_q: Vec<[u16; 3]>,
+}
+
+impl ThreadState {
+    /// Most nodes one thread may have (a 512-segment thread has 513).
+    pub const MAX_NODES: usize = 1024;
+    /// How far the bounds reach past the nodes' box, mm (so a straight thread's bounds have extent).
+    pub const MARGIN_MM: f32 = 0.5;
+
+    /// The thread of tool `tool` with these nodes (world mm).
+    pub fn from_nodes_mm(tool: u16, nodes_mm: &[[f32; 3]]) -> Self {
+        let mut thread = Self::default();
+        thread.set(tool, nodes_mm.iter().copied());
+        thread
+    }
+
+    /// Quantize `nodes_mm` (world mm) into this message, reusing its buffer (no allocation once it has held
+    /// as many nodes). Non-finite coordinates land on the bounds' corner.
+    pub fn set(&mut self, tool: u16, nodes_mm: impl Iterator<Item = [f32; 3]> + Clone) {
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for p in nodes_mm.clone() {
+            for a in 0..3 {
+                if p[a].is_finite() {
+                    lo[a] = lo[a].min(p[a]);
+                    hi[a] = hi[a].max(p[a]);
+                }
+            }
+        }
+        let mut bounds = QuantBounds {
+            min_mm: [0.0; 3],
+            max_mm: [1.0; 3],
+        };
+        for a in 0..3 {
+            if lo[a] <= hi[a] {
+                bounds.min_mm[a] = lo[a] - Self::MARGIN_MM;
+                bounds.max_mm[a] = hi[a] + Self::MARGIN_MM;
+            }
+        }
+        self.tool = tool;
+        self.bounds = bounds;
+        self.nodes_q.clear();
+        self.nodes_q.extend(nodes_mm.map(|p| bounds.quantize(p).0));
+    }
+
+    /// The nodes, world mm (dequantized).
+    pub fn nodes_mm(&self) -> impl ExactSizeIterator<Item = [f32; 3]> + '_ {
+        self.nodes_q.iter().map(|&q| self.bounds.dequantize(q))
+    }
+}
+
+impl Default for ThreadState {
+    fn default() -> Self {
+        Self {
+            tool: 0,
+            bounds: QuantBounds {
+                min_mm: [0.0; 3],
+                max_mm: [1.0; 3],
+            },
+            nodes_q: Vec::new(),
+        }
+    }
+}
+
+impl Clone for ThreadState {
+    fn clone(&self) -> Self {
+        Self {
+            tool: self.tool,
+            bounds: self.bounds,
+            nodes_q: self.nodes_q.clone(),
+        }
+    }
+
+    /// Reuses the nodes' buffer (the publish thread copies every frame's threads).
+    fn clone_from(&mut self, source: &Self) {
+        self.tool = source.tool;
+        self.bounds = source.bounds;
+        self.nodes_q.clone_from(&source.nodes_q);
+    }
+}
+
 /// The state of every tool at one publish frame.
 ///
 /// Direction: server -> viewers, on `sinew/<scene>/tools`. Rate: every publish frame (~60 Hz); doubles as the
@@ -37,6 +128,14 @@ pub struct ToolStates {
     pub sim_time_s: f64,
     /// One entry per tool, in tool order.
     pub tools: Vec<ToolState>,
+    /// Every suture thread in the scene, in the order of the tools that carry them (empty for none).
+    /// Protocol 14.
+    pub threads: Vec<ThreadState>,
+}
+
+impl ToolStates {
+    /// Most threads one message may carry.
+    pub const MAX_THREADS: usize = 64;
 }
 
 impl Message for ToolStates {
@@ -54,6 +153,65 @@ impl Message for ToolStates {
                 return Err(("tools.jaw_angle_rad", "outside 0 to pi"));
             }
         }
+        if self.threads.len() > Self::MAX_THREADS {
+            return Err(("threads", "more than 64 threads"));
+        }
+        for thread in &self.threads {
+            thread
+                .bounds
+                .validate()
+                .map_err(|_| ("threads.bounds", "not finite, or max not above min"))?;
+            if thread.nodes_q.len() > ThreadState::MAX_NODES {
+                return Err(("threads.nodes_q", "more than 1024 nodes"));
+            }
+        }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_thread_comes_back_within_its_quantum_even_straight_and_with_a_bad_node() {
+        let nodes: Vec<[f32; 3]> = (0..65)
+            .map(|i| [-80.0 + 2.3 * i as f32, 4.0, 1.0])
+            .collect();
+        let mut thread = ThreadState::from_nodes_mm(3, &nodes);
+        assert_eq!(thread.tool, 3);
+        let bound = thread.bounds.max_error_mm();
+        assert!(bound < 0.003, "{bound} mm");
+        // On the wire: smaller than the nodes as f32 (postcard writes a u16 in 1-3 bytes).
+        let alone = ToolStates::default();
+        let with = ToolStates {
+            threads: vec![thread.clone()],
+            ..ToolStates::default()
+        };
+        let encoded = |m: &ToolStates| crate::codec::encode_to_vec(crate::InstanceId(1), m).len();
+        let bytes = encoded(&with) - encoded(&alone);
+        println!("a 65-node thread takes {bytes} bytes ({} as f32)", 65 * 12);
+        assert!(bytes < 65 * 12, "{bytes} bytes");
+        for (back, sent) in thread.nodes_mm().zip(&nodes) {
+            let error = (0..3)
+                .map(|a| (back[a] - sent[a]).powi(2))
+                .sum::<f32>()
+                .sqrt();
+            assert!(error <= bound, "{back:?} vs {sent:?}: {error} > {bound} mm");
+        }
+        // Set again with fewer nodes, one not finite: the buffer is reused and the message stays valid.
+        let capacity = thread.nodes_q.capacity();
+        let mut fewer = nodes[..10].to_vec();
+        fewer[4] = [f32::NAN, 0.0, 1.0];
+        thread.set(3, fewer.iter().copied());
+        assert_eq!(
+            (thread.nodes_q.len(), thread.nodes_q.capacity()),
+            (10, capacity)
+        );
+        let states = ToolStates {
+            threads: vec![thread],
+            ..ToolStates::default()
+        };
+        assert_eq!(states.validate(), Ok(()));
     }
 }

@@ -189,6 +189,7 @@ fn run(
                 tool_states.sim_time_s = frame.sim_time_s;
                 tool_states.tools.clear();
                 tool_states.tools.extend_from_slice(&frame.tools);
+                tool_states.threads.clone_from(&frame.threads);
             });
             if copied.is_some() {
                 publish_frame(

@@ -3,7 +3,7 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use sinew_protocol::ToolState;
+use sinew_protocol::{ThreadState, ToolState};
 
 use crate::sim::{Sim, ToolOutput};
 
@@ -22,6 +22,8 @@ pub struct FrameData {
     pub tools: Vec<ToolState>,
     /// Connectivity per object (copied only when a cut or tear changed it).
     pub topology: Vec<crate::replication::ObjectTopology>,
+    /// The suture threads laid out, in the order of the tools that carry them.
+    pub threads: Vec<ThreadState>,
 }
 
 /// A single-slot exchange: the sim thread `try_offer`s (never blocks), the publisher `take`s.
@@ -56,6 +58,15 @@ impl FrameExchange {
                         let mut t = crate::replication::ObjectTopology::default();
                         t.follow(o);
                         t
+                    })
+                    .collect(),
+                threads: sim
+                    .tools
+                    .iter()
+                    .filter_map(|tool| tool.thread())
+                    .map(|thread| ThreadState {
+                        nodes_q: Vec::with_capacity(thread.nodes_mm().len()),
+                        ..ThreadState::default()
                     })
                     .collect(),
             }),
@@ -110,6 +121,7 @@ impl FrameExchange {
                 attachments: out.attachments,
             };
         }
+        copy_threads(sim, &mut frame.threads);
         drop(frame);
         self.offered.fetch_add(1, Ordering::Release);
         true
@@ -135,4 +147,21 @@ impl FrameExchange {
         })
         .flatten()
     }
+}
+
+/// Quantize the threads laid out in `sim` into `threads` (their buffers reused: no allocation unless a thread
+/// appeared or grew).
+fn copy_threads(sim: &Sim, threads: &mut Vec<ThreadState>) {
+    let mut n = 0;
+    for (t, tool) in sim.tools.iter().enumerate() {
+        let Some(thread) = tool.thread().filter(|thread| thread.is_laid_out()) else {
+            continue;
+        };
+        if threads.len() == n {
+            threads.push(ThreadState::default());
+        }
+        threads[n].set(t as u16, thread.nodes_mm().iter().map(|p| [p.x, p.y, p.z]));
+        n += 1;
+    }
+    threads.truncate(n);
 }

@@ -111,6 +111,7 @@ pub fn sheet_snapshot(
                 in_contact: false,
                 ..ToolState::default()
             }],
+            threads: Vec::new(),
         },
     }
 }
