@@ -44,6 +44,11 @@ impl ThreadState {
     pub const MAX_NODES: usize = 1024;
     /// How far the bounds reach past the nodes' box, mm (so a straight thread's bounds have extent).
     pub const MARGIN_MM: f32 = 0.5;
+    /// Bounds of a thread with no finite node on an axis (valid, and never used to place a node).
+    const EMPTY_BOUNDS: QuantBounds = QuantBounds {
+        min_mm: [0.0; 3],
+        max_mm: [1.0; 3],
+    };
 
     /// The thread of tool `tool` with these nodes (world mm).
     pub fn from_nodes_mm(tool: u16, nodes_mm: &[[f32; 3]]) -> Self {
@@ -64,10 +69,7 @@ impl ThreadState {
                 }
             }
         }
-        let mut bounds = QuantBounds {
-            min_mm: [0.0; 3],
-            max_mm: [1.0; 3],
-        };
+        let mut bounds = Self::EMPTY_BOUNDS;
         for a in 0..3 {
             if lo[a] <= hi[a] {
                 bounds.min_mm[a] = lo[a] - Self::MARGIN_MM;
@@ -90,10 +92,7 @@ impl Default for ThreadState {
     fn default() -> Self {
         Self {
             tool: 0,
-            bounds: QuantBounds {
-                min_mm: [0.0; 3],
-                max_mm: [1.0; 3],
-            },
+            bounds: Self::EMPTY_BOUNDS,
             nodes_q: Vec::new(),
         }
     }

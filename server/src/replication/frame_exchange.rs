@@ -60,15 +60,8 @@ impl FrameExchange {
                         t
                     })
                     .collect(),
-                threads: sim
-                    .tools
-                    .iter()
-                    .filter_map(|tool| tool.thread())
-                    .map(|thread| ThreadState {
-                        nodes_q: Vec::with_capacity(thread.nodes_mm().len()),
-                        ..ThreadState::default()
-                    })
-                    .collect(),
+                // Filled once a thread is laid out (its tool driven): none is at the first offer.
+                threads: Vec::new(),
             }),
             offered: AtomicU64::new(0),
         }
