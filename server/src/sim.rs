@@ -7,9 +7,11 @@
 //!    through their couplings (`drive.rs`); instruments act before contacts are found (blades cut what they
 //!    swept: `instruments/scalpel.rs`, `instruments/scissors.rs`, opening seams through `topology.rs`);
 //! 2. multi-rate objects hand back their finished step and launch the next ([`crate::multirate`]); the broad
-//!    phase; regions of deformation follow the contacts (here);
-//! 3. the guarded substeps: integrate every every-tick object, push the tissue out of the tools, hold what the
-//!    jaws hold, retry with halved substeps on the guard's verdict (`guarded.rs`, over
+//!    phase; where one object's surface meets another's (`tissue_contact.rs`); regions of deformation follow
+//!    the contacts (here);
+//! 3. the guarded substeps: integrate every every-tick object (ties and tissue-tissue contact pulling on them),
+//!    push the tissue out of the tools, hold what the jaws hold, retry with halved substeps on the guard's
+//!    verdict (`guarded.rs`, over
 //!    [`crate::tissue::guarded_step`]); a fault still there at the smallest substep is contained (here);
 //! 4. overstretched tissue tears (`tearing.rs`, through `topology.rs`); instruments act on the step's result (grasps
 //!    take hold, slip and let go: `instruments/grasper.rs`);
@@ -30,6 +32,7 @@ mod instruments;
 mod object;
 mod step_report;
 mod tearing;
+mod tissue_contact;
 mod tool;
 mod tool_output;
 mod topology;
@@ -99,6 +102,8 @@ pub struct Sim {
     pub tools: Vec<SimTool>,
     /// Tie-nodes between objects.
     pub ties: Vec<TieSet>,
+    /// Pairs of objects kept out of each other (tissue-tissue contact).
+    pairs: Vec<crate::interaction::TissuePair>,
     /// Energy at the end of the last tick (None after an outside change to a state, or a reset).
     last_energy_n_mm: Option<f64>,
     /// Work each tool does on the tissue, and the allowances it grants the others.
@@ -218,6 +223,9 @@ impl Sim {
             }
         }
 
+        // Where one object's surface meets another's, on the same surfaces.
+        report.tissue_contacts = self.find_tissue_contacts();
+
         // ... and send the next step on its way with the tools where they are now.
         for (o, object) in self.objects.iter_mut().enumerate() {
             let Some(lane) = object.lane.as_mut().filter(|l| l.due(tick)) else {
@@ -303,6 +311,13 @@ impl Sim {
                     }
                     report.faults += 1;
                     self.last_energy_n_mm = None;
+                    for pair in self
+                        .pairs
+                        .iter_mut()
+                        .filter(|p| p.object_a == o || p.object_b == o)
+                    {
+                        pair.forget();
+                    }
                 }
             }
         }

@@ -197,6 +197,12 @@ impl SurfaceCollider {
         self
     }
 
+    /// A box around the whole surface as the tree last saw it (conservative: leaf boxes may be fattened by the
+    /// refit margin).
+    pub fn root_aabb(&self) -> Aabb {
+        self.bvh.root_aabb()
+    }
+
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()

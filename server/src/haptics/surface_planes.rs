@@ -53,24 +53,6 @@ impl WorldPlane {
     }
 }
 
-/// The current outward normal at node `i`: area-weighted over its triangles (the rest normal if it has none
-/// or they are degenerate).
-fn current_normal(model: &MassSpringModel, x: &[Vec3], i: usize) -> Vec3 {
-    let triangles = model.triangles();
-    let mut n = Vec3::zeros();
-    for &t in model.node_triangles(i) {
-        let [a, b, c] = triangles[t as usize];
-        let (a, b, c) = (x[a as usize], x[b as usize], x[c as usize]);
-        n += (b - a).cross(&(c - a));
-    }
-    let len = n.norm();
-    if len > 1e-9 {
-        n / len
-    } else {
-        model.rest_normals()[i]
-    }
-}
-
 /// The surface node within `aabb` (through the collider's leaves) with the least `distance`, or None.
 /// `candidates` is scratch.
 fn nearest_node(
@@ -99,7 +81,7 @@ fn plane_through(
     shift_along: impl Fn(&Vec3) -> f32,
 ) -> Option<WorldPlane> {
     let x = &surface.state.positions_mm;
-    let normal = current_normal(surface.model, x, node);
+    let normal = surface.model.current_normal(x, node);
     let offset_mm = normal.dot(&x[node]) + reach_along(&(-normal)) - shift_along(&normal);
     (normal.iter().all(|c| c.is_finite()) && offset_mm.is_finite()).then_some(WorldPlane {
         normal,

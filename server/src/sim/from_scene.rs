@@ -218,6 +218,7 @@ impl Sim {
             objects,
             tools,
             ties: world.ties.clone(),
+            pairs: super::tissue_contact::tissue_pairs(world, world.collision_margin_mm),
             last_energy_n_mm: None,
             tail_due: false,
             openings: 0,

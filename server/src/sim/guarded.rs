@@ -61,6 +61,7 @@ impl Sim {
                 }
             }
         }
+        energy += self.tissue_contact_energy_n_mm();
         for tie in &self.ties {
             if let (Some(a), Some(b)) = (
                 self.objects.get(tie.object_a),
@@ -93,8 +94,9 @@ impl Sim {
     /// `substeps` steps of `h` for every object: ties, integrate, push out of the tools.
     pub(super) fn run_substeps(&mut self, h: f32, substeps: u32, report: &mut StepReport) {
         let pulls = self.tools.iter().any(|t| t.pulls_tissue());
+        let touching = self.tissue_contacts_watched();
         for _ in 0..substeps {
-            if !self.ties.is_empty() || pulls {
+            if !self.ties.is_empty() || pulls || touching {
                 // Region-tracked objects are never tied (refused at build) and not pulled: a thread's holes in one
                 // hold the thread but do not pull the tissue (docs/suturing.md, the holes' known gaps). Their
                 // external forces stay zero.
@@ -111,6 +113,11 @@ impl Sim {
                         tie.accumulate(&mut high.state, &mut low.state);
                     }
                 }
+                super::tissue_contact::accumulate_tissue_contacts(
+                    &mut self.pairs,
+                    &mut self.objects,
+                    h,
+                );
                 if pulls {
                     for (o, object) in self.objects.iter_mut().enumerate() {
                         if object.region.is_some() || object.lane.is_some() {

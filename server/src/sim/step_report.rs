@@ -36,6 +36,8 @@ pub struct StepReport {
     pub vertices_split: u32,
     /// Surfaces a needle's tip punctured this tick.
     pub punctures: u32,
+    /// Surface nodes of one object watched against a face of another this tick (tissue-tissue contact).
+    pub tissue_contacts: u32,
     /// Holes a needle left this tick (drawn back through them, or pulled through past its tail).
     pub needle_holes_closed: u32,
 }

@@ -232,6 +232,41 @@ impl MassSpringModel {
             [self.node_triangle_start[i] as usize..self.node_triangle_start[i + 1] as usize]
     }
 
+    /// The outward normal at node `i` with the nodes at `positions_mm`: area-weighted over its triangles (the
+    /// rest normal if it has none or they are degenerate; zero for a node out of range).
+    pub fn current_normal(&self, positions_mm: &[Vec3], i: usize) -> Vec3 {
+        let at = |v: u32| {
+            positions_mm
+                .get(v as usize)
+                .copied()
+                .unwrap_or_else(Vec3::zeros)
+        };
+        let mut n = Vec3::zeros();
+        for &t in self
+            .node_triangles
+            .get(
+                self.node_triangle_start.get(i).map_or(0, |&s| s as usize)
+                    ..self
+                        .node_triangle_start
+                        .get(i + 1)
+                        .map_or(0, |&e| e as usize),
+            )
+            .unwrap_or(&[])
+        {
+            let [a, b, c] = self.triangles[t as usize].map(at);
+            n += (b - a).cross(&(c - a));
+        }
+        let len = n.norm();
+        if len > 1e-9 && len.is_finite() {
+            n / len
+        } else {
+            self.rest_normals
+                .get(i)
+                .copied()
+                .unwrap_or_else(Vec3::zeros)
+        }
+    }
+
     /// Tetrahedra incident to node `i` (indices into [`Self::tets`]).
     pub fn node_tets(&self, i: usize) -> &[u32] {
         &self.node_tets[self.node_tet_start[i] as usize..self.node_tet_start[i + 1] as usize]
