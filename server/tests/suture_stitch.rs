@@ -14,205 +14,18 @@
 mod counting_allocator;
 #[path = "common/tool_pose.rs"]
 mod tool_pose;
+#[path = "common/wound.rs"]
+mod wound;
 
 use counting_allocator::{Counting, assert_counting_works, count_this_thread};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-use nalgebra::{Point3, UnitQuaternion, Vector3};
-use sinew_server::interaction::JawInput;
-use sinew_server::interaction::suture::{GRIP_SLIP_N, NeedleArc, SutureThread};
-use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
-use sinew_server::world::{InstrumentSpec, load_world};
-use tool_pose::pose_command;
-
-const DT_S: f32 = 0.001;
-/// The needle's circle: its centre this high above the skin, mm (the tip meets the skin 16 degrees off its
-/// normal, inside the 37-degree puncture cone even as the skin tents; the face holes lie 7.4 mm deep).
-const CENTRE_HEIGHT_MM: f32 = 3.0;
-/// The wound's faces, mm.
-const FACE_X_MM: f32 = 2.5;
-
-/// What [`Wound::pass`] did: the gap before it, the punctures, and the driver's pose at its end.
-struct Pass {
-    gap_before_mm: f32,
-    punctures: u32,
-    rotation: UnitQuaternion<f32>,
-    origin_mm: Vector3<f32>,
-}
-
-/// The wound world with the needle driver (tool 0) holding a half-circle needle at its tail in small jaws
-/// (so it follows the needle through), and the grasper (tool 1).
-struct Wound {
-    sim: Sim,
-    origins_mm: [Vector3<f32>; 2],
-    /// The needle's centre and tip in the tool frame, and its tip's direction.
-    centre_tool: Vector3<f32>,
-    tip_tool: Vector3<f32>,
-    tip_dir_tool: Vector3<f32>,
-    /// The driver's rotation at turn 0, and where the needle's centre is held.
-    base: UnitQuaternion<f32>,
-    centre: Vector3<f32>,
-    /// The grasper's command.
-    grasper: ToolCommand,
-}
-
-impl Wound {
-    fn new() -> Self {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_wound.toml");
-        let mut world = load_world(&path).unwrap();
-        world.tools[0].shape = sinew_server::collision::ToolShapeSpec::Sphere { radius_mm: 0.2 };
-        let InstrumentSpec::NeedleDriver(spec) = &mut world.tools[0].instrument else {
-            panic!("tool 0 of the wound world is not a needle driver");
-        };
-        spec.arc = NeedleArc::new(10.7, 180.0).unwrap();
-        spec.grasp_at_rad = 0.0;
-        let spec = *spec;
-        let tool_from_needle = spec.tool_from_needle();
-        Self {
-            origins_mm: [0, 1].map(|t| Vector3::from(world.tools[t].device_origin_in_world_mm)),
-            sim: Sim::new(&world).unwrap(),
-            centre_tool: (tool_from_needle * Point3::origin()).coords,
-            tip_tool: (tool_from_needle * Point3::from(spec.arc.tip().point_mm)).coords,
-            tip_dir_tool: tool_from_needle * spec.arc.tip().tangent,
-            base: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f32::consts::FRAC_PI_2),
-            centre: Vector3::new(0.0, 0.0, CENTRE_HEIGHT_MM),
-            grasper: ToolCommand::default(),
-        }
-    }
-
-    /// The driver's pose turned `turn_rad` about the world's y through the needle's centre.
-    fn pose_at(&self, turn_rad: f32) -> (UnitQuaternion<f32>, Vector3<f32>) {
-        let rotation = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn_rad) * self.base;
-        (rotation, self.centre - rotation * self.centre_tool)
-    }
-
-    fn tip_at(&self, turn_rad: f32) -> Vector3<f32> {
-        let (rotation, origin) = self.pose_at(turn_rad);
-        origin + rotation * self.tip_tool
-    }
-
-    /// The pass: the grasper parked aside, the driver 8 degrees before the skin for 1.5 s, then on along the
-    /// needle's curve at 40 degrees a second until the tail has left all four holes, and 0.5 s more.
-    fn pass(&mut self) -> Pass {
-        self.aim_grasper(&Vector3::new(30.0, 0.0, 30.0), false);
-        let (start, sign) = self.start();
-        let (rotation, origin) = self.pose_at(start);
-        for _ in 0..1500 {
-            self.step_at(&rotation, &origin);
-        }
-        let gap_before_mm = self.gap_mm();
-        let mut turn = 0.0f32;
-        let mut after = None;
-        let mut punctures = 0;
-        while after.is_none_or(|ticks| ticks < 500) {
-            turn += DT_S * 40f32.to_radians();
-            let (rotation, origin) = self.pose_at(start + sign * turn);
-            let (_, report) = self.step_at(&rotation, &origin);
-            punctures += report.punctures;
-            if self.thread().holes().len() == 4 {
-                after = Some(after.map_or(0, |t| t + 1));
-            }
-            // (The tail leaves the fourth hole about 340 degrees on: a turn and a quarter is the bound.)
-            assert!(
-                turn < 2.5 * std::f32::consts::PI,
-                "the tail never left four holes ({} taken, {punctures} punctures)",
-                self.thread().holes().len()
-            );
-        }
-        let (rotation, origin_mm) = self.pose_at(start + sign * turn);
-        Pass {
-            gap_before_mm,
-            punctures,
-            rotation,
-            origin_mm,
-        }
-    }
-
-    /// The turn 8 degrees before the tip meets the skin going down, and the way to turn to go on.
-    fn start(&self) -> (f32, f32) {
-        let entry = (0..7200)
-            .map(|k| -180f32.to_radians() + k as f32 * 0.05f32.to_radians())
-            .find(|&turn| {
-                let (rotation, _) = self.pose_at(turn);
-                self.tip_at(turn).z.abs() < 0.05 && (rotation * self.tip_dir_tool).z < 0.0
-            })
-            .expect("the tip never reaches the skin going down");
-        let (rotation, _) = self.pose_at(entry);
-        let ahead = self.tip_at(entry + 0.01) - self.tip_at(entry);
-        let sign = ahead.dot(&(rotation * self.tip_dir_tool)).signum();
-        (entry - sign * 8f32.to_radians(), sign)
-    }
-
-    /// One tick: the driver at `rotation`, `origin_mm`; the grasper at its command. Returns the outputs and the
-    /// report, after checking the guard held and every force is finite.
-    fn step_at(
-        &mut self,
-        rotation: &UnitQuaternion<f32>,
-        origin_mm: &Vector3<f32>,
-    ) -> ([ToolOutput; 2], StepReport) {
-        let command = [
-            pose_command(origin_mm, &self.origins_mm[0], rotation),
-            self.grasper,
-        ];
-        let mut out = [ToolOutput::default(); 2];
-        let report = self.sim.step(DT_S, &command, &mut out);
-        assert_eq!(report.faults, 0, "the guard reset the tissue");
-        for o in &out {
-            assert!(o.force_world_n.iter().all(|c| c.is_finite()));
-        }
-        (out, report)
-    }
-
-    /// The grasper at `origin_mm`, its capsule along the world's y, jaws closed or open.
-    fn aim_grasper(&mut self, origin_mm: &Vector3<f32>, closed: bool) {
-        let along_y =
-            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f32::consts::FRAC_PI_2);
-        self.grasper = pose_command(origin_mm, &self.origins_mm[1], &along_y);
-        self.grasper.jaws = JawInput {
-            buttons: u32::from(closed),
-            jaw_angle_rad: 0.0,
-        };
-    }
-
-    fn thread(&self) -> &SutureThread {
-        self.sim.tools[0].thread().unwrap()
-    }
-
-    /// The wound's gap: the least x of the right edge's face nodes minus the most x of the left edge's.
-    fn gap_mm(&self) -> f32 {
-        let mut edges = [f32::NEG_INFINITY, f32::INFINITY];
-        for (o, face_x) in [(0usize, -FACE_X_MM), (1, FACE_X_MM)] {
-            let object = &self.sim.objects[o];
-            let rest = object.model.rest_positions_mm();
-            for (r, now) in rest.iter().zip(&object.state.positions_mm) {
-                if (r.x - face_x).abs() < 0.01 {
-                    edges[o] = if o == 0 {
-                        edges[0].max(now.x)
-                    } else {
-                        edges[1].min(now.x)
-                    };
-                }
-            }
-        }
-        edges[1] - edges[0]
-    }
-
-    /// Tetrahedra turned inside out, over both edges.
-    fn inverted(&self) -> usize {
-        let mut n = 0;
-        for object in &self.sim.objects {
-            let x = &object.state.positions_mm;
-            for t in &object.model.tets().tets {
-                let [a, b, c, d] = t.map(|i| x[i as usize]);
-                n += usize::from((b - a).dot(&(c - a).cross(&(d - a))) <= 0.0);
-            }
-        }
-        n
-    }
-}
+use nalgebra::Vector3;
+use sinew_server::interaction::suture::GRIP_SLIP_N;
+use sinew_server::sim::StepReport;
+use wound::{CrossedDraw, FACE_X_MM, Wound};
 
 #[test]
 fn a_needle_driven_across_the_wound_punctures_both_edges_and_leaves_its_thread_in_four_holes() {
@@ -493,73 +306,25 @@ fn a_stitch_drawn_at_4_n_closes_the_wound_with_its_edges_pressing_not_passing_in
 fn draw_a_stitch_crossed(most_n: f32, gap_mm: std::ops::RangeInclusive<f32>) {
     let mut wound = Wound::new();
     let pass = wound.pass();
-    let (rotation, driver_from) = (pass.rotation, pass.origin_mm);
-    // The grasper takes the thread 15 mm past the entry hole, coming down on it from 20 mm above.
-    let thread = wound.thread();
-    let entry_u = thread.holes()[0].u_mm;
-    let node = thread
-        .chain()
-        .node_u_mm()
-        .iter()
-        .position(|&u| u >= entry_u + 15.0)
-        .unwrap();
-    let beside = Vector3::new(1.5 + 0.3, 0.0, 0.0);
-    let mut aim = wound.sim.tools[1].position_mm;
-    for lift in [20.0, 0.0] {
-        for _ in 0..20_000 {
-            let waypoint = wound.thread().nodes_mm()[node] + beside + Vector3::new(0.0, 0.0, lift);
-            let to = waypoint - aim;
-            aim += to * (0.02 / to.norm().max(0.02));
-            wound.aim_grasper(&aim, false);
-            wound.step_at(&rotation, &driver_from);
-            if (wound.sim.tools[1].position_mm - waypoint).norm() < 0.02 {
-                break;
-            }
-        }
-    }
-    for _ in 0..200 {
-        wound.aim_grasper(&aim, true);
-        wound.step_at(&rotation, &driver_from);
-    }
+    // The grasper takes the thread 15 mm past the entry hole.
+    let grasper_from = wound.take_thread(&pass, 15.0);
     assert!(
         wound.thread().grip_of(1).is_some(),
         "the jaws did not take the thread"
     );
-    // Crossed, as a throw is laid: each end drawn over the wound to the other side (20 mm out, 15 mm up, 3 mm
-    // apart in y) over 6 s, each hand drawing on only while it feels the thread pull under `most_n` (a
-    // surgeon does not yank a stitch shut).
     // What the devices can render.
     let rendered_n = most_n.min(wound.sim.tools[0].max_force_n);
-    let side = wound.thread().holes()[3].place_mm().x.signum();
-    let grasper_from = aim;
-    let grasper_to = Vector3::new(side * 20.0, 3.0, 15.0);
-    let driver_to = Vector3::new(-side * 20.0, -3.0, 15.0);
-    let (mut drawn, mut felt) = ([0.0f32; 2], [0.0f32; 2]);
-    let (mut inverted, mut felt_at_1_s, mut output_at_1_s) = (0, [0.0f32; 2], [0.0f32; 2]);
+    let mut draw = CrossedDraw::new(&wound, &pass, grasper_from, most_n);
+    let (mut felt, mut inverted, mut felt_at_1_s, mut output_at_1_s) =
+        ([0.0f32; 2], 0, [0.0f32; 2], [0.0f32; 2]);
     let (mut output, mut touching) = ([0.0f32; 2], 0);
     let mut u_before_rest = Vec::new();
     const TICKS: usize = 6000;
     for k in 0..TICKS {
-        for (hand, d) in drawn.iter_mut().enumerate() {
-            if felt[hand] < most_n {
-                *d = (*d + 1.0 / 6000.0).min(1.0);
-            }
-        }
-        wound.aim_grasper(
-            &(grasper_from + (grasper_to - grasper_from) * drawn[1]),
-            true,
-        );
-        let (out, report) = wound.step_at(
-            &rotation,
-            &(driver_from + (driver_to - driver_from) * drawn[0]),
-        );
+        let (out, report) = draw.step(&mut wound);
         touching = report.tissue_contacts;
+        felt = draw.felt;
         let thread = wound.thread();
-        // The thread's pull on each: the needle's tail (the driver), and the jaws.
-        felt = [
-            thread.pull_on_tail_n().norm(),
-            thread.grip_of(1).map_or(0.0, |g| g.pull_n().norm()),
-        ];
         output = [out[0].force_world_n.norm(), out[1].force_world_n.norm()];
         if k == 1000 {
             (felt_at_1_s, output_at_1_s) = (felt, output);
@@ -594,8 +359,8 @@ fn draw_a_stitch_crossed(most_n: f32, gap_mm: std::ops::RangeInclusive<f32>) {
         output[1],
         output_at_1_s[0],
         output_at_1_s[1],
-        100.0 * drawn[0],
-        100.0 * drawn[1],
+        100.0 * draw.drawn[0],
+        100.0 * draw.drawn[1],
     );
     assert!(
         (pass.gap_before_mm - 5.0).abs() < 0.2,
