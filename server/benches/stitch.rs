@@ -24,7 +24,7 @@ mod tool_pose;
 #[path = "../tests/common/wound.rs"]
 mod wound;
 
-use wound::{CrossedDraw, DT_S, Wound};
+use wound::{CrossedDraw, DT_S};
 
 /// The thread's substeps per tick (`interaction/suture/thread.rs`).
 const THREAD_SUBSTEPS: usize = 4;
@@ -32,14 +32,7 @@ const THREAD_SUBSTEPS: usize = 4;
 const PHASE_TICKS: usize = 3000;
 
 fn main() {
-    let mut wound = Wound::new();
-    let pass = wound.pass();
-    let grasper_from = wound.take_thread(&pass, 15.0);
-    assert!(
-        wound.thread().grip_of(1).is_some(),
-        "the jaws did not take the thread"
-    );
-    let mut draw = CrossedDraw::new(&wound, &pass, grasper_from, 3.0);
+    let (mut wound, _, mut draw) = CrossedDraw::after_the_pass(3.0);
 
     let pad_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let mut pad = Sim::new(&load_world(&pad_path).unwrap()).unwrap();

@@ -304,17 +304,9 @@ fn a_stitch_drawn_at_4_n_closes_the_wound_with_its_edges_pressing_not_passing_in
 /// drawing at `most_n` felt; the gap ends in `gap_mm`, and the rest (tension felt and rendered, holes, no
 /// inverted tetrahedra) holds.
 fn draw_a_stitch_crossed(most_n: f32, gap_mm: std::ops::RangeInclusive<f32>) {
-    let mut wound = Wound::new();
-    let pass = wound.pass();
-    // The grasper takes the thread 15 mm past the entry hole.
-    let grasper_from = wound.take_thread(&pass, 15.0);
-    assert!(
-        wound.thread().grip_of(1).is_some(),
-        "the jaws did not take the thread"
-    );
+    let (mut wound, pass, mut draw) = CrossedDraw::after_the_pass(most_n);
     // What the devices can render.
     let rendered_n = most_n.min(wound.sim.tools[0].max_force_n);
-    let mut draw = CrossedDraw::new(&wound, &pass, grasper_from, most_n);
     let (mut felt, mut inverted, mut felt_at_1_s, mut output_at_1_s) =
         ([0.0f32; 2], 0, [0.0f32; 2], [0.0f32; 2]);
     let (mut output, mut touching) = ([0.0f32; 2], 0);

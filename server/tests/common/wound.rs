@@ -256,6 +256,20 @@ pub struct CrossedDraw {
 pub const DRAW_TICKS: f32 = 6000.0;
 
 impl CrossedDraw {
+    /// The wound as the stitch's tests start it: the pass, the grasper's take of the thread 15 mm past the
+    /// entry hole (checked), and the draw at `most_n` ready to go.
+    pub fn after_the_pass(most_n: f32) -> (Wound, Pass, Self) {
+        let mut wound = Wound::new();
+        let pass = wound.pass();
+        let grasper_from = wound.take_thread(&pass, 15.0);
+        assert!(
+            wound.thread().grip_of(1).is_some(),
+            "the jaws did not take the thread"
+        );
+        let draw = Self::new(&wound, &pass, grasper_from, most_n);
+        (wound, pass, draw)
+    }
+
     /// The draw from where the pass left the driver and where the grasper took the thread.
     pub fn new(wound: &Wound, pass: &Pass, grasper_from: Vector3<f32>, most_n: f32) -> Self {
         let side = wound.thread().holes()[3].place_mm().x.signum();
