@@ -33,6 +33,8 @@ const PHASE_TICKS: usize = 3000;
 
 fn main() {
     let (mut wound, _, mut draw) = CrossedDraw::after_the_pass(3.0);
+    // The tick alone: the training layer's watch is not the server's.
+    wound.observer = None;
 
     let pad_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/pad.toml");
     let mut pad = Sim::new(&load_world(&pad_path).unwrap()).unwrap();

@@ -20,7 +20,8 @@
 //! 6. the tail, after the forces are out: colliders refit, contact-stiffness iterations ([`Sim::finish_tick`]).
 //!
 //! The parts: `object.rs` ([`SimObject`]), `tool.rs` ([`SimTool`], [`ToolCommand`], [`ToolOutput`]),
-//! `step_report.rs` ([`StepReport`]); built from a scene descriptor in `from_scene.rs`. What a tool does beyond
+//! `step_report.rs` ([`StepReport`]), `suture_output.rs` ([`SutureActivity`], a tool's needle and thread
+//! as its output tells the training layer); built from a scene descriptor in `from_scene.rs`. What a tool does beyond
 //! its body is its instrument: one trait with a hook per stage (`instrument.rs`), one file per instrument
 //! (`instruments/`).
 
@@ -31,6 +32,7 @@ mod instrument;
 mod instruments;
 mod object;
 mod step_report;
+mod suture_output;
 mod tearing;
 mod tissue_contact;
 mod tool;
@@ -40,6 +42,7 @@ mod topology;
 use guarded::TickStepper;
 pub use object::SimObject;
 pub use step_report::StepReport;
+pub use suture_output::SutureActivity;
 pub use tool::{SimTool, ToolCommand, ToolOutput};
 use tool::{ToolBody, ToolDrive, ToolHaptics};
 
@@ -338,6 +341,7 @@ impl Sim {
             let out = &mut self.tool_output(t);
             report.held_nodes += out.held_nodes;
             self.local_model(t, dt_s, out);
+            out.suture = self.suture_activity(t);
             if let Some(slot) = outputs.get_mut(t) {
                 *slot = *out;
             }

@@ -25,6 +25,7 @@ static GLOBAL: Counting = Counting;
 use nalgebra::Vector3;
 use sinew_server::interaction::suture::GRIP_SLIP_N;
 use sinew_server::sim::StepReport;
+use sinew_server::training::{EventKind, SkillState};
 use wound::{CrossedDraw, FACE_X_MM, Wound};
 
 #[test]
@@ -383,6 +384,29 @@ fn draw_a_stitch_crossed(most_n: f32, gap_mm: std::ops::RangeInclusive<f32>) {
             output_at_1_s[hand]
         );
     }
+    // The training layer saw the stitch: the driver's hand went through the suturing states in order (its
+    // needle held, the tip pressing, pushed through, the thread drawn, tightened) with a puncture event for
+    // each of the four punctures; the grasper's hand drew the thread and tightened it.
+    let driver = states_of(&wound, 0);
+    let grasper = states_of(&wound, 1);
+    let punctures = wound
+        .events
+        .iter()
+        .filter(|e| e.tool == 0 && e.kind == EventKind::Puncture)
+        .count();
+    println!("skill states: driver {driver:?}; grasper {grasper:?}; {punctures} puncture events");
+    use SkillState::*;
+    assert!(
+        in_order(
+            &driver,
+            &[NeedleGrasped, Puncture, PushThrough, PullThrough, Tighten]
+        ),
+        "{driver:?}"
+    );
+    assert!(in_order(&grasper, &[PullThrough, Tighten]), "{grasper:?}");
+    assert_eq!(driver.last(), Some(&Tighten));
+    assert_eq!(grasper.last(), Some(&Tighten));
+    assert_eq!(punctures, 4);
     // The thread runs through its holes, in their order along it, and rests there once the hands stop.
     assert!(off.iter().all(|d| *d < 0.3), "{off:?}");
     assert!(u.windows(2).all(|w| w[0] > w[1]), "{u:?}");
@@ -392,4 +416,23 @@ fn draw_a_stitch_crossed(most_n: f32, gap_mm: std::ops::RangeInclusive<f32>) {
             .all(|(a, b)| (a - b).abs() < 0.2),
         "{u_before_rest:?} -> {u:?}"
     );
+}
+
+/// Tool `tool`'s skill states from the first, in the order the training layer entered them.
+fn states_of(wound: &Wound, tool: u8) -> Vec<SkillState> {
+    let mut states = vec![SkillState::Idle];
+    states.extend(
+        wound
+            .transitions
+            .iter()
+            .filter(|(t, _)| *t == tool)
+            .map(|(_, tr)| tr.to),
+    );
+    states
+}
+
+/// `sub` appears in `seq` in its order (not necessarily adjacent).
+fn in_order(seq: &[SkillState], sub: &[SkillState]) -> bool {
+    let mut rest = seq.iter();
+    sub.iter().all(|want| rest.any(|s| s == want))
 }

@@ -89,7 +89,8 @@ pub struct DeviceStats {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct TrainingStats {
     /// Current surgical (skill) state: `idle`, `approach`, `contact`, `grasping`, `pulling`, `cutting`,
-    /// `cauterizing`, `releasing` (suturing adds more; an unknown name is shown as it is).
+    /// `cauterizing`, `releasing`, and suturing's `needle_grasped`, `puncture`, `push_through`, `pull_through`,
+    /// `tighten` (an unknown name is shown as it is).
     pub skill_state: String,
     /// Touches so far.
     pub contacts: u64,

@@ -272,4 +272,6 @@ pub struct ToolOutput {
     /// Stiffness of the stuck contact along the surface as the device feels it, N/mm (0 without friction):
     /// the model's stick spring ([`super::Sim::local_model`]).
     pub stick_stiffness_n_per_mm: f32,
+    /// What the tool's needle and thread are doing (the training layer's suturing states).
+    pub suture: super::SutureActivity,
 }

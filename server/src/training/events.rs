@@ -5,8 +5,9 @@
 //! [`SessionEvent`] and [`EventDetector`] (turns a tool's activity, tick after tick, into events).
 //!
 //! The instruments (grasp, cut, cauterize) set `grasping`, `cutting` and `burning` from their jaw and edge
-//! states; the probe sets none of them. The suturing states will add their own kinds here (needle grasped,
-//! puncture, pull-through) and their own flags to [`ToolActivity`].
+//! states; the probe sets none of them. Suturing sets its own flags from the tool output's
+//! [`crate::sim::SutureActivity`]: the needle held, its tip pressing a surface, the needle through tissue, the
+//! thread held and running through holes, and each puncture (an event of its own, not an edge).
 //!
 //! Touches chatter: a probe lifting off a dent that follows it up leaves and retouches for a few ticks. So
 //! contact and approach end only after [`EventDetector::END_DEBOUNCE_TICKS`] ticks without them (a touch
@@ -41,6 +42,20 @@ pub struct ToolActivity {
     pub tip_world_mm: [f32; 3],
     /// The simulated tool's origin, world, mm (where it touches: held back by the tissue it presses).
     pub tool_world_mm: [f32; 3],
+    /// The tool's jaws hold a suture needle.
+    pub needle_held: bool,
+    /// The needle's tip presses a surface (before it punctures).
+    pub needle_pressing: bool,
+    /// The needle runs through tissue.
+    pub needle_in_tissue: bool,
+    /// Surfaces the needle has punctured so far.
+    pub punctures: u32,
+    /// The tool's jaws hold a suture thread.
+    pub thread_held: bool,
+    /// The thread the tool draws (its needle's, or the one in its jaws) runs through holes.
+    pub thread_through: bool,
+    /// The thread's pull on the tool, N.
+    pub thread_pull_n: f32,
 }
 
 impl ToolActivity {
@@ -53,12 +68,24 @@ impl ToolActivity {
             active,
             near: active && (out.in_contact || out.plane_count > 0),
             in_contact: active && out.in_contact,
-            grasping: active && out.attachments > 0,
+            // A needle driver's attachments are its needle's tip and holes, not tissue in its jaws.
+            grasping: active && out.attachments > 0 && !out.suture.needle_held,
             cutting: active && out.cutting,
             burning: active && out.burning,
             force_n: if force_n.is_finite() { force_n } else { 0.0 },
             tip_world_mm: out.device_world_mm.into(),
             tool_world_mm: out.position_world_mm.into(),
+            needle_held: active && out.suture.needle_held,
+            needle_pressing: active && out.suture.needle_pressing,
+            needle_in_tissue: active && out.suture.needle_in_tissue,
+            punctures: out.suture.punctures,
+            thread_held: active && out.suture.thread_held,
+            thread_through: active && out.suture.thread_holes > 0,
+            thread_pull_n: if active && out.suture.thread_pull_n.is_finite() {
+                out.suture.thread_pull_n
+            } else {
+                0.0
+            },
         }
     }
 }
@@ -90,6 +117,28 @@ pub enum EventKind {
     BurnBegin,
     /// It stopped.
     BurnEnd,
+    /// The tool's jaws took a suture needle (or joined holding one).
+    NeedleGraspBegin,
+    /// They no longer hold it.
+    NeedleGraspEnd,
+    /// The needle's tip began pressing a surface.
+    NeedlePressBegin,
+    /// It no longer presses one (it punctured, slid off or lifted).
+    NeedlePressEnd,
+    /// The needle's tip punctured a surface (one event per puncture).
+    Puncture,
+    /// The needle began running through tissue.
+    PushThroughBegin,
+    /// It no longer does (its tail left the last hole, or it was drawn back out).
+    PushThroughEnd,
+    /// The thread the tool draws began running through holes.
+    ThreadThroughBegin,
+    /// It no longer does.
+    ThreadThroughEnd,
+    /// The tool's jaws took a suture thread.
+    ThreadGraspBegin,
+    /// They let it go (or it slipped out).
+    ThreadGraspEnd,
     /// The force on the tool rose above the harm threshold.
     HarmBegin,
     /// It fell below it again.
@@ -100,7 +149,7 @@ pub enum EventKind {
 
 impl EventKind {
     /// Every kind, in declaration order (reports list counts in this order).
-    pub const ALL: [EventKind; 15] = [
+    pub const ALL: [EventKind; 26] = [
         EventKind::Joined,
         EventKind::Left,
         EventKind::ApproachBegin,
@@ -113,6 +162,17 @@ impl EventKind {
         EventKind::CutEnd,
         EventKind::BurnBegin,
         EventKind::BurnEnd,
+        EventKind::NeedleGraspBegin,
+        EventKind::NeedleGraspEnd,
+        EventKind::NeedlePressBegin,
+        EventKind::NeedlePressEnd,
+        EventKind::Puncture,
+        EventKind::PushThroughBegin,
+        EventKind::PushThroughEnd,
+        EventKind::ThreadThroughBegin,
+        EventKind::ThreadThroughEnd,
+        EventKind::ThreadGraspBegin,
+        EventKind::ThreadGraspEnd,
         EventKind::HarmBegin,
         EventKind::HarmEnd,
         EventKind::TissueFault,
@@ -138,6 +198,17 @@ impl EventKind {
             EventKind::CutEnd => "cut_end",
             EventKind::BurnBegin => "burn_begin",
             EventKind::BurnEnd => "burn_end",
+            EventKind::NeedleGraspBegin => "needle_grasp_begin",
+            EventKind::NeedleGraspEnd => "needle_grasp_end",
+            EventKind::NeedlePressBegin => "needle_press_begin",
+            EventKind::NeedlePressEnd => "needle_press_end",
+            EventKind::Puncture => "puncture",
+            EventKind::PushThroughBegin => "push_through_begin",
+            EventKind::PushThroughEnd => "push_through_end",
+            EventKind::ThreadGraspBegin => "thread_grasp_begin",
+            EventKind::ThreadGraspEnd => "thread_grasp_end",
+            EventKind::ThreadThroughBegin => "thread_through_begin",
+            EventKind::ThreadThroughEnd => "thread_through_end",
             EventKind::HarmBegin => "harm_begin",
             EventKind::HarmEnd => "harm_end",
             EventKind::TissueFault => "tissue_fault",
@@ -260,6 +331,38 @@ impl EventDetector {
                 EventKind::BurnEnd,
             ),
             (
+                last.needle_held,
+                now.needle_held,
+                EventKind::NeedleGraspBegin,
+                EventKind::NeedleGraspEnd,
+            ),
+            (
+                last.needle_pressing,
+                now.needle_pressing,
+                EventKind::NeedlePressBegin,
+                EventKind::NeedlePressEnd,
+            ),
+            (
+                last.needle_in_tissue,
+                now.needle_in_tissue,
+                EventKind::PushThroughBegin,
+                EventKind::PushThroughEnd,
+            ),
+            // The thread running through holes is outer to a hand holding it: a grasp on a thread already
+            // through is pulling through from its first tick.
+            (
+                last.thread_through,
+                now.thread_through,
+                EventKind::ThreadThroughBegin,
+                EventKind::ThreadThroughEnd,
+            ),
+            (
+                last.thread_held,
+                now.thread_held,
+                EventKind::ThreadGraspBegin,
+                EventKind::ThreadGraspEnd,
+            ),
+            (
                 self.harmful,
                 harmful,
                 EventKind::HarmBegin,
@@ -269,6 +372,13 @@ impl EventDetector {
         for (was, is, begin, _) in edges {
             if is && !was {
                 send(begin);
+            }
+        }
+        // Each puncture since the last tick (a needle punctures at most a few surfaces a tick); a count that
+        // went down (a new needle, a reset) punctured nothing.
+        if now.active && last.active {
+            for _ in 0..now.punctures.saturating_sub(last.punctures).min(8) {
+                send(EventKind::Puncture);
             }
         }
         for (was, is, _, end) in edges.iter().rev() {
@@ -355,6 +465,76 @@ mod tests {
                 EventKind::ApproachEnd,
                 EventKind::Left
             ]
+        );
+    }
+
+    #[test]
+    fn a_needle_and_a_thread_become_suturing_events_and_every_puncture_one() {
+        let mut d = EventDetector::new(0, 10.0);
+        let held = ToolActivity {
+            active: true,
+            needle_held: true,
+            ..ToolActivity::default()
+        };
+        assert_eq!(
+            kinds(&mut d, 0, held),
+            [EventKind::Joined, EventKind::NeedleGraspBegin]
+        );
+        let pressing = ToolActivity {
+            needle_pressing: true,
+            ..held
+        };
+        assert_eq!(kinds(&mut d, 1, pressing), [EventKind::NeedlePressBegin]);
+        // The pop: through the surface, one puncture.
+        let through = ToolActivity {
+            needle_in_tissue: true,
+            punctures: 1,
+            ..held
+        };
+        assert_eq!(
+            kinds(&mut d, 2, through),
+            [
+                EventKind::PushThroughBegin,
+                EventKind::Puncture,
+                EventKind::NeedlePressEnd
+            ]
+        );
+        // Out of one edge and into the other in one tick: two punctures.
+        let across = ToolActivity {
+            punctures: 3,
+            thread_through: true,
+            ..through
+        };
+        assert_eq!(
+            kinds(&mut d, 3, across),
+            [
+                EventKind::ThreadThroughBegin,
+                EventKind::Puncture,
+                EventKind::Puncture
+            ]
+        );
+        // A new needle's count starts again: no puncture.
+        let fresh = ToolActivity {
+            punctures: 0,
+            ..across
+        };
+        assert_eq!(kinds(&mut d, 4, fresh), []);
+        // A grasper taking a thread already through its holes.
+        let mut g = EventDetector::new(1, 10.0);
+        let idle = ToolActivity {
+            active: true,
+            ..ToolActivity::default()
+        };
+        assert_eq!(kinds(&mut g, 0, idle), [EventKind::Joined]);
+        let drawing = ToolActivity {
+            thread_held: true,
+            thread_through: true,
+            thread_pull_n: 1.0,
+            ..idle
+        };
+        assert_eq!(
+            kinds(&mut g, 1, drawing),
+            [EventKind::ThreadThroughBegin, EventKind::ThreadGraspBegin]
         );
     }
 

@@ -110,7 +110,9 @@ impl SessionObserver {
                     run.on_event(&event, &activity);
                 }
             });
-            machine.on_tick(view.tick, activity.force_n, |tr| on_transition(tool, &tr));
+            machine.on_tick(view.tick, activity.force_n, activity.thread_pull_n, |tr| {
+                on_transition(tool, &tr)
+            });
             metrics.push(view.tick, &activity);
             self.activity[t] = activity;
         }

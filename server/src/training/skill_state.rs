@@ -7,9 +7,15 @@
 //! burning) and derives its state from them by priority: not driven is idle; burning is cauterizing; cutting
 //! is cutting; grasping is pulling while the force on the jaws exceeds the pull threshold, else grasping; after
 //! jaws open on tissue the machine is releasing until the tool leaves the tissue or the release time passes;
-//! touching is contact; near is approach; else idle. Suturing extends it: new states (needle grasped,
-//! puncture, push-through, pull-through) are new variants of [`SkillState`], new conditions set by new event
-//! kinds, and new arms of [`SkillMachine::derive`] above the ones they refine.
+//! touching is contact; near is approach; else idle.
+//!
+//! Suturing (after the haptic suturing prototype's states: grasp needle, puncture, push through, pull
+//! through; and the tighten) refines it, below burning and cutting and above the rest: a tool drawing
+//! a thread that runs through holes (its needle through and out of the tissue, or the thread in its jaws) is
+//! tightening while the thread pulls it harder than the tighten threshold, else pulling through; a needle
+//! running through tissue is pushing through; a needle's tip pressing a surface is the puncture; a thread
+//! held with no holes is grasping; a needle held, touching nothing, is needle grasped (in place of approach
+//! and idle). Release, regrasp and the knot wait for the needle's hand-off (`docs/suturing.md`).
 //!
 //! Must not: allocate (it can run on the sim thread; transitions go to a caller's sink) or read a clock.
 
@@ -39,11 +45,21 @@ pub enum SkillState {
     Cauterizing,
     /// Jaws opened on tissue; the tool has not left it yet.
     Releasing,
+    /// Jaws hold a suture needle, touching nothing.
+    NeedleGrasped,
+    /// The needle's tip presses a surface, before it punctures.
+    Puncture,
+    /// The needle runs through tissue.
+    PushThrough,
+    /// The thread the tool draws runs through the tissue, pulling it less than the tighten threshold.
+    PullThrough,
+    /// The thread pulls the tool harder than the tighten threshold: the stitch is drawn tight.
+    Tighten,
 }
 
 impl SkillState {
     /// Every state, in declaration order.
-    pub const ALL: [SkillState; 8] = [
+    pub const ALL: [SkillState; 13] = [
         SkillState::Idle,
         SkillState::Approach,
         SkillState::Contact,
@@ -52,6 +68,11 @@ impl SkillState {
         SkillState::Cutting,
         SkillState::Cauterizing,
         SkillState::Releasing,
+        SkillState::NeedleGrasped,
+        SkillState::Puncture,
+        SkillState::PushThrough,
+        SkillState::PullThrough,
+        SkillState::Tighten,
     ];
 
     /// Its index in [`SkillState::ALL`].
@@ -70,6 +91,11 @@ impl SkillState {
             SkillState::Cutting => "cutting",
             SkillState::Cauterizing => "cauterizing",
             SkillState::Releasing => "releasing",
+            SkillState::NeedleGrasped => "needle_grasped",
+            SkillState::Puncture => "puncture",
+            SkillState::PushThrough => "push_through",
+            SkillState::PullThrough => "pull_through",
+            SkillState::Tighten => "tighten",
         }
     }
 }
@@ -96,6 +122,13 @@ pub struct SkillMachine {
     pulling: bool,
     cutting: bool,
     burning: bool,
+    needle_held: bool,
+    needle_pressing: bool,
+    needle_in_tissue: bool,
+    thread_held: bool,
+    thread_through: bool,
+    tightening: bool,
+    tighten_threshold_n: f32,
     /// Releasing lasts until this tick (exclusive), or until contact ends.
     release_until_tick: u64,
     release_ticks: u64,
@@ -109,6 +142,9 @@ impl SkillMachine {
     pub const DEFAULT_RELEASE_TICKS: u64 = 500;
     /// Force on grasping jaws above which the tissue is being pulled, N.
     pub const DEFAULT_PULL_THRESHOLD_N: f32 = 0.5;
+    /// A thread's pull on the tool drawing it above which the stitch is being tightened, N (surgeons close
+    /// skin with 0.5-3.2 N; Capek et al. 2012).
+    pub const DEFAULT_TIGHTEN_THRESHOLD_N: f32 = 1.0;
 
     /// An idle machine with the default release time and pull threshold.
     pub fn new() -> Self {
@@ -126,6 +162,13 @@ impl SkillMachine {
             pulling: false,
             cutting: false,
             burning: false,
+            needle_held: false,
+            needle_pressing: false,
+            needle_in_tissue: false,
+            thread_held: false,
+            thread_through: false,
+            tightening: false,
+            tighten_threshold_n: Self::DEFAULT_TIGHTEN_THRESHOLD_N,
             release_until_tick: 0,
             release_ticks,
             pull_threshold_n,
@@ -161,6 +204,12 @@ impl SkillMachine {
                 self.pulling = false;
                 self.cutting = false;
                 self.burning = false;
+                self.needle_held = false;
+                self.needle_pressing = false;
+                self.needle_in_tissue = false;
+                self.thread_held = false;
+                self.thread_through = false;
+                self.tightening = false;
                 self.release_until_tick = 0;
             }
             EventKind::ApproachBegin => self.near = true,
@@ -183,15 +232,38 @@ impl SkillMachine {
             EventKind::CutEnd => self.cutting = false,
             EventKind::BurnBegin => self.burning = true,
             EventKind::BurnEnd => self.burning = false,
-            EventKind::HarmBegin | EventKind::HarmEnd | EventKind::TissueFault => {}
+            EventKind::NeedleGraspBegin => self.needle_held = true,
+            EventKind::NeedleGraspEnd => self.needle_held = false,
+            EventKind::NeedlePressBegin => self.needle_pressing = true,
+            EventKind::NeedlePressEnd => self.needle_pressing = false,
+            EventKind::PushThroughBegin => self.needle_in_tissue = true,
+            EventKind::PushThroughEnd => self.needle_in_tissue = false,
+            EventKind::ThreadGraspBegin => self.thread_held = true,
+            EventKind::ThreadGraspEnd => self.thread_held = false,
+            EventKind::ThreadThroughBegin => self.thread_through = true,
+            EventKind::ThreadThroughEnd => {
+                self.thread_through = false;
+                self.tightening = false;
+            }
+            EventKind::Puncture
+            | EventKind::HarmBegin
+            | EventKind::HarmEnd
+            | EventKind::TissueFault => {}
         }
         self.settle(event.tick, sink);
     }
 
-    /// The end of tick `tick`: the force on the tool then (for pulling), counted in the state it ends in.
-    /// Call after the tick's events.
-    pub fn on_tick(&mut self, tick: u64, force_n: f32, sink: impl FnMut(Transition)) {
+    /// The end of tick `tick`: the force on the tool then (for pulling) and the thread's pull on it (for
+    /// tightening), counted in the state it ends in. Call after the tick's events.
+    pub fn on_tick(
+        &mut self,
+        tick: u64,
+        force_n: f32,
+        thread_pull_n: f32,
+        sink: impl FnMut(Transition),
+    ) {
         self.pulling = self.grasping && force_n > self.pull_threshold_n;
+        self.tightening = self.thread_through && thread_pull_n > self.tighten_threshold_n;
         self.settle(tick, sink);
         self.ticks_in[self.state.index()] += 1;
     }
@@ -217,6 +289,8 @@ impl SkillMachine {
             SkillState::Cauterizing
         } else if self.cutting {
             SkillState::Cutting
+        } else if let Some(suturing) = self.suturing() {
+            suturing
         } else if self.grasping && self.pulling {
             SkillState::Pulling
         } else if self.grasping {
@@ -225,10 +299,32 @@ impl SkillMachine {
             SkillState::Releasing
         } else if self.contact {
             SkillState::Contact
+        } else if self.needle_held {
+            SkillState::NeedleGrasped
         } else if self.near {
             SkillState::Approach
         } else {
             SkillState::Idle
+        }
+    }
+
+    /// The suturing state the conditions give, if any, by priority (module doc).
+    fn suturing(&self) -> Option<SkillState> {
+        let draws_thread = self.thread_held || (self.needle_held && !self.needle_in_tissue);
+        if draws_thread && self.thread_through {
+            Some(if self.tightening {
+                SkillState::Tighten
+            } else {
+                SkillState::PullThrough
+            })
+        } else if self.needle_held && self.needle_in_tissue {
+            Some(SkillState::PushThrough)
+        } else if self.needle_held && self.needle_pressing {
+            Some(SkillState::Puncture)
+        } else if self.thread_held {
+            Some(SkillState::Grasping)
+        } else {
+            None
         }
     }
 }
@@ -251,8 +347,18 @@ mod tests {
         machine: &mut SkillMachine,
         script: &[(u64, &[EventKind], f32)],
     ) -> Vec<(u64, SkillState, SkillState)> {
+        run_ticks(machine, script, |force_n| (force_n, 0.0))
+    }
+
+    /// Feed `script` (tick, event kinds, a value) tick by tick, each tick's force and thread pull made from
+    /// its value by `pulls`; the transitions, as (tick, from, to).
+    fn run_ticks(
+        machine: &mut SkillMachine,
+        script: &[(u64, &[EventKind], f32)],
+        pulls: impl Fn(f32) -> (f32, f32),
+    ) -> Vec<(u64, SkillState, SkillState)> {
         let mut out = Vec::new();
-        for &(tick, kinds, force_n) in script {
+        for &(tick, kinds, value) in script {
             for &kind in kinds {
                 let event = SessionEvent {
                     tick,
@@ -261,9 +367,20 @@ mod tests {
                 };
                 machine.on_event(&event, |t| out.push((t.tick, t.from, t.to)));
             }
-            machine.on_tick(tick, force_n, |t| out.push((t.tick, t.from, t.to)));
+            let (force_n, thread_pull_n) = pulls(value);
+            machine.on_tick(tick, force_n, thread_pull_n, |t| {
+                out.push((t.tick, t.from, t.to))
+            });
         }
         out
+    }
+
+    /// Like [`run`], with the thread's pull on the tool instead of the force (the tighten threshold's input).
+    fn run_pulled(
+        machine: &mut SkillMachine,
+        script: &[(u64, &[EventKind], f32)],
+    ) -> Vec<(u64, SkillState, SkillState)> {
+        run_ticks(machine, script, |pull_n| (0.0, pull_n))
     }
 
     #[test]
@@ -291,6 +408,77 @@ mod tests {
             ]
         );
         assert_eq!(m.transitions(), 4);
+    }
+
+    #[test]
+    fn a_needle_driver_grasps_punctures_pushes_through_pulls_through_and_tightens() {
+        use EventKind as E;
+        let mut m = SkillMachine::new();
+        let out = run_pulled(
+            &mut m,
+            &[
+                (0, &[E::Joined, E::NeedleGraspBegin], 0.0),
+                (10, &[E::ApproachBegin], 0.0),
+                (20, &[E::ContactBegin, E::NeedlePressBegin], 0.0),
+                (
+                    30,
+                    &[E::PushThroughBegin, E::Puncture, E::NeedlePressEnd],
+                    0.0,
+                ),
+                // Pressing its exit from inside is still pushing through.
+                (40, &[E::NeedlePressBegin], 0.0),
+                (45, &[E::NeedlePressEnd, E::Puncture], 0.0),
+                (50, &[E::ThreadThroughBegin], 0.2),
+                (60, &[E::PushThroughEnd, E::ContactEnd], 0.3),
+                (70, &[], 1.5), // drawn tight
+                (80, &[], 0.5), // eased off
+                (90, &[E::ThreadThroughEnd], 0.0),
+                (95, &[E::ApproachEnd], 0.0),
+                (100, &[E::NeedleGraspEnd, E::Left], 0.0),
+            ],
+        );
+        assert_eq!(
+            out,
+            [
+                (0, Idle, NeedleGrasped),
+                (20, NeedleGrasped, Contact),
+                (20, Contact, Puncture),
+                (30, Puncture, PushThrough),
+                (60, PushThrough, PullThrough),
+                (70, PullThrough, Tighten),
+                (80, Tighten, PullThrough),
+                (90, PullThrough, NeedleGrasped),
+                (100, NeedleGrasped, Idle)
+            ]
+        );
+        // (The script calls one tick per line: one ended tight.)
+        assert_eq!(m.ticks_in()[Tighten.index()], 1);
+    }
+
+    #[test]
+    fn a_grasper_on_a_thread_grasps_it_then_pulls_it_through_and_tightens() {
+        use EventKind as E;
+        let mut m = SkillMachine::new();
+        let out = run_pulled(
+            &mut m,
+            &[
+                (0, &[E::Joined], 0.0),
+                // A thread with no holes yet, in the jaws: grasping.
+                (10, &[E::ThreadGraspBegin], 0.1),
+                (20, &[E::ThreadThroughBegin], 0.5),
+                (30, &[], 2.0),
+                (40, &[E::ThreadGraspEnd], 0.0),
+            ],
+        );
+        assert_eq!(
+            out,
+            [
+                (10, Idle, Grasping),
+                (20, Grasping, PullThrough),
+                (30, PullThrough, Tighten),
+                (40, Tighten, Idle)
+            ]
+        );
     }
 
     #[test]

@@ -9,6 +9,7 @@ use nalgebra::{Point3, UnitQuaternion, Vector3};
 use sinew_server::interaction::JawInput;
 use sinew_server::interaction::suture::{NeedleArc, SutureThread};
 use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
+use sinew_server::training::{MetricsConfig, SessionEvent, SessionObserver, TickView, Transition};
 use sinew_server::world::{InstrumentSpec, load_world};
 
 use super::tool_pose::pose_command;
@@ -42,6 +43,11 @@ pub struct Wound {
     pub centre: Vector3<f32>,
     /// The grasper's command.
     pub grasper: ToolCommand,
+    /// The training layer watching every tick (None: unwatched, as a bench times it).
+    pub observer: Option<SessionObserver>,
+    /// What it saw: each tool's state changes, and every event.
+    pub transitions: Vec<(u8, Transition)>,
+    pub events: Vec<SessionEvent>,
 }
 
 impl Wound {
@@ -66,6 +72,10 @@ impl Wound {
             base: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f32::consts::FRAC_PI_2),
             centre: Vector3::new(0.0, 0.0, CENTRE_HEIGHT_MM),
             grasper: ToolCommand::default(),
+            observer: Some(SessionObserver::new(2, MetricsConfig::new(f64::from(DT_S)))),
+            // Room for a whole stitch's: recording them allocates nothing in a tick.
+            transitions: Vec::with_capacity(1 << 12),
+            events: Vec::with_capacity(1 << 14),
         }
     }
 
@@ -146,6 +156,28 @@ impl Wound {
         let mut out = [ToolOutput::default(); 2];
         let report = self.sim.step(DT_S, &command, &mut out);
         assert_eq!(report.faults, 0, "the guard reset the tissue");
+        if let Some(observer) = &mut self.observer {
+            let view = TickView {
+                tick: self.sim.steps() - 1,
+                active: &[true, true],
+                outputs: &out,
+                step: &report,
+            };
+            let (events, transitions) = (&mut self.events, &mut self.transitions);
+            observer.observe(
+                &view,
+                |e| {
+                    if events.len() < events.capacity() {
+                        events.push(*e);
+                    }
+                },
+                |tool, t| {
+                    if transitions.len() < transitions.capacity() {
+                        transitions.push((tool, *t));
+                    }
+                },
+            );
+        }
         for o in &out {
             assert!(o.force_world_n.iter().all(|c| c.is_finite()));
         }
