@@ -14,9 +14,11 @@ use std::sync::Arc;
 use sinew_protocol::rt::LatestValue;
 
 mod cli;
+mod pose_path;
 mod trajectory;
 
 pub use cli::{ScriptError, ScriptKind, ScriptOptions, parse_vec3_mm};
+pub use pose_path::{PoseKey, PosePath, PosePathError};
 
 /// What the simulated hand does. Script time starts at 0 when the device is created.
 #[derive(Clone)]
@@ -142,6 +144,9 @@ pub enum HandScript {
     },
     /// The target is set from outside (a test, a replay); the hand holds the last target it saw.
     Follow(Arc<LatestValue<[f32; 3]>>),
+    /// Follow keyframes of the whole pose and the jaws ([`PosePath`]: a planned path, such as a needle
+    /// driver's turn through tissue), then hold the last.
+    Path(Arc<PosePath>),
 }
 
 /// Height of the tool origin above the surface during `cut-line`, mm: a scalpel's edge starts 1 mm below its
@@ -254,6 +259,11 @@ impl fmt::Debug for HandScript {
                 .field("snips", snips)
                 .finish(),
             HandScript::Follow(target) => f.debug_tuple("Follow").field(&target.peek()).finish(),
+            HandScript::Path(path) => f
+                .debug_struct("Path")
+                .field("keys", &path.keys().len())
+                .field("end_s", &path.end_s())
+                .finish(),
         }
     }
 }

@@ -111,6 +111,7 @@ impl Device for SimDevice {
                 .confine(self.model.workspace_min_mm, self.model.workspace_max_mm);
             return Ok(DeviceReading {
                 position_mm: self.hand.position_mm(),
+                orientation_xyzw: self.script.orientation_xyzw(0.0),
                 linear_velocity_mm_s: self.hand.velocity_mm_s(),
                 jaw_angle_rad: crate::hand_script::SCRIPT_JAW_OPEN_RAD,
                 ..DeviceReading::default()
@@ -128,10 +129,10 @@ impl Device for SimDevice {
         let grip = self.script.grip(self.script_time_s);
         Ok(DeviceReading {
             position_mm: self.hand.position_mm(),
+            orientation_xyzw: self.script.orientation_xyzw(self.script_time_s),
             linear_velocity_mm_s: self.hand.velocity_mm_s(),
             buttons: grip.buttons,
             jaw_angle_rad: grip.jaw_angle_rad,
-            ..DeviceReading::default()
         })
     }
 
@@ -164,6 +165,49 @@ mod tests {
         }
         assert!((reading.position_mm[2] + 5.0).abs() < 0.05, "{reading:?}");
         assert!((device.script_time_s() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_pose_path_turns_the_stylus_and_closes_the_jaws_as_planned() {
+        use crate::hand_script::{PoseKey, PosePath};
+        let quarter = std::f32::consts::FRAC_1_SQRT_2;
+        let path = PosePath::new(vec![
+            PoseKey {
+                t_s: 0.0,
+                position_mm: [0.0, 0.0, 10.0],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+                buttons: 0,
+            },
+            PoseKey {
+                t_s: 1.0,
+                position_mm: [0.0, 0.0, 10.0],
+                orientation_xyzw: [0.0, quarter, 0.0, quarter],
+                buttons: 1,
+            },
+        ])
+        .unwrap();
+        let mut device = SimDevice::new(HandScript::Path(std::sync::Arc::new(path)));
+        let mut reading = DeviceReading::default();
+        for k in 0..1200 {
+            reading = device.read(0.001).unwrap();
+            device.write_force([0.0; 3]).unwrap();
+            if k == 499 {
+                // Half way: a 45-degree turn about y, jaws still open.
+                let [x, y, z, w] = reading.orientation_xyzw;
+                let half = (22.5f32).to_radians();
+                assert!(x.abs() < 1e-5 && z.abs() < 1e-5, "{reading:?}");
+                assert!(
+                    (y - half.sin()).abs() < 1e-3 && (w - half.cos()).abs() < 1e-3,
+                    "{reading:?}"
+                );
+                assert_eq!(reading.buttons, 0);
+            }
+        }
+        let [_, y, _, w] = reading.orientation_xyzw;
+        assert!((y - quarter).abs() < 1e-5 && (w - quarter).abs() < 1e-5);
+        assert_eq!(reading.buttons, 1);
+        assert_eq!(reading.jaw_angle_rad, 0.0);
+        assert!((reading.position_mm[2] - 10.0).abs() < 1e-3);
     }
 
     #[test]

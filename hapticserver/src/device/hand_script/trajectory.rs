@@ -210,6 +210,16 @@ impl HandScript {
                 Some(target)
             }
             HandScript::Follow(mailbox) => mailbox.peek().map(HandTarget::at_rest),
+            HandScript::Path(path) => Some(path.target(t_s)),
+        }
+    }
+
+    /// The stylus's orientation at script time `t_s`, unit quaternion (x, y, z, w): a [`HandScript::Path`]'s,
+    /// upright (identity) for every other script. Real-time: no allocation.
+    pub fn orientation_xyzw(&self, t_s: f64) -> [f32; 4] {
+        match self {
+            HandScript::Path(path) => path.orientation_xyzw(t_s),
+            _ => [0.0, 0.0, 0.0, 1.0],
         }
     }
 
@@ -262,6 +272,17 @@ impl HandScript {
                 },
                 _ => open,
             },
+            HandScript::Path(path) => {
+                let buttons = path.buttons(t_s);
+                ScriptGrip {
+                    buttons,
+                    jaw_angle_rad: if buttons & 1 != 0 {
+                        0.0
+                    } else {
+                        SCRIPT_JAW_OPEN_RAD
+                    },
+                }
+            }
             _ => open,
         }
     }
