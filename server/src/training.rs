@@ -8,13 +8,15 @@
 //! - [`skill_state`]: the surgical state machine the events drive, with time per state;
 //! - [`metrics`]: task time, path length and economy, contact time, forces, harm;
 //! - [`exercise`]: an exercise's targets, clock and errors, scored from the events;
-//! - [`observer`]: events, states and metrics per tool (and the exercise), fed one tick at a time.
+//! - [`observer`]: events, states and metrics per tool (and the exercise), fed one tick at a time;
+//! - [`wound_gap`]: how far a wound between two objects is open (a stitch's result).
 
 pub mod events;
 pub mod exercise;
 pub mod metrics;
 pub mod observer;
 pub mod skill_state;
+pub mod wound_gap;
 
 pub use events::{EventDetector, EventKind, SessionEvent, ToolActivity};
 pub use exercise::{
@@ -23,3 +25,4 @@ pub use exercise::{
 pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
 pub use observer::{LiveTraining, SessionObserver, TickView};
 pub use skill_state::{SkillMachine, SkillState, Transition};
+pub use wound_gap::{wound_gap_between_mm, wound_gap_mm};

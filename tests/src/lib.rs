@@ -4,7 +4,7 @@
 //! Owns: [`harness`] (start a server, simulated hapticservers and viewers on a loopback zenoh endpoint, each
 //! with its own real zenoh session, and measure across them; the starters are the application's
 //! `sinew::loopback`, re-exported), [`drill`] (latency drills on virtual time: the real server tick and device
-//! loops joined by emulated links), [`scenarios`] (the latency-moderated mode's acceptance runs on the drill,
+//! loops joined by emulated links; the application's `sinew::drill`, re-exported), [`scenarios`] (the latency-moderated mode's acceptance runs on the drill,
 //! shared by the tests and the `latency_table` bench), [`netns`] (a lab of network namespaces joined by a real
 //! path with delay, jitter and loss), [`lab_run`] (roles as processes in that lab, and reading what they print
 //! and trace), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
@@ -13,7 +13,7 @@
 //! Must not: contain role logic; everything here calls the role crates' and the application's public APIs.
 #![warn(missing_docs)]
 
-pub mod drill;
+pub use sinew::drill;
 pub mod fidelity;
 pub mod fuzz;
 pub mod harness;

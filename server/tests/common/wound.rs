@@ -7,7 +7,7 @@
 
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use sinew_server::interaction::JawInput;
-use sinew_server::interaction::suture::{NeedleArc, SutureThread};
+use sinew_server::interaction::suture::SutureThread;
 use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
 use sinew_server::training::{MetricsConfig, SessionEvent, SessionObserver, TickView, Transition};
 use sinew_server::world::{InstrumentSpec, load_world};
@@ -54,14 +54,11 @@ impl Wound {
     pub fn new() -> Self {
         let path =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_wound.toml");
-        let mut world = load_world(&path).unwrap();
-        world.tools[0].shape = sinew_server::collision::ToolShapeSpec::Sphere { radius_mm: 0.2 };
-        let InstrumentSpec::NeedleDriver(spec) = &mut world.tools[0].instrument else {
+        let world = load_world(&path).unwrap();
+        // (The world's needle: a half circle held at its tail in small jaws, which follow it through.)
+        let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
             panic!("tool 0 of the wound world is not a needle driver");
         };
-        spec.arc = NeedleArc::new(10.7, 180.0).unwrap();
-        spec.grasp_at_rad = 0.0;
-        let spec = *spec;
         let tool_from_needle = spec.tool_from_needle();
         Self {
             origins_mm: [0, 1].map(|t| Vector3::from(world.tools[t].device_origin_in_world_mm)),
@@ -201,21 +198,7 @@ impl Wound {
 
     /// The wound's gap: the least x of the right edge's face nodes minus the most x of the left edge's.
     pub fn gap_mm(&self) -> f32 {
-        let mut edges = [f32::NEG_INFINITY, f32::INFINITY];
-        for (o, face_x) in [(0usize, -FACE_X_MM), (1, FACE_X_MM)] {
-            let object = &self.sim.objects[o];
-            let rest = object.model.rest_positions_mm();
-            for (r, now) in rest.iter().zip(&object.state.positions_mm) {
-                if (r.x - face_x).abs() < 0.01 {
-                    edges[o] = if o == 0 {
-                        edges[0].max(now.x)
-                    } else {
-                        edges[1].min(now.x)
-                    };
-                }
-            }
-        }
-        edges[1] - edges[0]
+        sinew_server::training::wound_gap_mm(&self.sim.objects[0], &self.sim.objects[1]).unwrap()
     }
 
     /// Tetrahedra turned inside out, over both edges.

@@ -17,6 +17,9 @@ use crate::loopback::{
     Pacing, SimDeviceSetup, replica_error, start_server_recording, start_sim_device_emulated,
     start_viewer, surgeon_scripts_for,
 };
+use crate::stitch_script::{STITCH_HAND, stitch_scripts};
+use sinew_server::tissue::Vec3;
+use sinew_server::training::wound_gap_between_mm;
 
 /// Demo options.
 #[derive(Debug, Clone)]
@@ -64,6 +67,14 @@ pub struct DemoSummary {
     pub replica_error_mm: Option<(f32, f32)>,
 }
 
+/// The world has what a stitch needs: a needle driver and a grasper.
+fn stitch_tools(world: &sinew_server::world::World) -> bool {
+    use sinew_server::world::InstrumentSpec;
+    let has = |pick: fn(&InstrumentSpec) -> bool| world.tools.iter().any(|t| pick(&t.instrument));
+    has(|i| matches!(i, InstrumentSpec::NeedleDriver(_)))
+        && has(|i| matches!(i, InstrumentSpec::Grasper(_)))
+}
+
 struct Running {
     server: ServerHandle,
     devices: Vec<HapticHandle>,
@@ -76,7 +87,44 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     if let Some(threads) = options.tissue_threads {
         world.tissue_threads = Some(threads);
     }
-    let (left, right) = surgeon_scripts_for(&world);
+    let (mut left, mut right) = surgeon_scripts_for(&world);
+    let (mut hand, mut duration) = (options.hand, options.duration);
+    // A stitched wound's two edges at rest, to say how far the stitch closed it.
+    let mut wound_rest: Option<[Vec<Vec3>; 2]> = None;
+    // A world with a needle driver and a grasper gets the scripted stitch, its pass rehearsed first.
+    if stitch_tools(&world) {
+        let started = Instant::now();
+        match stitch_scripts(&world) {
+            Ok(stitch) => {
+                println!(
+                    "scripted stitch: the pass rehearsed on virtual time in {:.1} s; the grasper takes the thread \
+                     at {:.1?} mm; drawn tight and held by {:.1} s (hands: {})",
+                    started.elapsed().as_secs_f64(),
+                    stitch.grasp_mm,
+                    stitch.end_s,
+                    STITCH_HAND.name()
+                );
+                for (id, script) in [stitch.driver, stitch.grasper] {
+                    match id.as_str() {
+                        "left" => left = script,
+                        "right" => right = script,
+                        _ => {}
+                    }
+                }
+                hand = STITCH_HAND;
+                duration = duration.max(Duration::from_secs_f64(stitch.end_s + 1.0));
+                if let [a, b] = &world.objects[..] {
+                    let rest = |o: &sinew_server::tissue::ObjectSpec| -> Vec<Vec3> {
+                        o.mesh.positions_mm.iter().map(|p| Vec3::from(*p)).collect()
+                    };
+                    wound_rest = Some([rest(a), rest(b)]);
+                }
+            }
+            Err(e) => println!(
+                "no scripted stitch in this world ({e:#}): the needle driver presses as a probe does"
+            ),
+        }
+    }
     let scene = world.scene.clone();
     // The one-core bench tick of this world, in this run: the live tick is read against it.
     let bench_tick = sinew_server::node::tick_cost::press_and_stroke(&world, BENCH_TICKS)
@@ -113,7 +161,7 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
             SimDeviceSetup {
                 mode: options.mode,
                 emulation: one_way,
-                hand: options.hand,
+                hand,
                 phase_align: true,
             },
         )
@@ -127,7 +175,7 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
         "sinew demo: scene `{scene}` on {} (zenoh peer, loopback), devices left + right (mode {}, hand {}, emulated round trip {} ms), viewer headless{}",
         options.endpoint,
         options.mode.name(),
-        options.hand.name(),
+        hand.name(),
         options.rtt_ms,
         if options.window { " + window" } else { "" }
     );
@@ -137,11 +185,30 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
         viewer,
     };
     if options.window {
-        run_with_window(&running, options.duration)?;
+        run_with_window(&running, duration)?;
     } else {
-        live_lines(&running, options.duration);
+        live_lines(&running, duration);
     }
     let summary = summarize(&running, &bench_tick);
+    if let Some([a_rest, b_rest]) = &wound_rest {
+        let now = |o| -> Vec<Vec3> {
+            running
+                .server
+                .latest_positions(o)
+                .unwrap_or_default()
+                .into_iter()
+                .map(Vec3::from)
+                .collect()
+        };
+        let (a_now, b_now) = (now(0), now(1));
+        let gap = |a: &[Vec3], b: &[Vec3]| wound_gap_between_mm((a_rest, a), (b_rest, b));
+        match (gap(a_rest, b_rest), gap(&a_now, &b_now)) {
+            (Some(before), Some(after)) => {
+                println!("stitch: the wound's gap {before:.2} mm at rest, {after:.2} mm now")
+            }
+            _ => println!("stitch: the wound's gap could not be measured"),
+        }
+    }
     if let Some(path) = &options.png {
         let replica = running.viewer.replica();
         let overlay = sinew_viewer::InstructorOverlay::build(

@@ -6,7 +6,10 @@
 //! zenoh session, and measuring the viewer's replica against the server), [`report`] (`sinew report`: a
 //! recording's training report), [`play_device`] (`sinew play-device`: a recorded hand played into a live
 //! scene), [`debrief`] (`sinew replay --publish` and `--png-every`: the instructor's debrief of a recording),
-//! [`certs`] (`sinew certs`: a lab's CA and role certificates) and [`figure_font`] (the font figures use).
+//! [`certs`] (`sinew certs`: a lab's CA and role certificates), [`drill`] (the roles' loops joined on virtual
+//! time through emulated links: the latency drills' engine, and the demo's rehearsal of a stitch),
+//! [`stitch_plan`] (the simulated surgeons' pose paths for one scripted stitch), [`stitch_script`] (those
+//! paths, rehearsed, as the surgeons' scripts) and [`figure_font`] (the font figures use).
 //! Must not: contain role logic (everything here calls the role crates' public APIs), or depend on the test
 //! kit (`sinew-testkit`, which depends on this crate; `.ci/check-dependency-direction` checks it).
 #![warn(missing_docs)]
@@ -14,7 +17,10 @@
 pub mod certs;
 pub mod debrief;
 pub mod demo;
+pub mod drill;
 pub mod figure_font;
 pub mod loopback;
 pub mod play_device;
 pub mod report;
+pub mod stitch_plan;
+pub mod stitch_script;
