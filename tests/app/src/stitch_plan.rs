@@ -1,11 +1,13 @@
 //! The scripted stitch's plan: the simulated surgeons' pose paths for one stitch across a wound, as a surgeon
 //! lays it. The needle driver (left hand) rolls its needle along its own curve about the needle's centre,
 //! through both edges and out ([`pass_path`]); the grasper (right hand) waits aside, comes down on the thread
-//! past the entry and takes it ([`grasper_path`]); then both draw the ends crossed over the wound, each to the
+//! past the entry and takes it ([`stitch_paths`]); then both draw the ends crossed over the wound, each to the
 //! other side, and hold (the draw is planned as far as a 3 N pull takes the world's skin: the hands stop
-//! there, as the wound tests' force-limited hands do).
+//! there, as the wound tests' force-limited hands do). While the tip goes in, the driver's aim leads the
+//! needle along its tip ([`PUSH_MM`]): a compliant hand lags its aim, and a lagging tip turns past the
+//! puncture cone before it pushes hard enough, so the hand pushes the needle in as a surgeon does.
 //!
-//! Owns: [`StitchSite`], [`pass_path`], [`grasper_path`] and the timing of the stitch's phases. Paths are in
+//! Owns: [`StitchSite`], [`pass_path`], [`stitch_paths`] and the timing of the stitch's phases. Paths are in
 //! each device's frame (the world less the device's origin), for [`hapticserver::HandScript::Path`]. Where
 //! the grasper takes the thread is an input: a rehearsal of the pass finds it (the tests' drill on virtual
 //! time), as a surgeon looks before reaching.
@@ -51,7 +53,7 @@ const TURN_STEP_DEG: f32 = 2.0;
 /// How far ahead along the needle's tip the hand aims while the tip goes in, mm: a compliant hand lags its aim
 /// by the force over its grip's stiffness (1.5 N of puncture over a firm 1 N/mm grip is 1.5 mm), and a tip
 /// that lags turns past the puncture cone before it pushes hard enough. A surgeon pushes the needle in.
-const PUSH_MM: f32 = 2.0;
+pub const PUSH_MM: f32 = 2.0;
 /// The push is held this far past the tip's meeting the skin, degrees of turn.
 const PUSH_HOLD_DEG: f32 = 20.0;
 /// Then eased out over this much more, degrees.
