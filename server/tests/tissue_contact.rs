@@ -1,6 +1,7 @@
 //! One tissue kept out of another (interaction/tissue_pair.rs), on virtual time: a free block of the wound's
 //! skin dropped under gravity onto another fixed at its floor rests on it, and pressed down onto it by a probe
-//! at 3 N the two stay apart to 0.2 mm; worlds with objects that never meet watch no contact.
+//! at 3 N the two stay apart to 0.2 mm; the contact's forces are equal and opposite, and at rest carry the
+//! top block's weight; worlds with objects that never meet watch no contact.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 #[path = "common/tool_pose.rs"]
@@ -173,6 +174,21 @@ fn a_block_dropped_on_another_rests_on_it_and_pressed_at_3_n_stays_out_of_it_to_
     }
     let (widest_gap, rested_overlap) = overlap_range_mm(&sim);
     let widest_gap = -widest_gap;
+    // The contact's forces (the only external forces here: gravity is the model's) are equal and opposite,
+    // and at rest they carry the top block's weight.
+    let sum = |o: usize| -> Vector3<f32> { sim.objects[o].state.external_forces_n.iter().sum() };
+    let (on_bottom, on_top) = (sum(0), sum(1));
+    let weight_n = 0.3 * 9.81;
+    println!(
+        "the contact pushes the top block {:.3?} N and the bottom one {:.3?} N (the top's weight {weight_n:.3} N)",
+        on_top.as_slice(),
+        on_bottom.as_slice()
+    );
+    assert!((on_top + on_bottom).norm() < 1e-3, "not equal and opposite");
+    assert!(
+        (on_top.z - weight_n).abs() < 0.05 * weight_n && on_top.xy().norm() < 0.05 * weight_n,
+        "at rest the contact carries the top block's weight"
+    );
     println!(
         "dropped: {contacts} contacts watched, overlap {rested_overlap:.3} mm, widest gap {widest_gap:.3} mm, \
          top's floor {:.3} mm",
