@@ -21,4 +21,4 @@ pub use needle_geometry::needle_point_in_tool_mm;
 pub use pose::{DevicePose, RenderMode};
 pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShaft, ToolShape};
 pub use stats::{DeviceStats, ExerciseStats, RejectCounts, ServerStats, TrainingStats};
-pub use tools::{ThreadState, ToolState, ToolStates};
+pub use tools::{NeedleState, ThreadState, ToolState, ToolStates};

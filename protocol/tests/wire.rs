@@ -118,6 +118,13 @@ fn tool_states(rng: &mut fastrand::Rng) -> ToolStates {
                 ThreadState::from_nodes_mm(rng.u16(0..4), &nodes)
             })
             .collect(),
+        needles: (0..rng.usize(0..3))
+            .map(|_| NeedleState {
+                tool: rng.u16(0..4),
+                position_mm: v3(rng),
+                orientation_xyzw: unit_quat(rng),
+            })
+            .collect(),
     }
 }
 

@@ -118,6 +118,11 @@ fn tool_states() -> ToolStates {
             0,
             &[[-18.0, 0.0, -2.0], [-16.0, 0.0, -2.5]],
         )],
+        needles: vec![NeedleState {
+            tool: 0,
+            position_mm: [-18.0, 0.0, 3.0],
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        }],
     }
 }
 

@@ -132,6 +132,11 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
             0,
             &[[0.0, 0.0, 1.0], [0.0, 2.0, 1.0], [0.0, 4.0, 0.5]],
         )],
+        needles: vec![sinew_protocol::NeedleState {
+            tool: 0,
+            position_mm: [0.0, 0.0, 3.0],
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        }],
     };
     vec![
         encode_to_vec(sender, &pose),

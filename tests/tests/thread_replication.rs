@@ -1,21 +1,24 @@
 //! A suture thread reaches the viewers over real zenoh sessions on loopback (`worlds/suture.toml`): the needle
 //! driver's device holds it above the skin, the server lays out and steps its thread, and every viewer (one
 //! watching from the start, one joining late, through the snapshot) holds its polyline: 65 nodes (64
-//! segments), the first at the needle's tail, the rest hanging from it.
+//! segments), the first at the needle's tail, the rest hanging from it; and where the needle lies (protocol 15's
+//! `needles`: in its driver's jaws as loaded, the driver's own pose).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::time::Duration;
 
 use hapticserver::HandScript;
-use sinew_protocol::{InstrumentInfo, ThreadState, ToolInfo, ToolState, needle_point_in_tool_mm};
+use sinew_protocol::{
+    InstrumentInfo, NeedleState, ThreadState, ToolInfo, ToolState, needle_point_in_tool_mm,
+};
 use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, serial, start_server, start_sim_device,
     start_viewer, wait_until,
 };
 use sinew_viewer::ViewerHandle;
 
-/// The needle's tail in the world for a needle driver at `state`, mm.
-fn tail_mm(info: &ToolInfo, state: &ToolState) -> [f32; 3] {
+/// The needle's tail in the world for a needle that lies at `state` (its driver's jaws' pose as loaded), mm.
+fn tail_mm(info: &ToolInfo, state: &NeedleState) -> [f32; 3] {
     let InstrumentInfo::NeedleDriver {
         needle_radius_mm,
         grasp_at_rad,
@@ -40,21 +43,44 @@ fn tail_mm(info: &ToolInfo, state: &ToolState) -> [f32; 3] {
     std::array::from_fn(|i| state.position_mm[i] + v[i] + 2.0 * w * t[i] + 2.0 * u[i])
 }
 
-/// The viewer's thread and what it says of the needle's tail: (tool, nodes, tail), once it has one.
-fn thread_seen(viewer: &ViewerHandle) -> Option<(u16, Vec<[f32; 3]>, [f32; 3])> {
+/// What a viewer's thread and needle say.
+#[derive(Debug)]
+struct Seen {
+    tool: u16,
+    nodes: Vec<[f32; 3]>,
+    /// The needle's tail, world, mm.
+    tail: [f32; 3],
+    /// How far the needle lies from its driver's pose, mm (a quaternion dot product off 1 counts 1000 mm per
+    /// unit).
+    needle_off: f32,
+}
+
+/// What the viewer's thread and needle say, once it has a thread.
+fn thread_seen(viewer: &ViewerHandle) -> Option<Seen> {
     viewer.with_replica(|r| {
         let thread: &ThreadState = r.tool_states().threads.first()?;
         let info = r.tools().iter().find(|t| t.tool == thread.tool)?;
-        let state = r
+        let state: &ToolState = r
             .tool_states()
             .tools
             .iter()
             .find(|t| t.tool == thread.tool)?;
-        Some((
-            thread.tool,
-            thread.nodes_mm().collect(),
-            tail_mm(info, state),
-        ))
+        let needle = r
+            .tool_states()
+            .needles
+            .iter()
+            .find(|n| n.tool == thread.tool)?;
+        let turned: f32 = (0..4)
+            .map(|i| needle.orientation_xyzw[i] * state.orientation_xyzw[i])
+            .sum::<f32>()
+            .abs();
+        Some(Seen {
+            tool: thread.tool,
+            nodes: thread.nodes_mm().collect(),
+            tail: tail_mm(info, needle),
+            needle_off: distance_mm(needle.position_mm, state.position_mm)
+                + (1.0 - turned).abs() * 1000.0,
+        })
     })
 }
 
@@ -87,8 +113,9 @@ fn a_needle_drivers_thread_reaches_every_viewer_and_a_late_joiner() {
     .unwrap();
     // Laid out from the tail, then it falls: wait until its free end hangs 10 mm below the tail.
     let hanging = |viewer: &ViewerHandle| {
-        thread_seen(viewer)
-            .is_some_and(|(_, nodes, tail)| nodes.last().is_some_and(|end| end[2] < tail[2] - 10.0))
+        thread_seen(viewer).is_some_and(|Seen { nodes, tail, .. }| {
+            nodes.last().is_some_and(|end| end[2] < tail[2] - 10.0)
+        })
     };
     assert!(
         wait_until(Duration::from_secs(15), || hanging(&viewer)),
@@ -102,10 +129,20 @@ fn a_needle_drivers_thread_reaches_every_viewer_and_a_late_joiner() {
             "{:?}",
             thread_seen(&watcher)
         );
-        let (tool, nodes, tail) = thread_seen(&watcher).unwrap();
+        let Seen {
+            tool,
+            nodes,
+            tail,
+            needle_off,
+        } = thread_seen(&watcher).unwrap();
         assert_eq!(tool, 0, "the needle driver is tool 0");
+        // In its driver's jaws as loaded, the needle lies at the driver's own pose.
+        assert!(
+            needle_off < 0.01,
+            "the needle lies {needle_off} off its driver"
+        );
         assert_eq!(nodes.len(), 65, "64 segments");
-        // The tail moves with the tool state of the same frame: the first node sits on it.
+        // The needle moves with the thread of the same frame: the first node sits on its tail.
         let off = distance_mm(nodes[0], tail);
         assert!(
             off < 0.5,

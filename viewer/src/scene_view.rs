@@ -284,7 +284,7 @@ impl Jaws {
                 Self::RADIUS_MM,
                 None,
             ),
-            // Closed on the needle at the tool origin.
+            // Meeting at the tool origin, where they hold the needle (they open as its ratchet is let go).
             sinew_protocol::InstrumentInfo::NeedleDriver { jaw_length_mm, .. } => (
                 Vec3::new(0.0, 0.0, jaw_length_mm),
                 jaw_length_mm,
@@ -508,6 +508,7 @@ impl SceneView {
             self.threads.sync(group, &replica.tool_states().threads);
         }
         let states = &replica.tool_states().tools;
+        let needles = &replica.tool_states().needles;
         for tool in &mut self.tools {
             match states.iter().find(|s| s.tool == tool.tool) {
                 Some(state) => {
@@ -521,8 +522,17 @@ impl SceneView {
                     if let Some(shaft) = &mut tool.shaft {
                         shaft.place(state);
                     }
+                    // Where the needle lies, whoever holds it (its driver's pose until a server says: protocol 15).
+                    let needle = needles
+                        .iter()
+                        .find(|n| n.tool == tool.tool)
+                        .map_or(*state, |n| ToolState {
+                            position_mm: n.position_mm,
+                            orientation_xyzw: n.orientation_xyzw,
+                            ..*state
+                        });
                     for piece in &mut tool.needle {
-                        piece.place(state);
+                        piece.place(&needle);
                     }
                 }
                 None => {

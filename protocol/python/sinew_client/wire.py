@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 14
+PROTOCOL_VERSION = 15
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -332,6 +332,15 @@ class ThreadState:
 
 
 @dataclass
+class NeedleState:
+    """Where a needle driver's needle lies, whoever holds it: the pose its driver's jaws would hold it at (protocol 15)."""
+
+    tool: int = wire_field("u16", default=0)
+    position_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    orientation_xyzw: List[float] = wire_field(Q4, default_factory=lambda: [0.0, 0.0, 0.0, 1.0])
+
+
+@dataclass
 class ToolStates:
     """Server -> viewers on sinew/<scene>/tools, every publish frame."""
 
@@ -340,6 +349,7 @@ class ToolStates:
     sim_time_s: float = wire_field("f64", default=0.0)
     tools: List[ToolState] = wire_field(("vec", ToolState), default_factory=list)
     threads: List[ThreadState] = wire_field(("vec", ThreadState), default_factory=list)
+    needles: List[NeedleState] = wire_field(("vec", NeedleState), default_factory=list)
 
 
 @dataclass

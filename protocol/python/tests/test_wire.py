@@ -55,6 +55,8 @@ def main():
     nodes = snapshot.tool_states.threads[0].nodes_mm()
     expected = [[-18.0, 0.0, -2.0], [-16.0, 0.0, -2.5]]
     assert all(abs(a - b) < 1e-3 for n, e in zip(nodes, expected) for a, b in zip(n, e)), nodes
+    assert snapshot.tool_states.needles[0].tool == 0
+    assert snapshot.tool_states.needles[0].position_mm == [-18.0, 0.0, 3.0]
     assert snapshot.objects[0].bounds.dequantize([65535, 0, 32768])[0] == 40.0
     _, delta = wire.decode(vectors["MeshDelta"], wire.MeshDelta)
     assert delta.topology is not None and delta.topology.parents == [5] and delta.topology.added == [[301, 6, 7]]

@@ -115,6 +115,20 @@ impl Clone for ThreadState {
     }
 }
 
+/// Where a needle driver's needle lies, whoever holds it: the pose at which its driver's jaws would hold it as
+/// loaded (so a viewer draws it with [`crate::needle_point_in_tool_mm`] in this frame, as it draws a needle in
+/// its driver's jaws). In its driver's jaws as loaded this is the driver's own pose; let go in the tissue, or
+/// taken by a grasper, it is where the needle is. Protocol 15.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct NeedleState {
+    /// The needle driver whose needle it is (matches [`crate::ToolInfo::tool`]).
+    pub tool: u16,
+    /// The frame's origin in the world, mm.
+    pub position_mm: [f32; 3],
+    /// The frame's orientation in the world, unit quaternion (x, y, z, w).
+    pub orientation_xyzw: [f32; 4],
+}
+
 /// The state of every tool at one publish frame.
 ///
 /// Direction: server -> viewers, on `sinew/<scene>/tools`. Rate: every publish frame (~60 Hz); doubles as the
@@ -130,10 +144,12 @@ pub struct ToolStates {
     /// Every suture thread in the scene, in the order of the tools that carry them (empty for none).
     /// Protocol 14.
     pub threads: Vec<ThreadState>,
+    /// Every needle driver's needle, in tool order. Protocol 15.
+    pub needles: Vec<NeedleState>,
 }
 
 impl ToolStates {
-    /// Most threads one message may carry.
+    /// Most threads (and needles) one message may carry.
     pub const MAX_THREADS: usize = 64;
 }
 
@@ -163,6 +179,13 @@ impl Message for ToolStates {
             if thread.nodes_q.len() > ThreadState::MAX_NODES {
                 return Err(("threads.nodes_q", "more than 1024 nodes"));
             }
+        }
+        if self.needles.len() > Self::MAX_THREADS {
+            return Err(("needles", "more than 64 needles"));
+        }
+        for needle in &self.needles {
+            check::finite("needles.position_mm", &needle.position_mm)?;
+            check::unit_quaternion("needles.orientation_xyzw", &needle.orientation_xyzw)?;
         }
         Ok(())
     }

@@ -39,6 +39,16 @@ impl Jaws {
         }
     }
 
+    /// Jaws closed on something they were loaded with (a needle driver's on its needle).
+    pub fn new_closed(activation: JawActivation, open_angle_rad: f32) -> Self {
+        Self {
+            activation,
+            open_angle_rad,
+            closed: true,
+            angle_rad: 0.0,
+        }
+    }
+
     /// Closed (the activation says so, with hysteresis).
     pub fn closed(&self) -> bool {
         self.closed

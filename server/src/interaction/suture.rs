@@ -4,6 +4,8 @@
 //! - the needle's rigid geometry ([`NeedleArc`]: the arc in the needle's own frame, its tip and tangent, how
 //!   far a point lies off the arc's path);
 //! - the needle driver and where the needle sits in its jaws ([`NeedleDriverSpec`]);
+//! - who holds the needle ([`NeedleHold`]: its driver's jaws, a grasper's after a hand-off, or nothing, the
+//!   needle then held in the tissue by its holes);
 //! - a sharp tip pressing a surface ([`TipContact`], on a [`SurfacePoint`]: the surface tents under it);
 //! - the needle against the tissue ([`NeedleTissue`]: tenting, puncture on force and angle, the holes it
 //!   passes through; a material's [`PunctureSpec`]);
@@ -22,6 +24,7 @@ mod hole;
 mod hole_point;
 mod needle;
 mod needle_arc;
+mod needle_hold;
 mod puncture;
 mod thread;
 mod thread_chain;
@@ -37,6 +40,7 @@ pub use crate::tissue::PunctureSpec;
 pub use hole::Hole;
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
+pub use needle_hold::{NeedleHold, NeedleHolder};
 pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
 pub use thread::{
     STANDARD_GRAVITY_MM_PER_S2, SutureThread, THREAD_DIAMETER_MM, ThreadObject, ThreadSpec,

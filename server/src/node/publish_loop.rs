@@ -190,6 +190,7 @@ fn run(
                 tool_states.tools.clear();
                 tool_states.tools.extend_from_slice(&frame.tools);
                 tool_states.threads.clone_from(&frame.threads);
+                tool_states.needles.clone_from(&frame.needles);
             });
             if copied.is_some() {
                 publish_frame(

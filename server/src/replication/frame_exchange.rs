@@ -3,7 +3,7 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use sinew_protocol::{ThreadState, ToolState};
+use sinew_protocol::{NeedleState, ThreadState, ToolState};
 
 use crate::sim::{Sim, ToolOutput};
 
@@ -24,6 +24,8 @@ pub struct FrameData {
     pub topology: Vec<crate::replication::ObjectTopology>,
     /// The suture threads laid out, in the order of the tools that carry them.
     pub threads: Vec<ThreadState>,
+    /// Where each needle driver's needle lies, in tool order.
+    pub needles: Vec<NeedleState>,
 }
 
 /// A single-slot exchange: the sim thread `try_offer`s (never blocks), the publisher `take`s.
@@ -62,6 +64,7 @@ impl FrameExchange {
                     .collect(),
                 // Filled once a thread is laid out (its tool driven): none is at the first offer.
                 threads: Vec::new(),
+                needles: Vec::with_capacity(sim.tools.len()),
             }),
             offered: AtomicU64::new(0),
         }
@@ -115,6 +118,7 @@ impl FrameExchange {
             };
         }
         copy_threads(sim, &mut frame.threads);
+        copy_needles(sim, &mut frame.needles);
         drop(frame);
         self.offered.fetch_add(1, Ordering::Release);
         true
@@ -139,6 +143,26 @@ impl FrameExchange {
                 .map(|ps| ps.iter().map(|p| [p.x, p.y, p.z]).collect())
         })
         .flatten()
+    }
+}
+
+/// Where each needle driver's needle lies: the pose its driver's jaws would hold it at as loaded (the
+/// protocol's [`NeedleState`]). No allocation (room for every tool was made).
+fn copy_needles(sim: &Sim, needles: &mut Vec<NeedleState>) {
+    needles.clear();
+    for (t, tool) in sim.tools.iter().enumerate() {
+        let (crate::interaction::InstrumentSpec::NeedleDriver(spec), Some(hold)) =
+            (&tool.instrument, tool.needle_hold())
+        else {
+            continue;
+        };
+        let pose = hold.world_from_needle() * spec.tool_from_needle().inverse();
+        let (p, q) = (pose.translation.vector, pose.rotation.quaternion());
+        needles.push(NeedleState {
+            tool: t as u16,
+            position_mm: [p.x, p.y, p.z],
+            orientation_xyzw: [q.i, q.j, q.k, q.w],
+        });
     }
 }
 

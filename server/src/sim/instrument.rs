@@ -16,9 +16,9 @@
 
 use std::fmt::Debug;
 
-use nalgebra::UnitQuaternion;
+use nalgebra::{Isometry3, UnitQuaternion};
 
-use crate::interaction::suture::{NeedleTissue, SutureThread};
+use crate::interaction::suture::{NeedleHold, NeedleTissue, SutureThread};
 use crate::interaction::{Grasp, InstrumentSpec, Jaws};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -108,6 +108,36 @@ pub(crate) trait Instrument: Debug + Send + Sync {
 
     /// The needle against the tissue, for a needle driver.
     fn needle(&self) -> Option<&NeedleTissue> {
+        None
+    }
+
+    /// Who holds the needle, for a needle driver.
+    fn needle_hold(&self) -> Option<&NeedleHold> {
+        None
+    }
+
+    /// Tool `taker`'s closing jaws, at `world_from_taker`, take this instrument's needle if it is loose and a
+    /// point of it lies within `reach_mm` of their body (`distance_mm`: a world point's distance to it).
+    /// Returns whether they took it.
+    fn take_needle(
+        &mut self,
+        _taker: u16,
+        _world_from_taker: &Isometry3<f32>,
+        _distance_mm: &dyn Fn(&Vec3) -> f32,
+        _reach_mm: f32,
+    ) -> bool {
+        false
+    }
+
+    /// Tool `taker`'s jaws opened (or it left): they let go of this instrument's needle if they hold it.
+    /// Returns whether they held it.
+    fn let_go_of_needle(&mut self, _taker: u16) -> bool {
+        false
+    }
+
+    /// The needle's pull on tool `holder`'s jaws, world, N, while they hold this instrument's needle (None:
+    /// they do not).
+    fn needle_pull_on_n(&self, _holder: u16) -> Option<Vec3> {
         None
     }
 

@@ -2,10 +2,12 @@
 //! ([`SutureActivity`] in each [`ToolOutput`]).
 //!
 //! Owns: [`SutureActivity`] and [`Sim::suture_activity`]. Read from the needle drivers' needles and threads
-//! after the tick's instruments have acted: a needle driver's own needle and thread, and a grasper's grip on
-//! any tool's thread. Must not: change anything (it reads the tick's result).
+//! after the tick's instruments have acted: the needle a tool's jaws hold (its own, in a needle driver's jaws,
+//! or another tool's, taken after its driver let it go) with the thread on it, a needle its driver let go in
+//! the tissue, and a grasper's grip on any tool's thread. Must not: change anything (it reads the tick's
+//! result).
 
-use crate::interaction::suture::TipPhase;
+use crate::interaction::suture::{NeedleHolder, TipPhase};
 
 use super::*;
 
@@ -14,6 +16,11 @@ use super::*;
 pub struct SutureActivity {
     /// The tool's jaws hold a needle.
     pub needle_held: bool,
+    /// The jaws took the needle they hold while it ran through tissue (a regrasp, on the far side of a bite),
+    /// and it still does.
+    pub needle_regrasped: bool,
+    /// The tool is a needle driver that let its needle go in the tissue, and no jaws hold it since.
+    pub needle_released: bool,
     /// The needle's tip presses a surface (tenting it, from outside or from inside toward its exit).
     pub needle_pressing: bool,
     /// The needle runs through tissue (holes it made hold it on its path).
@@ -33,23 +40,39 @@ impl Sim {
     /// Tool `t`'s suturing now.
     pub(super) fn suture_activity(&self, t: usize) -> SutureActivity {
         let mut activity = SutureActivity::default();
-        let Some(tool) = self.tools.get(t).filter(|tool| tool.active) else {
+        if !self.tools.get(t).is_some_and(|tool| tool.active) {
             return activity;
-        };
-        let instrument = tool.instrument_state.as_ref();
-        if let Some(needle) = instrument.and_then(|i| i.needle()) {
-            activity.needle_held = true;
-            activity.needle_pressing = matches!(needle.phase(), TipPhase::Pressing { .. });
-            activity.needle_in_tissue = !needle.holes().is_empty();
-            activity.punctures = needle.punctures();
-        }
-        if let Some(thread) = tool.thread() {
-            activity.thread_holes = thread.holes().len().min(usize::from(u16::MAX)) as u16;
-            activity.thread_pull_n = finite_or_zero(thread.pull_on_tail_n().norm());
         }
         let Ok(me) = u16::try_from(t) else {
             return activity;
         };
+        for (k, other) in self.tools.iter().enumerate() {
+            let Some(instrument) = other.instrument_state.as_ref() else {
+                continue;
+            };
+            let (Some(needle), Some(hold)) = (instrument.needle(), instrument.needle_hold()) else {
+                continue;
+            };
+            let in_tissue = !needle.holes().is_empty();
+            let held = if k == t {
+                activity.needle_released = in_tissue && *hold.holder() == NeedleHolder::Loose;
+                hold.in_drivers_jaws()
+            } else {
+                hold.held_by(me)
+            };
+            if !held {
+                continue;
+            }
+            activity.needle_held = true;
+            activity.needle_regrasped = in_tissue && hold.taken_in_tissue();
+            activity.needle_pressing = matches!(needle.phase(), TipPhase::Pressing { .. });
+            activity.needle_in_tissue = in_tissue;
+            activity.punctures = needle.punctures();
+            if let Some(thread) = instrument.thread() {
+                activity.thread_holes = thread.holes().len().min(usize::from(u16::MAX)) as u16;
+                activity.thread_pull_n = finite_or_zero(thread.pull_on_tail_n().norm());
+            }
+        }
         for thread in self.tools.iter().filter_map(|other| other.thread()) {
             if let Some(grip) = thread.grip_of(me) {
                 activity.thread_held = true;

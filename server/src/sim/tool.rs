@@ -172,6 +172,11 @@ impl SimTool {
         }
     }
 
+    /// Who holds a needle driver's needle, and where it is (None for another instrument).
+    pub fn needle_hold(&self) -> Option<&crate::interaction::suture::NeedleHold> {
+        self.instrument_state.as_ref().and_then(|i| i.needle_hold())
+    }
+
     /// A needle driver's thread (None for another instrument, or a needle without one).
     pub fn thread(&self) -> Option<&crate::interaction::suture::SutureThread> {
         self.instrument_state.as_ref().and_then(|i| i.thread())

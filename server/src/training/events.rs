@@ -44,6 +44,10 @@ pub struct ToolActivity {
     pub tool_world_mm: [f32; 3],
     /// The tool's jaws hold a suture needle.
     pub needle_held: bool,
+    /// The jaws took the needle they hold while it ran through tissue (a regrasp), and it still does.
+    pub needle_regrasped: bool,
+    /// The tool let its needle go in the tissue, and no jaws hold it since.
+    pub needle_released: bool,
     /// The needle's tip presses a surface (before it punctures).
     pub needle_pressing: bool,
     /// The needle runs through tissue.
@@ -69,13 +73,19 @@ impl ToolActivity {
             near: active && (out.in_contact || out.plane_count > 0),
             in_contact: active && out.in_contact,
             // A needle driver's attachments are its needle's tip and holes, not tissue in its jaws.
-            grasping: active && out.attachments > 0 && !out.suture.needle_held,
+            // (A driver that let its needle go still counts the tip's pressed point while the needle lies.)
+            grasping: active
+                && out.attachments > 0
+                && !out.suture.needle_held
+                && !out.suture.needle_released,
             cutting: active && out.cutting,
             burning: active && out.burning,
             force_n: if force_n.is_finite() { force_n } else { 0.0 },
             tip_world_mm: out.device_world_mm.into(),
             tool_world_mm: out.position_world_mm.into(),
             needle_held: active && out.suture.needle_held,
+            needle_regrasped: active && out.suture.needle_regrasped,
+            needle_released: active && out.suture.needle_released,
             needle_pressing: active && out.suture.needle_pressing,
             needle_in_tissue: active && out.suture.needle_in_tissue,
             punctures: out.suture.punctures,
@@ -121,6 +131,14 @@ pub enum EventKind {
     NeedleGraspBegin,
     /// They no longer hold it.
     NeedleGraspEnd,
+    /// The tool let its needle go with the needle in tissue (the hand-off begins).
+    NeedleReleaseBegin,
+    /// Jaws hold that needle again (or it left the tissue, or the tool left).
+    NeedleReleaseEnd,
+    /// The tool's jaws took a needle running through tissue (on the far side of a bite).
+    NeedleRegraspBegin,
+    /// It no longer runs through tissue, or they let it go.
+    NeedleRegraspEnd,
     /// The needle's tip began pressing a surface.
     NeedlePressBegin,
     /// It no longer presses one (it punctured, slid off or lifted).
@@ -149,7 +167,7 @@ pub enum EventKind {
 
 impl EventKind {
     /// Every kind, in declaration order (reports list counts in this order).
-    pub const ALL: [EventKind; 26] = [
+    pub const ALL: [EventKind; 30] = [
         EventKind::Joined,
         EventKind::Left,
         EventKind::ApproachBegin,
@@ -164,6 +182,10 @@ impl EventKind {
         EventKind::BurnEnd,
         EventKind::NeedleGraspBegin,
         EventKind::NeedleGraspEnd,
+        EventKind::NeedleReleaseBegin,
+        EventKind::NeedleReleaseEnd,
+        EventKind::NeedleRegraspBegin,
+        EventKind::NeedleRegraspEnd,
         EventKind::NeedlePressBegin,
         EventKind::NeedlePressEnd,
         EventKind::Puncture,
@@ -200,6 +222,10 @@ impl EventKind {
             EventKind::BurnEnd => "burn_end",
             EventKind::NeedleGraspBegin => "needle_grasp_begin",
             EventKind::NeedleGraspEnd => "needle_grasp_end",
+            EventKind::NeedleReleaseBegin => "needle_release_begin",
+            EventKind::NeedleReleaseEnd => "needle_release_end",
+            EventKind::NeedleRegraspBegin => "needle_regrasp_begin",
+            EventKind::NeedleRegraspEnd => "needle_regrasp_end",
             EventKind::NeedlePressBegin => "needle_press_begin",
             EventKind::NeedlePressEnd => "needle_press_end",
             EventKind::Puncture => "puncture",
@@ -337,6 +363,18 @@ impl EventDetector {
                 EventKind::NeedleGraspEnd,
             ),
             (
+                last.needle_released,
+                now.needle_released,
+                EventKind::NeedleReleaseBegin,
+                EventKind::NeedleReleaseEnd,
+            ),
+            (
+                last.needle_regrasped,
+                now.needle_regrasped,
+                EventKind::NeedleRegraspBegin,
+                EventKind::NeedleRegraspEnd,
+            ),
+            (
                 last.needle_pressing,
                 now.needle_pressing,
                 EventKind::NeedlePressBegin,
@@ -375,8 +413,9 @@ impl EventDetector {
             }
         }
         // Each puncture since the last tick (a needle punctures at most a few surfaces a tick); a count that
-        // went down (a new needle, a reset) punctured nothing.
-        if now.active && last.active {
+        // went down (a new needle, a reset) punctured nothing, nor one the jaws took with the needle (a regrasp
+        // takes its punctures so far).
+        if now.active && last.active && now.needle_held && last.needle_held {
             for _ in 0..now.punctures.saturating_sub(last.punctures).min(8) {
                 send(EventKind::Puncture);
             }

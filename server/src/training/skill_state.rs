@@ -15,7 +15,10 @@
 //! tightening while the thread pulls it harder than the tighten threshold, else pulling through; a needle
 //! running through tissue is pushing through; a needle's tip pressing a surface is the puncture; a thread
 //! held with no holes is grasping; a needle held, touching nothing, is needle grasped (in place of approach
-//! and idle). Release, regrasp and the knot wait for the needle's hand-off (`docs/suturing.md`).
+//! and idle). The hand-off: jaws holding a needle they took while it ran through tissue are regrasping (above
+//! pushing through: they draw it out on the far side), and a tool that let its needle go in the tissue is
+//! releasing it until jaws take it (below everything it does with its jaws meanwhile). The knot waits for the
+//! knot (`docs/suturing.md`).
 //!
 //! Must not: allocate (it can run on the sim thread; transitions go to a caller's sink) or read a clock.
 
@@ -51,6 +54,10 @@ pub enum SkillState {
     Puncture,
     /// The needle runs through tissue.
     PushThrough,
+    /// The tool let its needle go in the tissue; no jaws hold it yet.
+    Release,
+    /// Jaws took the needle while it ran through tissue, and draw it on (through its exit).
+    Regrasp,
     /// The thread the tool draws runs through the tissue, pulling it less than the tighten threshold.
     PullThrough,
     /// The thread pulls the tool harder than the tighten threshold: the stitch is drawn tight.
@@ -59,7 +66,7 @@ pub enum SkillState {
 
 impl SkillState {
     /// Every state, in declaration order.
-    pub const ALL: [SkillState; 13] = [
+    pub const ALL: [SkillState; 15] = [
         SkillState::Idle,
         SkillState::Approach,
         SkillState::Contact,
@@ -71,6 +78,8 @@ impl SkillState {
         SkillState::NeedleGrasped,
         SkillState::Puncture,
         SkillState::PushThrough,
+        SkillState::Release,
+        SkillState::Regrasp,
         SkillState::PullThrough,
         SkillState::Tighten,
     ];
@@ -94,6 +103,8 @@ impl SkillState {
             SkillState::NeedleGrasped => "needle_grasped",
             SkillState::Puncture => "puncture",
             SkillState::PushThrough => "push_through",
+            SkillState::Release => "release",
+            SkillState::Regrasp => "regrasp",
             SkillState::PullThrough => "pull_through",
             SkillState::Tighten => "tighten",
         }
@@ -125,6 +136,8 @@ pub struct SkillMachine {
     needle_held: bool,
     needle_pressing: bool,
     needle_in_tissue: bool,
+    needle_released: bool,
+    needle_regrasped: bool,
     thread_held: bool,
     thread_through: bool,
     tightening: bool,
@@ -165,6 +178,8 @@ impl SkillMachine {
             needle_held: false,
             needle_pressing: false,
             needle_in_tissue: false,
+            needle_released: false,
+            needle_regrasped: false,
             thread_held: false,
             thread_through: false,
             tightening: false,
@@ -207,6 +222,8 @@ impl SkillMachine {
                 self.needle_held = false;
                 self.needle_pressing = false;
                 self.needle_in_tissue = false;
+                self.needle_released = false;
+                self.needle_regrasped = false;
                 self.thread_held = false;
                 self.thread_through = false;
                 self.tightening = false;
@@ -234,6 +251,10 @@ impl SkillMachine {
             EventKind::BurnEnd => self.burning = false,
             EventKind::NeedleGraspBegin => self.needle_held = true,
             EventKind::NeedleGraspEnd => self.needle_held = false,
+            EventKind::NeedleReleaseBegin => self.needle_released = true,
+            EventKind::NeedleReleaseEnd => self.needle_released = false,
+            EventKind::NeedleRegraspBegin => self.needle_regrasped = true,
+            EventKind::NeedleRegraspEnd => self.needle_regrasped = false,
             EventKind::NeedlePressBegin => self.needle_pressing = true,
             EventKind::NeedlePressEnd => self.needle_pressing = false,
             EventKind::PushThroughBegin => self.needle_in_tissue = true,
@@ -317,12 +338,16 @@ impl SkillMachine {
             } else {
                 SkillState::PullThrough
             })
+        } else if self.needle_held && self.needle_in_tissue && self.needle_regrasped {
+            Some(SkillState::Regrasp)
         } else if self.needle_held && self.needle_in_tissue {
             Some(SkillState::PushThrough)
         } else if self.needle_held && self.needle_pressing {
             Some(SkillState::Puncture)
         } else if self.thread_held {
             Some(SkillState::Grasping)
+        } else if self.needle_released {
+            Some(SkillState::Release)
         } else {
             None
         }
@@ -408,6 +433,67 @@ mod tests {
             ]
         );
         assert_eq!(m.transitions(), 4);
+    }
+
+    #[test]
+    fn a_hand_off_is_release_on_the_driver_and_regrasp_then_pull_through_on_the_grasper() {
+        use EventKind as E;
+        // The driver: pushing through, it opens its jaws and leaves the needle; the grasper takes it.
+        let mut driver = SkillMachine::new();
+        let out = run(
+            &mut driver,
+            &[
+                (0, &[E::Joined, E::NeedleGraspBegin], 0.0),
+                (10, &[E::ContactBegin, E::PushThroughBegin], 0.0),
+                (
+                    20,
+                    &[E::NeedleReleaseBegin, E::PushThroughEnd, E::NeedleGraspEnd],
+                    0.0,
+                ),
+                (30, &[E::ContactEnd], 0.0),
+                (40, &[E::NeedleReleaseEnd], 0.0),
+            ],
+        );
+        assert_eq!(
+            out,
+            [
+                (0, Idle, NeedleGrasped),
+                (10, NeedleGrasped, Contact),
+                (10, Contact, PushThrough),
+                (20, PushThrough, Release),
+                (40, Release, Idle)
+            ]
+        );
+        // The grasper: takes the needle in the tissue, draws it out until its tail leaves, then the thread.
+        let mut grasper = SkillMachine::new();
+        let out = run_pulled(
+            &mut grasper,
+            &[
+                (0, &[E::Joined], 0.0),
+                (
+                    40,
+                    &[
+                        E::NeedleGraspBegin,
+                        E::NeedleRegraspBegin,
+                        E::PushThroughBegin,
+                    ],
+                    0.0,
+                ),
+                (50, &[E::ThreadThroughBegin], 0.2),
+                // (Ends come innermost first, as the detector sends them.)
+                (60, &[E::PushThroughEnd, E::NeedleRegraspEnd], 0.3),
+                (70, &[], 1.5),
+            ],
+        );
+        assert_eq!(
+            out,
+            [
+                (40, Idle, NeedleGrasped),
+                (40, NeedleGrasped, Regrasp),
+                (60, Regrasp, PullThrough),
+                (70, PullThrough, Tighten)
+            ]
+        );
     }
 
     #[test]

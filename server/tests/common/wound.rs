@@ -43,6 +43,8 @@ pub struct Wound {
     pub centre: Vector3<f32>,
     /// The grasper's command.
     pub grasper: ToolCommand,
+    /// The driver's buttons (its first, held, opens its ratchet and lets the needle go).
+    pub driver_buttons: u32,
     /// The training layer watching every tick (None: unwatched, as a bench times it).
     pub observer: Option<SessionObserver>,
     /// What it saw: each tool's state changes, and every event.
@@ -69,6 +71,7 @@ impl Wound {
             base: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f32::consts::FRAC_PI_2),
             centre: Vector3::new(0.0, 0.0, CENTRE_HEIGHT_MM),
             grasper: ToolCommand::default(),
+            driver_buttons: 0,
             observer: Some(SessionObserver::new(2, MetricsConfig::new(f64::from(DT_S)))),
             // Room for a whole stitch's: recording them allocates nothing in a tick.
             transitions: Vec::with_capacity(1 << 12),
@@ -146,10 +149,9 @@ impl Wound {
         rotation: &UnitQuaternion<f32>,
         origin_mm: &Vector3<f32>,
     ) -> ([ToolOutput; 2], StepReport) {
-        let command = [
-            pose_command(origin_mm, &self.origins_mm[0], rotation),
-            self.grasper,
-        ];
+        let mut driver = pose_command(origin_mm, &self.origins_mm[0], rotation);
+        driver.jaws.buttons = self.driver_buttons;
+        let command = [driver, self.grasper];
         let mut out = [ToolOutput::default(); 2];
         let report = self.sim.step(DT_S, &command, &mut out);
         assert_eq!(report.faults, 0, "the guard reset the tissue");
@@ -183,9 +185,19 @@ impl Wound {
 
     /// The grasper at `origin_mm`, its capsule along the world's y, jaws closed or open.
     pub fn aim_grasper(&mut self, origin_mm: &Vector3<f32>, closed: bool) {
+        self.pose_grasper(origin_mm, &UnitQuaternion::identity(), closed);
+    }
+
+    /// The grasper at `origin_mm`, turned by `turn` from its capsule along the world's y, jaws closed or open.
+    pub fn pose_grasper(
+        &mut self,
+        origin_mm: &Vector3<f32>,
+        turn: &UnitQuaternion<f32>,
+        closed: bool,
+    ) {
         let along_y =
             UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f32::consts::FRAC_PI_2);
-        self.grasper = pose_command(origin_mm, &self.origins_mm[1], &along_y);
+        self.grasper = pose_command(origin_mm, &self.origins_mm[1], &(turn * along_y));
         self.grasper.jaws = JawInput {
             buttons: u32::from(closed),
             jaw_angle_rad: 0.0,

@@ -112,6 +112,7 @@ pub fn sheet_snapshot(
                 ..ToolState::default()
             }],
             threads: Vec::new(),
+            needles: Vec::new(),
         },
     }
 }

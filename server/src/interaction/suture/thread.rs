@@ -286,7 +286,21 @@ impl SutureThread {
         self.holes.retain_mut(placed);
         self.tracks.retain_mut(placed);
         drop_rings_beside_holes(&self.holes, &mut self.tracks);
-        lay_tracks(&self.holes, &mut self.tracks, &from_tail, objects, &object);
+        // (On the node behind the tail, where it is: thread_track.rs.)
+        if let (Some(node_mm), Some(&node_u_mm)) = (
+            self.chain.positions_mm.get(1),
+            self.chain.node_u_mm().get(1),
+        ) {
+            let node_mm = *node_mm;
+            lay_tracks(
+                &self.holes,
+                &mut self.tracks,
+                &node_mm,
+                node_u_mm,
+                objects,
+                &object,
+            );
+        }
         // Each hole and ring holds a node of its own: the holes first.
         take_nodes(
             &mut self.holes,

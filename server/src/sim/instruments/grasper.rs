@@ -1,6 +1,9 @@
 //! A grasper: jaws that close on tissue take hold of it as attachments, hold it each substep, and let it go
 //! when they open or it slips. Jaws that close on a suture thread (a node of another tool's thread within their
-//! bite) take that instead (`interaction/suture/thread_grip.rs`: the thread holds the grip and steps it).
+//! bite) take that instead (`interaction/suture/thread_grip.rs`: the thread holds the grip and steps it), and
+//! jaws that close on a loose suture needle (let go by its driver, held in the tissue by its holes) take the
+//! needle before either: they hold it where it lies and draw it through, and feel its pull
+//! (`interaction/suture/needle_hold.rs`).
 //!
 //! Owns: [`Grasper`] (its jaws, its grasp, the thread it holds, the pulls it felt). Must not: integrate (the tick's substeps call
 //! [`Instrument::hold`]).
@@ -30,6 +33,10 @@ pub(in crate::sim) struct Grasper {
     thread_of: Option<usize>,
     /// The thread's pull on the jaws, N.
     thread_pull_n: Vec3,
+    /// The tool whose needle the jaws hold, if any.
+    needle_of: Option<usize>,
+    /// The needle's pull on the jaws, N.
+    needle_pull_n: Vec3,
 }
 
 impl Grasper {
@@ -43,6 +50,8 @@ impl Grasper {
             handed_over_n: Vec3::zeros(),
             thread_of: None,
             thread_pull_n: Vec3::zeros(),
+            needle_of: None,
+            needle_pull_n: Vec3::zeros(),
         }
     }
 }
@@ -54,6 +63,7 @@ impl Instrument for Grasper {
     fn after_substeps(&mut self, sim: &mut Sim, t: usize, dt_s: f32, report: &mut StepReport) {
         self.pull_n = Vec3::zeros();
         self.thread_pull_n = Vec3::zeros();
+        self.needle_pull_n = Vec3::zeros();
         if !sim.tools[t].active {
             self.jaws.open();
             self.grasp.closing_edge(false);
@@ -61,23 +71,30 @@ impl Instrument for Grasper {
                 report.attachments_released += released(self.grasp.release());
             }
             report.attachments_released += u32::from(self.let_go_of_thread(sim, t));
+            report.attachments_released += u32::from(self.let_go_of_needle(sim, t));
             return;
         }
         let closed = self.jaws.update(&sim.tools[t].drive.jaw_input, dt_s);
         let closing = self.grasp.closing_edge(closed);
         // Jaws that close again while they still hold (opening, not yet open) keep their hold.
-        let free = self.grasp.attachments().is_empty() && self.thread_of.is_none();
+        let free = self.grasp.attachments().is_empty()
+            && self.thread_of.is_none()
+            && self.needle_of.is_none();
         if closing && free {
-            self.thread_of = take_thread(sim, t, self.grasp.spec().bite_mm);
-            if self.thread_of.is_some() {
+            self.needle_of = take_needle(sim, t, self.grasp.spec().bite_mm);
+            if self.needle_of.is_none() {
+                self.thread_of = take_thread(sim, t, self.grasp.spec().bite_mm);
+            }
+            if self.needle_of.is_some() || self.thread_of.is_some() {
                 report.grasps_taken += 1;
             }
         }
         self.hold_thread(sim, t, closed, report);
+        self.hold_needle(sim, t, closed, report);
         let tool = &sim.tools[t];
         let (jaws, grasp) = (&mut self.jaws, &mut self.grasp);
         let mut took = false;
-        if closing && free && self.thread_of.is_none() {
+        if closing && free && self.thread_of.is_none() && self.needle_of.is_none() {
             grasp.start_take();
             let bite_mm = grasp.spec().bite_mm;
             // A multi-rate object is not grasped (its nodes move on its own thread).
@@ -179,7 +196,7 @@ impl Instrument for Grasper {
     }
 
     fn force_on_tool_n(&self) -> Vec3 {
-        self.pull_n + self.thread_pull_n
+        self.pull_n + self.thread_pull_n + self.needle_pull_n
     }
 
     fn held_points(&self) -> u16 {
@@ -227,6 +244,40 @@ impl Grasper {
         }
     }
 
+    /// While the jaws hold a needle: read its pull, notice it left them (its driver took it back, or left),
+    /// let go of it once the jaws are open.
+    fn hold_needle(&mut self, sim: &mut Sim, t: usize, closed: bool, report: &mut StepReport) {
+        let Some(k) = self.needle_of else {
+            return;
+        };
+        if !closed && self.jaws.grip() <= 0.0 {
+            report.attachments_released += u32::from(self.let_go_of_needle(sim, t));
+            return;
+        }
+        let pull = sim
+            .tools
+            .get(k)
+            .and_then(|tool| tool.instrument_state.as_ref())
+            .and_then(|instrument| instrument.needle_pull_on_n(t as u16));
+        match pull {
+            Some(pull) if pull.iter().all(|c| c.is_finite()) => self.needle_pull_n = pull,
+            Some(_) => {}
+            None => self.needle_of = None,
+        }
+    }
+
+    /// Let go of the needle the jaws hold. Returns whether they held one.
+    fn let_go_of_needle(&mut self, sim: &mut Sim, t: usize) -> bool {
+        let Some(k) = self.needle_of.take() else {
+            return false;
+        };
+        self.needle_pull_n = Vec3::zeros();
+        sim.tools
+            .get_mut(k)
+            .and_then(|tool| tool.instrument_state.as_mut())
+            .is_some_and(|instrument| instrument.let_go_of_needle(t as u16))
+    }
+
     /// Let go of the thread the jaws hold. Returns whether they held one.
     fn let_go_of_thread(&mut self, sim: &mut Sim, t: usize) -> bool {
         let Some(k) = self.thread_of.take() else {
@@ -247,13 +298,7 @@ fn take_thread(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
     let reach_mm =
         bite_mm + 0.5 * crate::interaction::suture::THREAD_DIAMETER_MM + BITE_TOLERANCE_MM;
     for k in (0..sim.tools.len()).filter(|&k| k != t) {
-        let (jaws, other) = if t < k {
-            let (left, right) = sim.tools.split_at_mut(k);
-            (&left[t], &mut right[0])
-        } else {
-            let (left, right) = sim.tools.split_at_mut(t);
-            (&right[0], &mut left[k])
-        };
+        let (jaws, other) = jaws_and_other(&mut sim.tools, t, k);
         let Some(thread) = other
             .instrument_state
             .as_mut()
@@ -271,6 +316,39 @@ fn take_thread(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
         }
     }
     None
+}
+
+/// Tool `t`'s closing jaws take the first loose suture needle (in tool order) with a point within `bite_mm` of
+/// their body. Returns the tool whose needle they took. No allocation.
+fn take_needle(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
+    let reach_mm = bite_mm + BITE_TOLERANCE_MM;
+    let world_from_jaws = nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::from(sim.tools[t].position_mm),
+        sim.tools[t].rotation,
+    );
+    for k in (0..sim.tools.len()).filter(|&k| k != t) {
+        let (jaws, other) = jaws_and_other(&mut sim.tools, t, k);
+        let Some(instrument) = other.instrument_state.as_mut() else {
+            continue;
+        };
+        let (position_mm, rotation) = (jaws.position_mm, jaws.rotation);
+        let distance_mm = |p: &Vec3| jaws.body.collider.distance_mm(&position_mm, &rotation, p);
+        if instrument.take_needle(t as u16, &world_from_jaws, &distance_mm, reach_mm) {
+            return Some(k);
+        }
+    }
+    None
+}
+
+/// Tool `t` to read and tool `k` (another) to change, borrowed together. No allocation.
+fn jaws_and_other(tools: &mut [SimTool], t: usize, k: usize) -> (&SimTool, &mut SimTool) {
+    if t < k {
+        let (left, right) = tools.split_at_mut(k);
+        (&left[t], &mut right[0])
+    } else {
+        let (left, right) = tools.split_at_mut(t);
+        (&right[0], &mut left[k])
+    }
 }
 
 /// How many points a release let go.

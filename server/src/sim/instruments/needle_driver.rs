@@ -5,7 +5,15 @@
 //! a point that presses a surface point, and the needle's own body does not push tissue: the holes it passes
 //! through hold it on its path (`interaction/suture/hole.rs`).
 //!
-//! Stages: before the contacts, the tip's path since the last tick is tested against the surfaces (a free tip
+//! The jaws are a ratchet: locked on the needle unless the device's first button is held (a surgeon squeezes
+//! the handle past its ratchet to open it). Opening them with the needle in tissue leaves it there, held by its
+//! holes; a grasper's jaws closing on it then take it (at the tip, on the far side of a bite) and draw it
+//! through, and the needle's forces go to whichever jaws hold it ([`NeedleHold`]). The driver's jaws closing
+//! again on a loose needle take it back, where they meet it. A driver whose device leaves takes its needle
+//! back into its jaws, and everything it held is let go.
+//!
+//! Stages: before the contacts, the jaws open or close and the needle is placed where its holder holds it;
+//! the tip's path since the last tick is tested against the surfaces (a free tip
 //! meets one, a tip inside an object reaches its far wall) and the holes the needle left close; each substep
 //! the pressed point is held at the tip and the holes hold the needle on its path; after the substeps the
 //! holes' forces are read (they stick or slide) and the tip punctures, skates or lifts off.
@@ -13,8 +21,9 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 
 use crate::interaction::suture::{
-    NeedleDriverSpec, NeedleTissue, SutureThread, THREAD_DIAMETER_MM, TipPhase,
+    NeedleDriverSpec, NeedleHold, NeedleTissue, SutureThread, THREAD_DIAMETER_MM, TipPhase,
 };
+use crate::interaction::{JawActivation, JawInput, Jaws};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 use super::super::instrument::Instrument;
@@ -23,7 +32,12 @@ use super::super::*;
 /// A needle driver's state between ticks.
 #[derive(Debug)]
 pub(in crate::sim) struct NeedleDriver {
+    /// Where the needle sits in the jaws as loaded.
     tool_from_needle: Isometry3<f32>,
+    /// The jaws (a ratchet, module doc).
+    jaws: Jaws,
+    /// Who holds the needle, and where it is this tick.
+    hold: NeedleHold,
     needle: NeedleTissue,
     /// The needle's wire diameter, mm.
     diameter_mm: f32,
@@ -39,8 +53,11 @@ impl NeedleDriver {
         objects: usize,
         gravity_mm_per_s2: Vec3,
     ) -> Self {
+        let tool_from_needle = spec.tool_from_needle();
         Self {
-            tool_from_needle: spec.tool_from_needle(),
+            tool_from_needle,
+            jaws: Jaws::new_closed(RATCHET, JAW_OPEN_RAD),
+            hold: NeedleHold::in_driver(tool_from_needle, &Isometry3::identity()),
             needle: NeedleTissue::new(spec.arc, spec.diameter_mm, objects),
             diameter_mm: spec.diameter_mm,
             thread: SutureThread::new(spec.thread, gravity_mm_per_s2),
@@ -56,13 +73,69 @@ impl NeedleDriver {
         )
     }
 
-    fn world_from_needle(
-        &self,
-        position_mm: &Vec3,
-        rotation: &UnitQuaternion<f32>,
-    ) -> Isometry3<f32> {
-        Isometry3::from_parts(Translation3::from(*position_mm), *rotation) * self.tool_from_needle
+    /// The jaws take this tick's input: opening, they let go of the needle where it is; closing on a loose
+    /// needle within reach of the body, they take it there. Then the needle is placed where its holder holds
+    /// it. Returns the points let go (1 for a needle let go, 0 else).
+    fn follow_jaws(&mut self, sim: &Sim, t: usize, dt_s: f32) -> u32 {
+        let tool = &sim.tools[t];
+        let was_closed = self.jaws.closed();
+        let input = tool.drive.jaw_input;
+        let closed = self.jaws.update(
+            &JawInput {
+                buttons: u32::from(input.buttons & RELEASE_BUTTON == 0),
+                ..input
+            },
+            dt_s,
+        );
+        let world_from_tool = pose_of(tool);
+        let mut let_go = 0;
+        if was_closed && !closed {
+            let_go += u32::from(self.hold.let_go(None));
+        } else if closed && !was_closed {
+            let body = &tool.body.collider;
+            let reach_mm = 0.5 * self.diameter_mm + JAW_REACH_MM;
+            let in_tissue = !self.needle.holes().is_empty();
+            self.hold.take(
+                None,
+                &world_from_tool,
+                self.needle.arc(),
+                |p| body.distance_mm(&tool.position_mm, &tool.rotation, p),
+                reach_mm,
+                in_tissue,
+            );
+        }
+        let gone = self.hold.place(&world_from_tool, |k| {
+            sim.tools
+                .get(usize::from(k))
+                .filter(|tool| tool.active)
+                .map(pose_of)
+        });
+        let_go + u32::from(gone)
     }
+
+    /// The needle's pull on whoever holds it, world, N: its tip's and holes' forces and the thread's pull on
+    /// its tail.
+    fn pull_on_holder_n(&self) -> Vec3 {
+        let thread = self
+            .thread
+            .as_ref()
+            .map_or(Vec3::zeros(), SutureThread::pull_on_tail_n);
+        self.needle.force_on_needle_n() + thread
+    }
+}
+
+/// The button that opens the driver's ratchet while held.
+const RELEASE_BUTTON: u32 = 1;
+/// The ratchet's jaws as [`Jaws`] see them: "button held" means locked (the input is turned over).
+const RATCHET: JawActivation = JawActivation::Button { mask: 1 };
+/// How far the driver's jaws open, rad.
+const JAW_OPEN_RAD: f32 = 30.0 * std::f32::consts::PI / 180.0;
+/// Closing jaws take a loose needle lying this far outside their body, mm (past the wire's radius).
+const JAW_REACH_MM: f32 = 1.0;
+
+/// A tool's pose, world.
+fn pose_of(tool: &SimTool) -> Isometry3<f32> {
+    Isometry3::from_parts(Translation3::from(tool.position_mm), tool.rotation)
 }
 
 /// The objects a needle meets, as [`NeedleTissue`] asks for them (multi-rate objects step on their own
@@ -99,7 +172,7 @@ fn tool_parts<'a>(
 }
 
 impl Instrument for NeedleDriver {
-    fn before_contacts(&mut self, sim: &mut Sim, t: usize, _dt_s: f32, report: &mut StepReport) {
+    fn before_contacts(&mut self, sim: &mut Sim, t: usize, dt_s: f32, report: &mut StepReport) {
         let tool = &sim.tools[t];
         if !tool.active {
             report.attachments_released += self.needle.release();
@@ -107,9 +180,12 @@ impl Instrument for NeedleDriver {
                 report.attachments_released += thread.release_holes(None);
                 thread.lift();
             }
+            self.jaws = Jaws::new_closed(RATCHET, JAW_OPEN_RAD);
+            self.hold = NeedleHold::in_driver(self.tool_from_needle, &pose_of(tool));
             return;
         }
-        let pose = self.world_from_needle(&tool.position_mm, &tool.rotation);
+        report.attachments_released += self.follow_jaws(sim, t, dt_s);
+        let pose = *self.hold.world_from_needle();
         let events = self
             .needle
             .before_substeps(&pose, sim.objects.len(), needle_objects(sim));
@@ -136,11 +212,10 @@ impl Instrument for NeedleDriver {
     }
 
     fn after_substeps(&mut self, sim: &mut Sim, t: usize, dt_s: f32, report: &mut StepReport) {
-        let tool = &sim.tools[t];
-        if !tool.active {
+        if !sim.tools[t].active {
             return;
         }
-        let pose = self.world_from_needle(&tool.position_mm, &tool.rotation);
+        let pose = *self.hold.world_from_needle();
         let events = self
             .needle
             .after_substeps(&pose, needle_objects(sim), |o| sim.objects[o].puncture);
@@ -166,16 +241,17 @@ impl Instrument for NeedleDriver {
         self.needle.held_nodes(object)
     }
 
+    /// The needle is held where its holder put it this tick (tools do not move within a tick).
     fn hold(
         &self,
         object: usize,
-        position_mm: &Vec3,
-        rotation: &UnitQuaternion<f32>,
+        _position_mm: &Vec3,
+        _rotation: &UnitQuaternion<f32>,
         model: &MassSpringModel,
         state: &mut TissueState,
     ) {
-        let pose = self.world_from_needle(position_mm, rotation);
-        self.needle.hold(object, &pose, model, state);
+        self.needle
+            .hold(object, self.hold.world_from_needle(), model, state);
     }
 
     fn object_reset(&mut self, object: usize) -> u32 {
@@ -213,12 +289,54 @@ impl Instrument for NeedleDriver {
         self.needle.topology_changed(object, model);
     }
 
+    /// The needle's pull, while the driver's own jaws hold it.
     fn force_on_tool_n(&self) -> Vec3 {
-        let thread = self
-            .thread
-            .as_ref()
-            .map_or(Vec3::zeros(), SutureThread::pull_on_tail_n);
-        self.needle.force_on_needle_n() + thread
+        if self.hold.in_drivers_jaws() {
+            self.pull_on_holder_n()
+        } else {
+            Vec3::zeros()
+        }
+    }
+
+    fn mark_output(&self, out: &mut ToolOutput) {
+        out.jaws_closed = self.jaws.closed();
+        out.jaw_angle_rad = self.jaws.angle_rad();
+    }
+
+    fn jaws(&self) -> Option<&Jaws> {
+        Some(&self.jaws)
+    }
+
+    fn needle_hold(&self) -> Option<&NeedleHold> {
+        Some(&self.hold)
+    }
+
+    fn take_needle(
+        &mut self,
+        taker: u16,
+        world_from_taker: &Isometry3<f32>,
+        distance_mm: &dyn Fn(&Vec3) -> f32,
+        reach_mm: f32,
+    ) -> bool {
+        let in_tissue = !self.needle.holes().is_empty();
+        self.hold
+            .take(
+                Some(taker),
+                world_from_taker,
+                self.needle.arc(),
+                distance_mm,
+                reach_mm + 0.5 * self.diameter_mm,
+                in_tissue,
+            )
+            .is_some()
+    }
+
+    fn let_go_of_needle(&mut self, taker: u16) -> bool {
+        self.hold.let_go(Some(taker))
+    }
+
+    fn needle_pull_on_n(&self, holder: u16) -> Option<Vec3> {
+        self.hold.held_by(holder).then(|| self.pull_on_holder_n())
     }
 
     fn held_points(&self) -> u16 {
