@@ -273,4 +273,88 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
     assert_eq!(count(1, EventKind::Puncture), 0);
     assert_eq!(count(0, EventKind::NeedleReleaseBegin), 1);
     assert_eq!(count(1, EventKind::NeedleRegraspBegin), 1);
+
+    // Then the driver takes the thread's free end, as a surgeon does to draw the stitch: its jaws open, come
+    // down beside the thread 15 mm past the hole nearest that end, and close on it. It then draws 10 mm up
+    // and out, the grasper holding the needle, and feels the thread's pull.
+    let (free_u, free_hole) = {
+        let holes = wound.thread().holes();
+        let last = holes
+            .iter()
+            .map(|h| h.u_mm)
+            .fold(f32::NEG_INFINITY, f32::max);
+        (last + 15.0, last)
+    };
+    let node = wound
+        .thread()
+        .chain()
+        .node_u_mm()
+        .iter()
+        .position(|&u| u >= free_u)
+        .expect("the thread is shorter than that");
+    wound.driver_buttons = 1;
+    let beside = Vector3::new(0.0, 0.2 + 0.3, 0.0);
+    let mut driver_aim = wound.sim.tools[0].position_mm;
+    for lift in [20.0, 0.0] {
+        for _ in 0..20_000 {
+            let waypoint = wound.thread().nodes_mm()[node] + beside + Vector3::new(0.0, 0.0, lift);
+            let to = waypoint - driver_aim;
+            driver_aim += to * (0.02 / to.norm().max(0.02));
+            wound.step_at(&rotation, &driver_aim);
+            if (wound.sim.tools[0].position_mm - waypoint).norm() < 0.02 {
+                break;
+            }
+        }
+    }
+    wound.driver_buttons = 0;
+    for _ in 0..200 {
+        wound.step_at(&rotation, &driver_aim);
+    }
+    let grip = *wound
+        .thread()
+        .grip_of(0)
+        .expect("the driver's jaws did not take the thread");
+    assert!(grip.node as usize >= node.saturating_sub(2) && grip.node as usize <= node + 2);
+    assert!(wound.sim.tools[0].needle_hold().unwrap().held_by(1));
+    // (The hand draws on only while it feels under 1 N: a surgeon does not yank.)
+    let mut driver_pull_n = 0.0f32;
+    let mut held = false;
+    let mut drawn_mm = 0.0f32;
+    for _ in 0..2000 {
+        let (out, _) = wound.step_at(
+            &rotation,
+            &(driver_aim + Vector3::new(0.0, 1.0, 1.0) * drawn_mm),
+        );
+        driver_pull_n = out[0].force_world_n.norm();
+        held = out[0].suture.thread_held;
+        if driver_pull_n < 1.0 {
+            drawn_mm = (drawn_mm + 0.005).min(7.0);
+        }
+    }
+    println!(
+        "the driver took the thread (node {}, {:.1} mm past the hole at u {free_hole:.1}) and drew it {:.1} mm up and \
+         out: {driver_pull_n:.2} N",
+        grip.node,
+        free_u - free_hole,
+        drawn_mm * std::f32::consts::SQRT_2
+    );
+    assert!(held, "the driver's output does not say it holds the thread");
+    assert!(
+        driver_pull_n > 0.05,
+        "the driver felt {driver_pull_n} N drawing the thread"
+    );
+    let driver_after: Vec<SkillState> = wound
+        .transitions
+        .iter()
+        .filter(|(t, _)| *t == 0)
+        .map(|(_, t)| t.to)
+        .skip(driver.len())
+        .collect();
+    println!("driver, after: {driver_after:?}");
+    assert!(
+        driver_after
+            .iter()
+            .any(|s| matches!(s, SkillState::PullThrough | SkillState::Tighten)),
+        "{driver_after:?}"
+    );
 }

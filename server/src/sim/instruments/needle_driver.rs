@@ -9,7 +9,8 @@
 //! the handle past its ratchet to open it). Opening them with the needle in tissue leaves it there, held by its
 //! holes; a grasper's jaws closing on it then take it (at the tip, on the far side of a bite) and draw it
 //! through, and the needle's forces go to whichever jaws hold it ([`NeedleHold`]). The driver's jaws closing
-//! again on a loose needle take it back, where they meet it. A driver whose device leaves takes its needle
+//! again on a loose needle take it back, where they meet it; closing, without the needle, on its own thread
+//! they take the thread (as a surgeon takes the free end to draw a stitch tight), and feel its pull. A driver whose device leaves takes its needle
 //! back into its jaws, and everything it held is let go.
 //!
 //! Stages: before the contacts, the jaws open or close and the needle is placed where its holder holds it;
@@ -43,6 +44,8 @@ pub(in crate::sim) struct NeedleDriver {
     diameter_mm: f32,
     /// The thread on the needle's tail (None: a needle without one).
     thread: Option<SutureThread>,
+    /// The driver's own tool index (known from its first tick): its jaws' grip on the thread is under it.
+    own_tool: Option<u16>,
 }
 
 impl NeedleDriver {
@@ -61,6 +64,7 @@ impl NeedleDriver {
             needle: NeedleTissue::new(spec.arc, spec.diameter_mm, objects),
             diameter_mm: spec.diameter_mm,
             thread: SutureThread::new(spec.thread, gravity_mm_per_s2),
+            own_tool: None,
         }
     }
 
@@ -88,21 +92,37 @@ impl NeedleDriver {
             dt_s,
         );
         let world_from_tool = pose_of(tool);
+        let me = t as u16;
+        self.own_tool = Some(me);
         let mut let_go = 0;
         if was_closed && !closed {
             let_go += u32::from(self.hold.let_go(None));
+            if let Some(thread) = &mut self.thread {
+                let_go += u32::from(thread.release_grip(me));
+            }
         } else if closed && !was_closed {
             let body = &tool.body.collider;
+            let distance_mm = |p: &Vec3| body.distance_mm(&tool.position_mm, &tool.rotation, p);
             let reach_mm = 0.5 * self.diameter_mm + JAW_REACH_MM;
             let in_tissue = !self.needle.holes().is_empty();
-            self.hold.take(
-                None,
-                &world_from_tool,
-                self.needle.arc(),
-                |p| body.distance_mm(&tool.position_mm, &tool.rotation, p),
-                reach_mm,
-                in_tissue,
-            );
+            let took = self
+                .hold
+                .take(
+                    None,
+                    &world_from_tool,
+                    self.needle.arc(),
+                    distance_mm,
+                    reach_mm,
+                    in_tissue,
+                )
+                .is_some();
+            // Without the needle, its own thread (not the node on the needle's tail, nor one a hole holds).
+            if let (false, false, Some(thread)) =
+                (took, self.hold.in_drivers_jaws(), &mut self.thread)
+            {
+                let reach_mm = 0.5 * THREAD_DIAMETER_MM + JAW_REACH_MM;
+                thread.take_grip(me, &tool.position_mm, &tool.rotation, distance_mm, reach_mm);
+            }
         }
         let gone = self.hold.place(&world_from_tool, |k| {
             sim.tools
@@ -289,13 +309,20 @@ impl Instrument for NeedleDriver {
         self.needle.topology_changed(object, model);
     }
 
-    /// The needle's pull, while the driver's own jaws hold it.
+    /// The needle's pull while the driver's own jaws hold it, and the thread's while they hold the thread.
     fn force_on_tool_n(&self) -> Vec3 {
-        if self.hold.in_drivers_jaws() {
+        let needle = if self.hold.in_drivers_jaws() {
             self.pull_on_holder_n()
         } else {
             Vec3::zeros()
-        }
+        };
+        let grip = self
+            .thread
+            .as_ref()
+            .zip(self.own_tool)
+            .and_then(|(thread, me)| thread.grip_of(me))
+            .map_or(Vec3::zeros(), |grip| grip.pull_n());
+        needle + grip
     }
 
     fn mark_output(&self, out: &mut ToolOutput) {
