@@ -358,3 +358,55 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
         "{driver_after:?}"
     );
 }
+
+#[test]
+fn opening_the_ratchet_on_a_loaded_needle_fades_its_load_from_the_hand_over_the_jaws_opening() {
+    let mut wound = Wound::new();
+    wound.aim_grasper(&Vector3::new(30.0, 0.0, 30.0), false);
+    let (start, sign) = wound.start();
+    let (rotation, origin) = wound.pose_at(start);
+    for _ in 0..1500 {
+        wound.step_at(&rotation, &origin);
+    }
+    // Drive the needle through the near edge until its tip tents the far edge's face at over 1 N.
+    let (mut turn, mut punctures, mut load_n) = (0.0f32, 0, 0.0f32);
+    while punctures < 2 || load_n < 1.0 {
+        turn += DT_S * 40f32.to_radians();
+        let (rotation, origin) = wound.pose_at(start + sign * turn);
+        let (out, report) = wound.step_at(&rotation, &origin);
+        punctures += report.punctures;
+        load_n = out[0].force_world_n.norm();
+        assert!(
+            turn < 2.0 * std::f32::consts::PI && punctures < 3,
+            "{punctures} punctures"
+        );
+    }
+    // Still pushing on, the hand opens the ratchet and holds where it is (the tip, let go tenting the face, stays
+    // where it is: the needle does not move).
+    let (rotation, at) = wound.pose_at(start + sign * (turn + DT_S * 40f32.to_radians()));
+    let loaded_n = wound.step_at(&rotation, &at).0[0].force_world_n.norm();
+    wound.driver_buttons = 1;
+    let mut trace = Vec::new();
+    for _ in 0..150 {
+        trace.push(wound.step_at(&rotation, &at).0[0].force_world_n.norm());
+    }
+    let steepest = trace
+        .windows(2)
+        .map(|w| w[0] - w[1])
+        .chain(std::iter::once(loaded_n - trace[0]))
+        .fold(0.0f32, f32::max);
+    println!(
+        "loaded {loaded_n:.3} N; after opening: {:.3} N at 1 ms, {:.3} at 20, {:.3} at 50, {:.3} at 150; steepest fall {steepest:.3} N a tick",
+        trace[0], trace[19], trace[49], trace[149]
+    );
+    assert!(loaded_n > 0.9, "the needle was not loaded: {loaded_n} N");
+    assert!(
+        steepest <= 0.05 * loaded_n + 0.01,
+        "the load fell {steepest} N in one tick of {loaded_n} N"
+    );
+    assert!(trace[149] < 0.1 * loaded_n + 0.01, "{} N left", trace[149]);
+    assert_eq!(
+        *wound.sim.tools[0].needle_hold().unwrap().holder(),
+        NeedleHolder::Loose
+    );
+}

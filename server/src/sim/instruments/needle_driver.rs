@@ -46,6 +46,10 @@ pub(in crate::sim) struct NeedleDriver {
     thread: Option<SutureThread>,
     /// The driver's own tool index (known from its first tick): its jaws' grip on the thread is under it.
     own_tool: Option<u16>,
+    /// The needle's pull on the jaws when they let it go, N, and the share of it still felt (1 -> 0 as the
+    /// jaws open): the hand does not lose the needle's load in one tick.
+    let_go_pull_n: Vec3,
+    let_go_share: f32,
 }
 
 impl NeedleDriver {
@@ -65,6 +69,8 @@ impl NeedleDriver {
             diameter_mm: spec.diameter_mm,
             thread: SutureThread::new(spec.thread, gravity_mm_per_s2),
             own_tool: None,
+            let_go_pull_n: Vec3::zeros(),
+            let_go_share: 0.0,
         }
     }
 
@@ -95,8 +101,14 @@ impl NeedleDriver {
         let me = t as u16;
         self.own_tool = Some(me);
         let mut let_go = 0;
+        self.let_go_share = (self.let_go_share - self.jaws.grip_rate_per_s() * dt_s).max(0.0);
         if was_closed && !closed {
-            let_go += u32::from(self.hold.let_go(None));
+            let pull_n = self.pull_on_holder_n();
+            if self.hold.let_go(None) {
+                let_go += 1;
+                self.let_go_pull_n = pull_n;
+                self.let_go_share = 1.0;
+            }
             if let Some(thread) = &mut self.thread {
                 let_go += u32::from(thread.release_grip(me));
             }
@@ -202,6 +214,7 @@ impl Instrument for NeedleDriver {
             }
             self.jaws = Jaws::new_closed(RATCHET, JAW_OPEN_RAD);
             self.hold = NeedleHold::in_driver(self.tool_from_needle, &pose_of(tool));
+            self.let_go_share = 0.0;
             return;
         }
         report.attachments_released += self.follow_jaws(sim, t, dt_s);
@@ -309,12 +322,13 @@ impl Instrument for NeedleDriver {
         self.needle.topology_changed(object, model);
     }
 
-    /// The needle's pull while the driver's own jaws hold it, and the thread's while they hold the thread.
+    /// The needle's pull while the driver's own jaws hold it (fading as they open once they let it go), and
+    /// the thread's while they hold the thread.
     fn force_on_tool_n(&self) -> Vec3 {
         let needle = if self.hold.in_drivers_jaws() {
             self.pull_on_holder_n()
         } else {
-            Vec3::zeros()
+            self.let_go_pull_n * self.let_go_share
         };
         let grip = self
             .thread
