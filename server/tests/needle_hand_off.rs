@@ -36,9 +36,9 @@ fn hole_places(wound: &Wound) -> Vec<Vector3<f32>> {
         .collect()
 }
 
-#[test]
-fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_tip_and_draws_it_through()
- {
+/// The wound with the grasper parked aside and the driver held 1.5 s 8 degrees before the skin: the wound, the
+/// driver's turn there and the way to turn on.
+fn ready() -> (Wound, f32, f32) {
     let mut wound = Wound::new();
     wound.aim_grasper(&Vector3::new(30.0, 0.0, 30.0), false);
     let (start, sign) = wound.start();
@@ -46,6 +46,13 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
     for _ in 0..1500 {
         wound.step_at(&rotation, &origin);
     }
+    (wound, start, sign)
+}
+
+#[test]
+fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_tip_and_draws_it_through()
+ {
+    let (mut wound, start, sign) = ready();
 
     // Drive the needle through both edges: four punctures, then 20 degrees more (the tip ~3.7 mm out).
     let mut turn = 0.0f32;
@@ -361,13 +368,7 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
 
 #[test]
 fn opening_the_ratchet_on_a_loaded_needle_fades_its_load_from_the_hand_over_the_jaws_opening() {
-    let mut wound = Wound::new();
-    wound.aim_grasper(&Vector3::new(30.0, 0.0, 30.0), false);
-    let (start, sign) = wound.start();
-    let (rotation, origin) = wound.pose_at(start);
-    for _ in 0..1500 {
-        wound.step_at(&rotation, &origin);
-    }
+    let (mut wound, start, sign) = ready();
     // Drive the needle through the near edge until its tip tents the far edge's face at over 1 N.
     let (mut turn, mut punctures, mut load_n) = (0.0f32, 0, 0.0f32);
     while punctures < 2 || load_n < 1.0 {
