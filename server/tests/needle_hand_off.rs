@@ -9,6 +9,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+#[path = "common/counting_allocator.rs"]
+mod counting_allocator;
 #[path = "common/tool_pose.rs"]
 mod tool_pose;
 #[path = "common/wound.rs"]
@@ -22,6 +24,11 @@ use sinew_server::sim::ToolOutput;
 use sinew_server::training::{EventKind, SkillState};
 use sinew_server::world::InstrumentSpec;
 use wound::{DT_S, Wound};
+
+use counting_allocator::{Counting, assert_counting_works, count_this_thread};
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
 
 /// Where each of the needle's holes lies now, world, mm.
 fn hole_places(wound: &Wound) -> Vec<Vector3<f32>> {
@@ -190,12 +197,17 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
     let mut after = None;
     let (mut grasper_felt_n, mut driver_felt_n) = (0.0f32, 0.0f32);
     let mut extra_punctures = 0;
+    let mut allocations = 0;
+    assert_counting_works();
     while after.is_none_or(|ticks| ticks < 500) {
         drawn += DT_S * 40f32.to_radians();
         // The needle's tip goes on along +tangent: the needle frame's z is the turn's axis.
         let turn = UnitQuaternion::from_axis_angle(&axis, drawn);
         wound.pose_grasper(&(centre + turn * (aim - centre)), &turn, true);
-        let (out, report) = wound.step_at(&rotation, &up);
+        // (Counted: drawing the needle through, its holes and the thread's, allocates nothing.)
+        let mut stepped = None;
+        allocations += count_this_thread(|| stepped = Some(wound.step_at(&rotation, &up)));
+        let (out, report) = stepped.unwrap();
         extra_punctures += report.punctures;
         grasper_felt_n = grasper_felt_n.max(out[1].force_world_n.norm());
         driver_felt_n = driver_felt_n.max(out[0].force_world_n.norm());
@@ -216,6 +228,7 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
         wound.inverted()
     );
     assert_eq!(extra_punctures, 0, "drawing the needle out punctured again");
+    assert_eq!(allocations, 0, "a tick of the draw allocated");
     assert!(wound.sim.tools[0].needle().unwrap().holes().is_empty());
     assert!(wound.sim.tools[0].needle_hold().unwrap().held_by(1));
     assert!(

@@ -81,7 +81,7 @@ fn the_sim_threads_whole_tick_allocates_nothing_once_warm() {
 /// The frame hand-off copies a suture thread's polyline too (wire v14) without allocating once warm:
 /// `worlds/suture.toml`'s needle driver held above the skin, its thread laid out and hanging.
 #[test]
-fn handing_off_a_frame_with_a_thread_allocates_nothing_once_warm() {
+fn handing_off_a_frame_with_a_thread_and_its_needle_allocates_nothing_once_warm() {
     assert_counting_works();
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
     let world = load_world(&path).unwrap();
@@ -109,11 +109,17 @@ fn handing_off_a_frame_with_a_thread_allocates_nothing_once_warm() {
             .map(|t| t.nodes_q.len())
             .collect::<Vec<_>>()
     });
+    let needles = frames.with_frame(|f| f.needles.len());
     println!(
         "{allocations} allocations in 1000 warm ticks ({} frames offered), threads' nodes {nodes:?}",
         frames_offered - warm
     );
     assert_eq!(nodes, Some(vec![65]), "the frame does not hold the thread");
+    assert_eq!(
+        needles,
+        Some(1),
+        "the frame does not say where the needle lies"
+    );
     assert!(
         frames_offered - warm > 50,
         "{} frames offered",

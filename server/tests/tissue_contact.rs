@@ -1,16 +1,24 @@
 //! One tissue kept out of another (interaction/tissue_pair.rs), on virtual time: a free block of the wound's
 //! skin dropped under gravity onto another fixed at its floor rests on it, and pressed down onto it by a probe
 //! at 3 N the two stay apart to 0.2 mm; the contact's forces are equal and opposite, and at rest carry the
-//! top block's weight; worlds with objects that never meet watch no contact.
+//! top block's weight, and watching them allocates nothing once warm; worlds with objects that never meet watch
+//! no contact.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
+#[path = "common/counting_allocator.rs"]
+mod counting_allocator;
 #[path = "common/tool_pose.rs"]
 mod tool_pose;
+
+use counting_allocator::{Counting, assert_counting_works, count_this_thread};
 
 use nalgebra::{UnitQuaternion, Vector3};
 use sinew_server::sim::{Sim, SimObject, StepReport, ToolCommand, ToolOutput};
 use sinew_server::world::{load_world, parse_world};
 use tool_pose::pose_command;
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
 
 const DT_S: f32 = 0.001;
 /// The gap the top block is dropped across, mm.
@@ -224,7 +232,22 @@ fn a_block_dropped_on_another_rests_on_it_and_pressed_at_3_n_stays_out_of_it_to_
             deepest = deepest.max(deepest_overlap_mm(&sim));
         }
     }
-    println!("pressed at {force_n:.2} N: deepest overlap {deepest:.3} mm");
+    // Held pressed, the contact watched every tick: no allocation.
+    assert_counting_works();
+    let mut watched = usize::MAX;
+    let command = pose_command(&at, &origin, &level);
+    let allocations = count_this_thread(|| {
+        for _ in 0..500 {
+            let (report, _) = step(&mut sim, &command);
+            watched = watched.min(report.tissue_contacts as usize);
+        }
+    });
+    println!(
+        "pressed at {force_n:.2} N: deepest overlap {deepest:.3} mm; 500 more ticks with at least {watched} \
+         contacts watched: {allocations} allocations"
+    );
+    assert!(watched > 0);
+    assert_eq!(allocations, 0, "a tick watching tissue contacts allocated");
     assert!(force_n >= 2.9, "the probe presses at 3 N: {force_n:.2} N");
     assert!(
         deepest <= MOST_OVERLAP_MM,
