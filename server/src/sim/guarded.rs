@@ -104,13 +104,9 @@ impl Sim {
                     object.state.external_forces_n.fill(Vec3::zeros());
                 }
                 for tie in &self.ties {
-                    let (a, b) = (tie.object_a, tie.object_b);
-                    let (first, second) = self.objects.split_at_mut(a.max(b));
-                    let (low, high) = (&mut first[a.min(b)], &mut second[0]);
-                    if a < b {
-                        tie.accumulate(&mut low.state, &mut high.state);
-                    } else {
-                        tie.accumulate(&mut high.state, &mut low.state);
+                    if let Ok([a, b]) = self.objects.get_disjoint_mut([tie.object_a, tie.object_b])
+                    {
+                        tie.accumulate(&mut a.state, &mut b.state);
                     }
                 }
                 super::tissue_contact::accumulate_tissue_contacts(

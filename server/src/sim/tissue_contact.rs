@@ -41,11 +41,9 @@ impl Sim {
         let mut watched = 0;
         for pair in &mut self.pairs {
             let (a, b) = (pair.object_a, pair.object_b);
-            if a >= b || b >= self.objects.len() {
+            let Ok([oa, ob]) = self.objects.get_disjoint_mut([a, b]) else {
                 continue;
-            }
-            let (low, high) = self.objects.split_at_mut(b);
-            let (oa, ob) = (&mut low[a], &mut high[0]);
+            };
             pair.find(side(oa), side(ob));
             watched += pair.contact_count() as u32;
         }
@@ -89,11 +87,9 @@ pub(super) fn accumulate_tissue_contacts(
 ) {
     for pair in pairs.iter_mut().filter(|p| p.contact_count() > 0) {
         let (a, b) = (pair.object_a, pair.object_b);
-        if a >= b || b >= objects.len() {
+        let Ok([oa, ob]) = objects.get_disjoint_mut([a, b]) else {
             continue;
-        }
-        let (low, high) = objects.split_at_mut(b);
-        let (oa, ob) = (&mut low[a], &mut high[0]);
+        };
         pair.accumulate(h_s, (&oa.model, &mut oa.state), (&ob.model, &mut ob.state));
     }
 }

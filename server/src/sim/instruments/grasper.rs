@@ -298,7 +298,9 @@ fn take_thread(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
     let reach_mm =
         bite_mm + 0.5 * crate::interaction::suture::THREAD_DIAMETER_MM + BITE_TOLERANCE_MM;
     for k in (0..sim.tools.len()).filter(|&k| k != t) {
-        let (jaws, other) = jaws_and_other(&mut sim.tools, t, k);
+        let Ok([jaws, other]) = sim.tools.get_disjoint_mut([t, k]) else {
+            continue;
+        };
         let Some(thread) = other
             .instrument_state
             .as_mut()
@@ -327,7 +329,9 @@ fn take_needle(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
         sim.tools[t].rotation,
     );
     for k in (0..sim.tools.len()).filter(|&k| k != t) {
-        let (jaws, other) = jaws_and_other(&mut sim.tools, t, k);
+        let Ok([jaws, other]) = sim.tools.get_disjoint_mut([t, k]) else {
+            continue;
+        };
         let Some(instrument) = other.instrument_state.as_mut() else {
             continue;
         };
@@ -338,17 +342,6 @@ fn take_needle(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
         }
     }
     None
-}
-
-/// Tool `t` to read and tool `k` (another) to change, borrowed together. No allocation.
-fn jaws_and_other(tools: &mut [SimTool], t: usize, k: usize) -> (&SimTool, &mut SimTool) {
-    if t < k {
-        let (left, right) = tools.split_at_mut(k);
-        (&left[t], &mut right[0])
-    } else {
-        let (left, right) = tools.split_at_mut(t);
-        (&right[0], &mut left[k])
-    }
 }
 
 /// How many points a release let go.
