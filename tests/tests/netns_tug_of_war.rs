@@ -156,8 +156,21 @@ fn a_tug_of_war_across_a_lossy_100_ms_path_is_felt_as_at_zero_delay_with_the_mod
     let reference = run_lab_tug(LabConfig::symmetric(0.0, 0.0, 0.0, 11), "0ms");
     let distant = run_lab_tug(LabConfig::symmetric(100.0, 0.0, 0.02, 11), "100ms");
     let max_force_n = hapticserver::sim_device::sim_device_model().max_force_n;
+    // A device auto keeps direct has a round trip under the policy's switch to the local model (it would have
+    // switched): the bound is the policy's, not this machine's speed (p50 2.03-2.95 ms measured here at zero
+    // delay, with the two 1 kHz loops' phase).
+    let hapticserver::ModePolicy::Auto {
+        moderate_above_ms, ..
+    } = hapticserver::ModePolicy::default()
+    else {
+        panic!("the default policy is not auto");
+    };
     for (run, mode, rtt_us) in [
-        (&reference, "direct", 0.0..2_500.0),
+        (
+            &reference,
+            "direct",
+            0.0..f64::from(moderate_above_ms) * 1000.0,
+        ),
         (&distant, "moderated", 200_000.0..260_000.0),
     ] {
         for line in &run.finals {
