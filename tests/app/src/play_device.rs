@@ -29,8 +29,8 @@ pub fn read_with_world(file: &Path) -> anyhow::Result<(Recording, World)> {
     Ok((recording, world?))
 }
 
-/// The poses device `device_id` sent in `recording`, each once (by sequence number), timed by the device's
-/// clock (s), in the device frame.
+/// The poses device `device_id` drove its tool with in `recording` (the ticks it was usable on), each once
+/// (by sequence number), timed by the device's clock (s), in the device frame.
 pub fn recorded_hand(
     recording: &Recording,
     world: &World,
@@ -47,7 +47,15 @@ pub fn recorded_hand(
     let mut samples = Vec::new();
     let mut last_seq = None;
     for tick in &recording.ticks {
-        let Some(pose) = tick.devices.get(tool).and_then(|d| d.pose) else {
+        // Only poses that drove the tool: a pose the server did not act on (a device refused, or leaving:
+        // a hapticserver shutting down lets its hand sink as it stops rendering) would leave the played hand
+        // somewhere the recorded one never pressed.
+        let Some(pose) = tick
+            .devices
+            .get(tool)
+            .filter(|d| d.usable)
+            .and_then(|d| d.pose)
+        else {
             continue;
         };
         if last_seq.is_some_and(|seq| pose.seq <= seq) {
@@ -67,7 +75,7 @@ pub fn recorded_hand(
     }
     anyhow::ensure!(
         !samples.is_empty(),
-        "{}: device `{device_id}` sent no pose in this recording",
+        "{}: device `{device_id}` drove its tool with no pose in this recording",
         recording.path.display()
     );
     Ok(samples)
