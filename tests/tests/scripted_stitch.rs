@@ -2,8 +2,10 @@
 //! to 1 mm or less with no inverted element; the state machine records the expected sequence"), on virtual
 //! time: the server's tick and two simulated hands (compliant, as a surgeon's firm grip is) joined by a LAN-like
 //! link, running the scripts `sinew demo` runs on the wound of `worlds/suture_wound.toml`
-//! (`sinew::stitch_script`: the planned paths of `sinew::stitch_plan`, after a rehearsal of the pass has found
-//! where the thread lies for the grasper, as a surgeon looks before reaching).
+//! (`sinew::stitch_script`: the driver drives the needle through both edges and lets it go; the grasper takes
+//! its tip on the far side and draws it out along its curve; the driver takes the thread's free end; both
+//! draw the stitch crossed. Each stage is planned after a rehearsal of the ones before it has shown where
+//! things lie, as a surgeon looks before reaching).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use sinew::stitch_script::{stitch_devices, stitch_scripts};
@@ -45,14 +47,14 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
     // The plan, its pass rehearsed to find the thread, as `sinew demo` makes it.
     let scripts = stitch_scripts(&world).unwrap();
     println!(
-        "rehearsal: the grasper takes the thread at {:.2?} mm",
-        scripts.grasp_mm
+        "rehearsals: the grasper takes the needle's tip at {:.2?} mm, the driver the thread's free end at {:.2?} mm",
+        scripts.tip_mm, scripts.free_end_mm
     );
     let end_s = scripts.end_s;
     let mut observer = SessionObserver::new(2, MetricsConfig::new(0.001));
     let mut transitions: Vec<(u8, SkillState)> = Vec::new();
     let mut punctures = 0;
-    let (mut taken, mut gap_before) = (false, None);
+    let (mut needle_taken, mut thread_taken, mut gap_before) = (false, false, None);
     let mut last = (0.0f32, 0usize, [0.0f32; 2]);
     let report = StepReport::default();
     let result = run_drill_observed(
@@ -63,7 +65,8 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
             let sim = server.sim();
             gap_before.get_or_insert_with(|| gap_mm(sim));
             let thread = sim.tools[0].thread().unwrap();
-            taken |= thread.grip_of(1).is_some();
+            needle_taken |= sim.tools[0].needle_hold().unwrap().held_by(1);
+            thread_taken |= thread.grip_of(0).is_some();
             let view = TickView {
                 tick: sim.steps() - 1,
                 active: server.tools_active(),
@@ -81,7 +84,7 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
                     inverted(sim),
                     [
                         thread.pull_on_tail_n().norm(),
-                        thread.grip_of(1).map_or(0.0, |g| g.pull_n().norm()),
+                        thread.grip_of(0).map_or(0.0, |g| g.pull_n().norm()),
                     ],
                 );
             }
@@ -99,7 +102,8 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
     let (driver_states, grasper_states) = (states(0), states(1));
     println!(
         "scripted stitch ({end_s:.1} s): the gap {:.2} -> {gap:.2} mm, {inverted_at_end} inverted tetrahedra; the \
-         grasper took the thread: {taken}; the thread pulls the driver {:.2} N and the jaws {:.2} N; devices' \
+         grasper took the needle: {needle_taken}, the driver the thread: {thread_taken}; the thread pulls the \
+         needle's tail {:.2} N and the driver's jaws {:.2} N; devices' \
          largest force {:.2?} N; {punctures} puncture events; states: driver {driver_states:?}, grasper \
          {grasper_states:?}",
         gap_before.unwrap_or(f32::NAN),
@@ -107,7 +111,8 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
         pulls[1],
         result.max_force_n,
     );
-    assert!(taken, "the grasper never took the thread");
+    assert!(needle_taken, "the grasper never took the needle");
+    assert!(thread_taken, "the driver never took the thread's free end");
     assert_eq!(punctures, 4);
     assert!(
         gap <= 1.0,
@@ -123,12 +128,12 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
     assert!(
         in_order(
             &driver_states,
-            &[NeedleGrasped, Puncture, PushThrough, PullThrough, Tighten]
+            &[NeedleGrasped, Puncture, PushThrough, Release, Tighten]
         ),
         "{driver_states:?}"
     );
     assert!(
-        in_order(&grasper_states, &[PullThrough, Tighten]),
+        in_order(&grasper_states, &[Regrasp, PullThrough, Tighten]),
         "{grasper_states:?}"
     );
     // Every force the hands felt stayed within the devices' limit (the safety layer's clamp).

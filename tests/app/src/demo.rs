@@ -97,10 +97,12 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
         match stitch_scripts(&world) {
             Ok(stitch) => {
                 println!(
-                    "scripted stitch: the pass rehearsed on virtual time in {:.1} s; the grasper takes the thread \
-                     at {:.1?} mm; drawn tight and held by {:.1} s (hands: {})",
+                    "scripted stitch: rehearsed stage by stage on virtual time in {:.1} s; the grasper takes the \
+                     needle's tip at {:.1?} mm, the driver the thread's free end at {:.1?} mm; drawn tight and held \
+                     by {:.1} s (hands: {})",
                     started.elapsed().as_secs_f64(),
-                    stitch.grasp_mm,
+                    stitch.tip_mm,
+                    stitch.free_end_mm,
                     stitch.end_s,
                     STITCH_HAND.name()
                 );

@@ -8,8 +8,9 @@
 //! scene), [`debrief`] (`sinew replay --publish` and `--png-every`: the instructor's debrief of a recording),
 //! [`certs`] (`sinew certs`: a lab's CA and role certificates), [`drill`] (the roles' loops joined on virtual
 //! time through emulated links: the latency drills' engine, and the demo's rehearsal of a stitch),
-//! [`stitch_plan`] (the simulated surgeons' pose paths for one scripted stitch), [`stitch_script`] (those
-//! paths, rehearsed, as the surgeons' scripts) and [`figure_font`] (the font figures use).
+//! [`stitch_plan`], [`stitch_hand_off_plan`] and [`stitch_draw_plan`] (the simulated surgeons' pose paths
+//! for one scripted stitch: the pass, the hand-off, the draw), [`stitch_script`] (those paths, each stage
+//! rehearsed before the next is planned, as the surgeons' scripts) and [`figure_font`] (the font figures use).
 //! Must not: contain role logic (everything here calls the role crates' public APIs), or depend on the test
 //! kit (`sinew-testkit`, which depends on this crate; `.ci/check-dependency-direction` checks it).
 #![warn(missing_docs)]
@@ -22,5 +23,7 @@ pub mod figure_font;
 pub mod loopback;
 pub mod play_device;
 pub mod report;
+pub mod stitch_draw_plan;
+pub mod stitch_hand_off_plan;
 pub mod stitch_plan;
 pub mod stitch_script;

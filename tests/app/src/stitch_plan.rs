@@ -1,16 +1,13 @@
-//! The scripted stitch's plan: the simulated surgeons' pose paths for one stitch across a wound, as a surgeon
-//! lays it. The needle driver (left hand) rolls its needle along its own curve about the needle's centre,
-//! through both edges and out ([`pass_path`]); the grasper (right hand) waits aside, comes down on the thread
-//! past the entry and takes it ([`stitch_paths`]); then both draw the ends crossed over the wound, each to the
-//! other side, and hold (the draw is planned as far as a 3 N pull takes the world's skin: the hands stop
-//! there, as the wound tests' force-limited hands do). While the tip goes in, the driver's aim leads the
-//! needle along its tip ([`PUSH_MM`]): a compliant hand lags its aim, and a lagging tip turns past the
-//! puncture cone before it pushes hard enough, so the hand pushes the needle in as a surgeon does.
+//! The scripted stitch's plan, first part: where a stitch goes, the keyframes a planned hand is given, and the
+//! needle driver's pass. The driver (left hand) rolls its needle along its own curve about the needle's
+//! centre, in through one edge, out of its face, into the other's and up, until the tip stands out of the far
+//! skin ([`pass_path`]); the hand-off and the draw follow (`stitch_hand_off_plan`, `stitch_draw_plan`). While
+//! the tip goes in, the driver's aim leads the needle along its tip ([`PUSH_MM`]): a compliant hand lags its
+//! aim, and a lagging tip turns past the puncture cone before it pushes hard enough, so the hand pushes the
+//! needle in as a surgeon does.
 //!
-//! Owns: [`StitchSite`], [`pass_path`], [`stitch_paths`] and the timing of the stitch's phases. Paths are in
-//! each device's frame (the world less the device's origin), for [`hapticserver::HandScript::Path`]. Where
-//! the grasper takes the thread is an input: a rehearsal of the pass finds it (the tests' drill on virtual
-//! time), as a surgeon looks before reaching.
+//! Owns: [`StitchSite`], [`HandKeys`], [`pass_path`] and the pass's timing. Paths are in each device's frame
+//! (the world less the device's origin), for [`hapticserver::HandScript::Path`].
 //!
 //! Must not: step a simulation or open sessions (it plans; others run the plan).
 
@@ -38,12 +35,93 @@ impl StitchSite {
     };
 }
 
+/// One planned hand's keyframes, built in time order: poses given in the world, kept in its device's frame.
+#[derive(Debug, Clone)]
+pub struct HandKeys {
+    /// The device's origin, world, mm.
+    origin_mm: Vector3<f32>,
+    keys: Vec<PoseKey>,
+}
+
+impl HandKeys {
+    /// A hand on the device at `origin_mm` (world), resting at `world_from_tool` from time 0 with `buttons`.
+    pub fn new(origin_mm: Vector3<f32>, world_from_tool: &Isometry3<f32>, buttons: u32) -> Self {
+        let mut hand = Self {
+            origin_mm,
+            keys: Vec::new(),
+        };
+        hand.pose(0.0, world_from_tool, buttons);
+        hand
+    }
+
+    /// A hand on the device at `origin_mm` (world) going through `keys`, already in its device's frame.
+    pub fn from_keys(origin_mm: Vector3<f32>, keys: Vec<PoseKey>) -> Self {
+        Self { origin_mm, keys }
+    }
+
+    /// Reach `world_from_tool` at `t_s` (straight from the last keyframe), holding `buttons` from then on.
+    pub fn pose(&mut self, t_s: f64, world_from_tool: &Isometry3<f32>, buttons: u32) {
+        let p = world_from_tool.translation.vector - self.origin_mm;
+        let q = world_from_tool.rotation.as_ref().coords;
+        self.keys.push(PoseKey {
+            t_s,
+            position_mm: [p.x, p.y, p.z],
+            orientation_xyzw: [q.x, q.y, q.z, q.w],
+            buttons,
+        });
+    }
+
+    /// Reach `world_mm` at `t_s` at the last keyframe's orientation, holding `buttons` from then on.
+    pub fn reach(&mut self, t_s: f64, world_mm: Vector3<f32>, buttons: u32) {
+        let pose = Isometry3::from_parts(world_mm.into(), self.world_from_tool().rotation);
+        self.pose(t_s, &pose, buttons);
+    }
+
+    /// Stay at the last keyframe's pose until `t_s`, holding `buttons` from then on (at the last keyframe's
+    /// own time, its buttons change).
+    pub fn hold(&mut self, t_s: f64, buttons: u32) {
+        if let Some(last) = self.keys.last_mut().filter(|k| k.t_s == t_s) {
+            last.buttons = buttons;
+            return;
+        }
+        let pose = self.world_from_tool();
+        self.pose(t_s, &pose, buttons);
+    }
+
+    /// The last keyframe's pose, world (the identity before any).
+    pub fn world_from_tool(&self) -> Isometry3<f32> {
+        self.keys.last().map_or_else(Isometry3::identity, |k| {
+            let [x, y, z, w] = k.orientation_xyzw;
+            let rotation = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+            let p = Vector3::from(k.position_mm) + self.origin_mm;
+            Isometry3::from_parts(p.into(), rotation)
+        })
+    }
+
+    /// The last keyframe's buttons.
+    pub fn buttons(&self) -> u32 {
+        self.keys.last().map_or(0, |k| k.buttons)
+    }
+
+    /// When the last keyframe is reached, s.
+    pub fn end_s(&self) -> f64 {
+        self.keys.last().map_or(0.0, |k| k.t_s)
+    }
+
+    /// The path through the keyframes (an error names a keyframe out of time order).
+    pub fn path(&self) -> anyhow::Result<PosePath> {
+        Ok(PosePath::new(self.keys.clone())?)
+    }
+}
+
 /// The pass is entered this far before the tip meets the skin, degrees.
 const LEAD_IN_DEG: f32 = 8.0;
 /// The driver turns this fast through the tissue, degrees a second.
 const TURN_DEG_PER_S: f32 = 40.0;
-/// The driver turns this far past the lead-in: the tail leaves the fourth hole about 340 degrees on.
-const TURN_DEG: f32 = 360.0;
+/// The driver turns on this far past where its tip, on the planned path, comes out of the far skin: the tip
+/// then stands 3-4 mm out for the grasper (20 degrees of a 10.7 mm needle), and a hand lagging its aim by a
+/// few degrees still brings it out.
+const TIP_OUT_DEG: f32 = 25.0;
 /// The hands wait this long at their start, s (the scene comes up; the hand settles).
 const SETTLE_S: f64 = 1.5;
 /// The driver holds still this long after the pass, s.
@@ -63,12 +141,12 @@ const PUSH_RAMP_OUT_DEG: f32 = 20.0;
 #[derive(Debug, Clone)]
 pub struct PassPlan {
     /// The driver's keyframes through the pass (it holds the last).
-    pub keys: Vec<PoseKey>,
+    pub driver: HandKeys,
     /// When the driver is still again after the pass, s.
     pub done_s: f64,
     /// The driver's pose then, world.
     pub end_pose: Isometry3<f32>,
-    /// Which side of the wound the needle comes out on (x's sign): the grasper's end is drawn toward it.
+    /// Which side of the wound the needle comes out on (x's sign).
     pub exit_side: f32,
 }
 
@@ -114,6 +192,15 @@ pub fn pass_path(world: &World, site: &StitchSite) -> anyhow::Result<PassPlan> {
     let ahead = tip_at(entry + 0.01).0 - tip;
     let sign = ahead.dot(&dir).signum();
     let start = entry - sign * LEAD_IN_DEG.to_radians();
+    // Where the tip, turning on, comes back up through the skin's plane: the far edge's top.
+    let exit = (1..7200)
+        .map(|k| entry + sign * k as f32 * 0.05f32.to_radians())
+        .find(|&turn| {
+            let (tip, dir) = tip_at(turn);
+            (tip.z - surface_z).abs() < 0.05 && dir.z > 0.0
+        })
+        .context("the needle's tip never comes back out of the skin")?;
+    let turn_deg = ((exit - start) * sign).to_degrees() + TIP_OUT_DEG;
     let key = |t_s: f64, pose: &Isometry3<f32>| {
         let q = pose.rotation.as_ref().coords;
         let p = pose.translation.vector - origin;
@@ -125,7 +212,7 @@ pub fn pass_path(world: &World, site: &StitchSite) -> anyhow::Result<PassPlan> {
         }
     };
     let mut keys = vec![key(0.0, &pose_at(start)), key(SETTLE_S, &pose_at(start))];
-    let steps = (TURN_DEG / TURN_STEP_DEG).round() as usize;
+    let steps = (turn_deg / TURN_STEP_DEG).round() as usize;
     for k in 1..=steps {
         let turned_deg = k as f32 * TURN_STEP_DEG;
         let t_s = SETTLE_S + f64::from(turned_deg / TURN_DEG_PER_S);
@@ -147,122 +234,19 @@ pub fn pass_path(world: &World, site: &StitchSite) -> anyhow::Result<PassPlan> {
         }
         keys.push(key(t_s, &pose));
     }
-    let end_pose = pose_at(start + sign * TURN_DEG.to_radians());
-    let turned_s = SETTLE_S + f64::from(TURN_DEG / TURN_DEG_PER_S);
+    let turn_deg = steps as f32 * TURN_STEP_DEG;
+    let end_pose = pose_at(start + sign * turn_deg.to_radians());
+    let turned_s = SETTLE_S + f64::from(turn_deg / TURN_DEG_PER_S);
     let done_s = turned_s + AFTER_PASS_S;
     keys.push(key(done_s, &end_pose));
     // The needle goes in on the side the tip first meets and comes out on the other.
     let exit_side = -tip.x.signum();
     Ok(PassPlan {
-        keys,
+        driver: HandKeys::from_keys(origin, keys),
         done_s,
         end_pose,
         exit_side,
     })
-}
-
-/// How the grasper takes the thread and both hands draw the stitch.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DrawPlan {
-    /// Where the grasper's jaws take the thread, world, mm.
-    pub grasp_mm: [f32; 3],
-    /// How far each hand draws toward the other side (20 mm out, 15 mm up, 3 mm apart along the wound), as a
-    /// share of the way: what a 3 N pull takes on the world's skin.
-    pub share: f32,
-    /// How long the draw takes, s.
-    pub draw_s: f64,
-    /// How long the hands then hold, s.
-    pub hold_s: f64,
-}
-
-impl DrawPlan {
-    /// The wound's: half the way, which closes it at about 3 N through compliant hands (the wound tests'
-    /// stiff, force-limited hands stopped at 40-47% of the way; 55% drawn through firm hands met the edges at
-    /// 3.2 N, 65% pressed them 0.33 mm into each other at 4.8 N), over 4 s, held 3 s.
-    pub fn wound(grasp_mm: [f32; 3]) -> Self {
-        Self {
-            grasp_mm,
-            share: 0.5,
-            draw_s: 4.0,
-            hold_s: 3.0,
-        }
-    }
-}
-
-/// Where the grasper waits during the pass, world, mm.
-const GRASPER_PARK_MM: [f32; 3] = [30.0, 0.0, 30.0];
-/// The grasper comes down on the thread from this high above it, mm.
-const GRASP_APPROACH_MM: f32 = 20.0;
-/// The grasper's capsule (1.5 mm radius) stops this far beside the thread along x, mm: its side 0.3 mm off.
-const GRASP_BESIDE_MM: f32 = 1.8;
-
-/// The grasper's path (the world's grasper: its first tool with one), and the driver's draw appended to
-/// `pass`: the grasper parked until the pass is done, down onto the thread and closed, then both hands
-/// draw crossed and hold. Returns (driver, grasper) paths and when the stitch ends, s.
-pub fn stitch_paths(
-    world: &World,
-    pass: &PassPlan,
-    draw: &DrawPlan,
-) -> anyhow::Result<(PosePath, PosePath, f64)> {
-    let tool = world
-        .tools
-        .iter()
-        .find(|t| matches!(t.instrument, InstrumentSpec::Grasper(_)))
-        .context("the world has no grasper")?;
-    let origin = Vector3::from(tool.device_origin_in_world_mm);
-    let along_y = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f32::consts::FRAC_PI_2);
-    let q = along_y.as_ref().coords;
-    let key = |t_s: f64, world_mm: Vector3<f32>, closed: bool| {
-        let p = world_mm - origin;
-        PoseKey {
-            t_s,
-            position_mm: [p.x, p.y, p.z],
-            orientation_xyzw: [q.x, q.y, q.z, q.w],
-            buttons: u32::from(closed),
-        }
-    };
-    let grasp = Vector3::from(draw.grasp_mm) + Vector3::new(GRASP_BESIDE_MM, 0.0, 0.0);
-    let above = grasp + Vector3::new(0.0, 0.0, GRASP_APPROACH_MM);
-    let park = Vector3::from(GRASPER_PARK_MM);
-    let t0 = pass.done_s;
-    let (over_s, down_s, close_s) = (t0 + 1.5, t0 + 3.0, t0 + 3.3);
-    let draw_from_s = close_s + 0.3;
-    let draw_to_s = draw_from_s + draw.draw_s;
-    let end_s = draw_to_s + draw.hold_s;
-    let side = pass.exit_side;
-    let grasper_to = grasp + (Vector3::new(side * 20.0, 3.0, 15.0) - grasp) * draw.share;
-    let grasper = PosePath::new(vec![
-        key(0.0, park, false),
-        key(t0, park, false),
-        key(over_s, above, false),
-        key(down_s, grasp, false),
-        key(close_s, grasp, true),
-        key(draw_from_s, grasp, true),
-        key(draw_to_s, grasper_to, true),
-        key(end_s, grasper_to, true),
-    ])?;
-    let driver_origin = world
-        .tools
-        .iter()
-        .find(|t| matches!(t.instrument, InstrumentSpec::NeedleDriver(_)))
-        .map(|t| Vector3::from(t.device_origin_in_world_mm))
-        .context("the world has no needle driver")?;
-    let from = pass.end_pose.translation.vector;
-    let driver_to = from + (Vector3::new(-side * 20.0, -3.0, 15.0) - from) * draw.share;
-    let mut keys = pass.keys.clone();
-    let last = *keys.last().context("an empty pass")?;
-    let mut at = |t_s: f64, world_mm: Vector3<f32>| {
-        let p = world_mm - driver_origin;
-        keys.push(PoseKey {
-            t_s,
-            position_mm: [p.x, p.y, p.z],
-            ..last
-        });
-    };
-    at(draw_from_s, from);
-    at(draw_to_s, driver_to);
-    at(end_s, driver_to);
-    Ok((PosePath::new(keys)?, grasper, end_s))
 }
 
 #[cfg(test)]
@@ -282,8 +266,12 @@ mod tests {
     fn the_pass_turns_the_needle_about_its_centre_into_the_skin_and_round() {
         let world = wound();
         let pass = pass_path(&world, &StitchSite::WOUND).unwrap();
-        let path = PosePath::new(pass.keys.clone()).unwrap();
-        assert!((pass.done_s - (1.5 + 9.0 + 0.5)).abs() < 1e-9);
+        let path = pass.driver.path().unwrap();
+        let keys = path.keys();
+        // The tip comes out of the far skin about 155 degrees past the lead-in's start (its 8 degrees, the
+        // 147 degrees a 10.7 mm needle turning 3 mm above the skin runs under it), and the turn goes 25 on.
+        let turned_deg = (pass.done_s - 0.5 - 1.5) * 40.0;
+        assert!((175.0..=185.0).contains(&turned_deg), "{turned_deg}");
         // Every keyframe turns about y: the needle's plane stays square to the wound.
         let q = |k: &PoseKey| {
             UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
@@ -293,8 +281,8 @@ mod tests {
                 k.orientation_xyzw[2],
             ))
         };
-        let first = q(&pass.keys[0]);
-        for k in &pass.keys {
+        let first = q(&keys[0]);
+        for k in keys {
             let relative = q(k) * first.inverse();
             if let Some(axis) = relative.axis() {
                 assert!(axis.y.abs() > 0.999, "{axis:?}");

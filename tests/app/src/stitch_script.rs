@@ -1,28 +1,36 @@
-//! The scripted stitch as the simulated surgeons' scripts: [`crate::stitch_plan`]'s paths, after a rehearsal
-//! of the pass on virtual time through the real server tick and device loops ([`crate::drill`]) has found
-//! where the thread lies for the grasper to take it (15 mm past its entry), as a surgeon looks before
-//! reaching. `sinew demo` runs it for a world with a needle driver and a grasper; the scripted-stitch test
-//! checks the whole stitch the same way.
+//! The scripted stitch as the simulated surgeons' scripts: the paths of [`crate::stitch_plan`],
+//! [`crate::stitch_hand_off_plan`] and [`crate::stitch_draw_plan`], each stage planned after a rehearsal of
+//! the stages before it on virtual time, through the real server tick and device loops ([`crate::drill`]), has
+//! shown where things lie, as a surgeon looks before reaching: where the needle was let go (for the grasper
+//! to take its tip), then where the thread's free end lies once the needle is drawn through (for the driver
+//! to take it, 15 mm past its last hole) and where the needle's tail is. `sinew demo` runs it for a world with
+//! a needle driver and a grasper; the scripted-stitch test checks the whole stitch the same way.
 //!
 //! Owns: [`StitchScripts`], [`stitch_scripts`], [`stitch_site`] (where a world's stitch goes) and
-//! [`stitch_devices`] (the hands that run it). Must not: open sessions (the rehearsal is on virtual time).
+//! [`stitch_devices`] (the hands that run it). Must not: open sessions (the rehearsals are on virtual time).
 
 use std::sync::Arc;
 
 use anyhow::Context as _;
 use hapticserver::{HandPreset, HandScript, ModePolicy};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use sinew_server::interaction::suture::NeedleHolder;
 use sinew_server::server_tick::ServerTick;
 use sinew_server::world::{InstrumentSpec, World};
 
 use crate::drill::{DrillDevice, Link, run_drill_observed};
-use crate::stitch_plan::{DrawPlan, StitchSite, pass_path, stitch_paths};
+use crate::stitch_draw_plan::{DrawPlan, take_free_end, tighten};
+use crate::stitch_hand_off_plan::{regrasp_and_draw, release};
+use crate::stitch_plan::{HandKeys, StitchSite, pass_path};
 
 /// The hands a stitch is planned for: firm (a surgeon pushing a needle in grips the driver firmly; the plan's
 /// push is sized for it).
 pub const STITCH_HAND: HandPreset = HandPreset::Firm;
 
-/// The grasper takes the thread this far past its entry hole, mm.
-const GRASP_PAST_ENTRY_MM: f32 = 15.0;
+/// The driver takes the thread this far past its last hole toward the free end, mm.
+const TAKE_PAST_LAST_HOLE_MM: f32 = 15.0;
+/// Where the grasper waits during the pass, world, mm.
+const GRASPER_PARK_MM: [f32; 3] = [30.0, 0.0, 30.0];
 
 /// Both surgeons' scripts for one stitch.
 #[derive(Debug, Clone)]
@@ -33,8 +41,10 @@ pub struct StitchScripts {
     pub grasper: (String, HandScript),
     /// When the stitch is drawn tight and held to its end, s of script time.
     pub end_s: f64,
-    /// Where the rehearsal found the thread for the grasper, world, mm.
-    pub grasp_mm: [f32; 3],
+    /// Where the rehearsal found the needle's tip once let go, world, mm.
+    pub tip_mm: [f32; 3],
+    /// Where the rehearsal found the thread's free end for the driver, world, mm.
+    pub free_end_mm: [f32; 3],
 }
 
 /// Where `world`'s stitch goes: the needle's centre 3 mm above the middle of its objects' top (the wound of
@@ -71,8 +81,70 @@ pub fn stitch_devices(
     [device(driver), device(grasper)]
 }
 
-/// Plan `world`'s stitch and rehearse its pass. Fails when the world has no needle driver or grasper, or the
-/// rehearsed pass did not leave the thread in the tissue (the grasper would have nothing to take).
+/// What a rehearsal saw at its last tick.
+#[derive(Debug, Clone, Default)]
+struct Seen {
+    /// The needle's pose, world.
+    world_from_needle: Option<Isometry3<f32>>,
+    /// Who held it.
+    holder: Option<NeedleHolder>,
+    /// Holes on the needle and on the thread.
+    holes: (usize, usize),
+    /// The thread's node `TAKE_PAST_LAST_HOLE_MM` past its last hole, world, mm.
+    free_end_mm: Option<Vector3<f32>>,
+}
+
+/// Run the plan so far (`driver`, `grasper`) to its end on virtual time; what it left.
+fn rehearse(
+    world: &World,
+    ids: (&str, &str),
+    driver: &HandKeys,
+    grasper: &HandKeys,
+    driver_tool: usize,
+) -> anyhow::Result<Seen> {
+    let end_s = driver.end_s().max(grasper.end_s());
+    let mut seen = Seen::default();
+    run_drill_observed(
+        world,
+        &stitch_devices(
+            (ids.0.to_owned(), HandScript::Path(Arc::new(driver.path()?))),
+            (
+                ids.1.to_owned(),
+                HandScript::Path(Arc::new(grasper.path()?)),
+            ),
+        ),
+        end_s,
+        |server: &ServerTick, _| {
+            let Some(tool) = server.sim().tools.get(driver_tool) else {
+                return;
+            };
+            let (Some(needle), Some(hold), Some(thread)) =
+                (tool.needle(), tool.needle_hold(), tool.thread())
+            else {
+                return;
+            };
+            seen.world_from_needle = Some(*hold.world_from_needle());
+            seen.holder = Some(*hold.holder());
+            seen.holes = (needle.holes().len(), thread.holes().len());
+            let last_u = thread
+                .holes()
+                .iter()
+                .map(|h| h.u_mm)
+                .fold(f32::NEG_INFINITY, f32::max);
+            seen.free_end_mm = thread
+                .chain()
+                .node_u_mm()
+                .iter()
+                .position(|&u| u >= last_u + TAKE_PAST_LAST_HOLE_MM)
+                .and_then(|node| thread.nodes_mm().get(node).copied());
+        },
+    )?;
+    Ok(seen)
+}
+
+/// Plan `world`'s stitch, rehearsing each stage before planning the next. Fails when the world has no needle
+/// driver or grasper, or a rehearsal did not leave what the next stage needs (a needle let go through both
+/// edges; a needle drawn out with the thread through all four holes).
 pub fn stitch_scripts(world: &World) -> anyhow::Result<StitchScripts> {
     let device_of = |pick: fn(&InstrumentSpec) -> bool| {
         world
@@ -83,47 +155,75 @@ pub fn stitch_scripts(world: &World) -> anyhow::Result<StitchScripts> {
     };
     let (driver_tool, driver_id) =
         device_of(|i| matches!(i, InstrumentSpec::NeedleDriver(_))).context("no needle driver")?;
-    let (_, grasper_id) =
+    let (grasper_tool, grasper_id) =
         device_of(|i| matches!(i, InstrumentSpec::Grasper(_))).context("no grasper")?;
+    let InstrumentSpec::NeedleDriver(spec) = world.tools[driver_tool].instrument else {
+        anyhow::bail!("tool {driver_tool} is not a needle driver");
+    };
+    let ids = (driver_id.as_str(), grasper_id.as_str());
     let pass = pass_path(world, &stitch_site(world)?)?;
-    // The rehearsal: the pass alone, the grasper parked; then where the thread lies past its entry.
-    let (driver, parked, _) = stitch_paths(world, &pass, &DrawPlan::wound([0.0; 3]))?;
-    let mut found: Option<[f32; 3]> = None;
-    let mut holes = 0;
-    run_drill_observed(
-        world,
-        &stitch_devices(
-            (driver_id.clone(), HandScript::Path(Arc::new(driver))),
-            (grasper_id.clone(), HandScript::Path(Arc::new(parked))),
-        ),
-        pass.done_s,
-        |server: &ServerTick, _| {
-            let Some(thread) = server.sim().tools.get(driver_tool).and_then(|t| t.thread()) else {
-                return;
-            };
-            holes = thread.holes().len();
-            found = thread.holes().first().and_then(|entry| {
-                let node = thread
-                    .chain()
-                    .node_u_mm()
-                    .iter()
-                    .position(|&u| u >= entry.u_mm + GRASP_PAST_ENTRY_MM)?;
-                let p = thread.nodes_mm().get(node)?;
-                Some([p.x, p.y, p.z])
-            });
-        },
-    )
-    .context("rehearsing the pass")?;
-    let grasp_mm = found.with_context(|| {
-        format!(
-            "the rehearsed pass left the thread in {holes} holes: no thread past an entry to take"
-        )
-    })?;
-    let (driver, grasper, end_s) = stitch_paths(world, &pass, &DrawPlan::wound(grasp_mm))?;
+    let mut driver = pass.driver.clone();
+    let park = Isometry3::from_parts(
+        Vector3::from(GRASPER_PARK_MM).into(),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f32::consts::FRAC_PI_2),
+    );
+    let mut grasper = HandKeys::new(
+        Vector3::from(world.tools[grasper_tool].device_origin_in_world_mm),
+        &park,
+        0,
+    );
+    // Stage 1: the pass and the driver letting go, the grasper parked.
+    let aside_s = release(&mut driver, pass.done_s);
+    grasper.hold(aside_s, 0);
+    let seen =
+        rehearse(world, ids, &driver, &grasper, driver_tool).context("rehearsing the pass")?;
+    anyhow::ensure!(
+        seen.holder == Some(NeedleHolder::Loose)
+            && seen.holes.0 + seen.holes.1 == 4
+            && seen.holes.0 > 0,
+        "the rehearsed pass let the needle go held by {:?} with {} holes on it and {} on the thread: not through \
+         both edges and loose",
+        seen.holder,
+        seen.holes.0,
+        seen.holes.1
+    );
+    let world_from_needle = seen.world_from_needle.context("no needle seen")?;
+    let tip = world_from_needle * Point3::from(spec.arc.tip().point_mm);
+    // Stage 2: the grasper takes the tip and draws the needle out along its curve.
+    let times = regrasp_and_draw(&mut grasper, aside_s, &world_from_needle, &spec.arc);
+    driver.hold(times.drawn_s, crate::stitch_hand_off_plan::DRIVER_OPEN);
+    let seen =
+        rehearse(world, ids, &driver, &grasper, driver_tool).context("rehearsing the hand-off")?;
+    anyhow::ensure!(
+        seen.holder.is_some_and(
+            |h| matches!(h, NeedleHolder::Tool { tool, .. } if usize::from(tool) == grasper_tool)
+        ) && seen.holes == (0, 4),
+        "after the rehearsed hand-off the needle is held by {:?} with {} holes on it and {} on the thread: not \
+         drawn out by the grasper",
+        seen.holder,
+        seen.holes.0,
+        seen.holes.1
+    );
+    let free_end = seen
+        .free_end_mm
+        .context("the thread is too short to take past its last hole")?;
+    let tail =
+        seen.world_from_needle.context("no needle seen")? * Point3::from(spec.arc.tail().point_mm);
+    // Stage 3: the driver takes the free end; both draw the stitch crossed and hold.
+    let taken_s = take_free_end(&mut driver, times.drawn_s, &free_end);
+    let end_s = tighten(
+        &mut driver,
+        &mut grasper,
+        taken_s,
+        &tail.coords,
+        pass.exit_side,
+        &DrawPlan::wound(),
+    );
     Ok(StitchScripts {
-        driver: (driver_id, HandScript::Path(Arc::new(driver))),
-        grasper: (grasper_id, HandScript::Path(Arc::new(grasper))),
+        driver: (driver_id, HandScript::Path(Arc::new(driver.path()?))),
+        grasper: (grasper_id, HandScript::Path(Arc::new(grasper.path()?))),
         end_s,
-        grasp_mm,
+        tip_mm: [tip.x, tip.y, tip.z],
+        free_end_mm: [free_end.x, free_end.y, free_end.z],
     })
 }
