@@ -2,7 +2,8 @@
 //! tightening").
 //!
 //! Owns: [`wound_gap_mm`]. A wound here is two objects facing each other (each one edge, as in
-//! `worlds/suture_wound.toml`): the direction across it runs from one's rest centroid to the other's; each
+//! `worlds/suture_wound.toml`): the direction across it runs from the centre of one's rest bounding box to the
+//! other's (a cut's or a tear's split vertices, copies at their parents' rest places, do not turn it); each
 //! edge's face is its nodes that lie, at rest, at its extreme along that direction toward the other (to within
 //! 0.01 mm); the gap is the least that the second edge's face reaches back along the direction, less the most
 //! that the first's reaches forward, now. Negative: the edges have passed into each other that far. Must not:
@@ -15,7 +16,7 @@ use crate::tissue::Vec3;
 const FACE_TOLERANCE_MM: f32 = 0.01;
 
 /// The gap of the wound between objects `a` and `b`, mm (module doc); `None` for an object without nodes or
-/// two objects with the same rest centroid.
+/// two objects whose rest boxes have the same centre.
 pub fn wound_gap_mm(a: &SimObject, b: &SimObject) -> Option<f32> {
     wound_gap_between_mm(
         (a.model.rest_positions_mm(), &a.state.positions_mm),
@@ -23,14 +24,22 @@ pub fn wound_gap_mm(a: &SimObject, b: &SimObject) -> Option<f32> {
     )
 }
 
-/// [`wound_gap_mm`] from each object's rest and current node positions, mm (a replica's, say).
+/// [`wound_gap_mm`] from each object's rest and current node positions, mm (a replica's, say). `None` for an
+/// object without nodes or two objects whose rest boxes have the same centre.
 pub fn wound_gap_between_mm(
     (a_rest, a_now): (&[Vec3], &[Vec3]),
     (b_rest, b_now): (&[Vec3], &[Vec3]),
 ) -> Option<f32> {
-    let centroid =
-        |rest: &[Vec3]| (!rest.is_empty()).then(|| rest.iter().sum::<Vec3>() / rest.len() as f32);
-    let across = (centroid(b_rest)? - centroid(a_rest)?).try_normalize(1e-6)?;
+    // (Not the mean of the nodes: a vertex split by a cut adds a copy at its parent's rest place, which moves
+    // the mean and would turn the direction enough to leave most of a face out of the 0.01 mm tolerance.)
+    let centre = |rest: &[Vec3]| {
+        let first = rest.first()?;
+        let (lo, hi) = rest
+            .iter()
+            .fold((*first, *first), |(lo, hi), r| (lo.inf(r), hi.sup(r)));
+        Some((lo + hi) * 0.5)
+    };
+    let across = (centre(b_rest)? - centre(a_rest)?).try_normalize(1e-6)?;
     // The face of an object toward the other (sign +1: its most along `across`; -1: its least), and how far
     // its nodes reach that way now (the most for +1, the least for -1, in `across`'s terms).
     let reach = |rest: &[Vec3], now: &[Vec3], sign: f32| {
@@ -75,6 +84,14 @@ mod tests {
         b_far[1].x += 5.0;
         let gap = wound_gap_between_mm((&a, &a), (&b, &b_far)).unwrap();
         assert!((gap - 2.0).abs() < 1e-6, "{gap}");
+        // A vertex split off one of b's corners (a copy at its rest place, appended), drawn toward a with it:
+        // the gap reads the same as for the corner alone.
+        let mut b_split = b.clone();
+        b_split.push(b[3]);
+        let mut b_split_now = b_now.clone();
+        b_split_now.push(b_now[3]);
+        let gap = wound_gap_between_mm((&a, &a), (&b_split, &b_split_now)).unwrap();
+        assert!((gap + 0.5).abs() < 1e-6, "{gap}");
         assert_eq!(wound_gap_between_mm((&a, &a), (&a, &a)), None);
         assert_eq!(wound_gap_between_mm((&[], &[]), (&b, &b)), None);
     }

@@ -44,7 +44,7 @@ use nalgebra::UnitQuaternion;
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes, take_nodes};
 use super::thread_self_contact::SelfContact;
-use super::thread_track::{MAX_TRACK_RINGS, drop_rings_beside_holes, lay_tracks};
+use super::thread_track::{MAX_TRACK_RINGS, refresh_tracks};
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -285,22 +285,7 @@ impl SutureThread {
         };
         self.holes.retain_mut(placed);
         self.tracks.retain_mut(placed);
-        drop_rings_beside_holes(&self.holes, &mut self.tracks);
-        // (On the node behind the tail, where it is: thread_track.rs.)
-        if let (Some(node_mm), Some(&node_u_mm)) = (
-            self.chain.positions_mm.get(1),
-            self.chain.node_u_mm().get(1),
-        ) {
-            let node_mm = *node_mm;
-            lay_tracks(
-                &self.holes,
-                &mut self.tracks,
-                &node_mm,
-                node_u_mm,
-                objects,
-                &object,
-            );
-        }
+        refresh_tracks(&self.holes, &mut self.tracks, &self.chain, objects, &object);
         // Each hole and ring holds a node of its own: the holes first.
         take_nodes(
             &mut self.holes,

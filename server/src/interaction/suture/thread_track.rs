@@ -1,6 +1,7 @@
 //! The needle's track inside the tissue: the rings that hold the thread between its holes.
 //!
-//! Owns: when a ring is laid ([`lay_tracks`]) and dropped ([`drop_rings_beside_holes`]). A ring is a [`ThreadHole`] on a material point of the volume
+//! Owns: the tick's track stage ([`refresh_tracks`]): when a ring is laid ([`lay_tracks`]) and dropped
+//! ([`drop_rings_beside_holes`]). A ring is a [`ThreadHole`] on a material point of the volume
 //! ([`HolePoint::Volume`], `volume_point.rs`): it holds the thread as a hole does and does not change its side.
 //!
 //! Why: a thread held only at the two holes of a bite runs straight between them, and drawn tight it lifted the
@@ -10,6 +11,7 @@
 //!
 //! Must not: allocate (rings are capped at [`MAX_TRACK_RINGS`]) or panic.
 
+use super::ThreadChain;
 use super::thread::ThreadObject;
 use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes};
 use super::volume_point::VolumePoint;
@@ -20,6 +22,23 @@ use crate::tissue::Vec3;
 pub const TRACK_SPACING_MM: f32 = 5.0;
 /// The most track rings a thread runs through.
 pub const MAX_TRACK_RINGS: usize = 64;
+
+/// The tick's track stage, before the holes and rings take their nodes: the rings beside a hole dropped
+/// ([`drop_rings_beside_holes`]), then a ring laid on the chain's node behind the needle's tail, where it is,
+/// if the track has reached the next ring's place ([`lay_tracks`]).
+pub fn refresh_tracks<'a>(
+    holes: &[ThreadHole],
+    tracks: &mut Vec<ThreadHole>,
+    chain: &ThreadChain,
+    objects: usize,
+    object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
+) {
+    drop_rings_beside_holes(holes, tracks);
+    if let (Some(node_mm), Some(&node_u_mm)) = (chain.positions_mm.get(1), chain.node_u_mm().get(1))
+    {
+        lay_tracks(holes, tracks, node_mm, node_u_mm, objects, object);
+    }
+}
 
 /// Where the thread's first free node (`node_mm`, `node_u_mm` along the thread from the tail: the one behind
 /// the needle's tail, which the tail drew along its track) runs inside an object (by the `holes`' parity) and
