@@ -53,7 +53,7 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
     let end_s = scripts.end_s;
     let mut observer = SessionObserver::new(2, MetricsConfig::new(0.001));
     let mut transitions: Vec<(u8, SkillState)> = Vec::new();
-    let mut punctures = 0;
+    let (mut punctures, mut grasper_punctures) = (0, 0);
     let (mut needle_taken, mut thread_taken, mut gap_before) = (false, false, None);
     let mut last = (0.0f32, 0usize, [0.0f32; 2]);
     let report = StepReport::default();
@@ -75,7 +75,11 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
             };
             observer.observe(
                 &view,
-                |e| punctures += usize::from(e.tool == 0 && e.kind == EventKind::Puncture),
+                |e| {
+                    let puncture = e.kind == EventKind::Puncture;
+                    punctures += usize::from(e.tool == 0 && puncture);
+                    grasper_punctures += usize::from(e.tool == 1 && puncture);
+                },
                 |tool, t| transitions.push((tool, t.to)),
             );
             if sim.steps().is_multiple_of(100) {
@@ -113,7 +117,9 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
     );
     assert!(needle_taken, "the grasper never took the needle");
     assert!(thread_taken, "the driver never took the thread's free end");
+    // The four punctures are the driver's; the grasper drawing the needle out made none.
     assert_eq!(punctures, 4);
+    assert_eq!(grasper_punctures, 0);
     assert!(
         gap <= 1.0,
         "the scripted stitch closed the gap only to {gap:.2} mm"

@@ -94,6 +94,10 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
     // A world with a needle driver and a grasper gets the scripted stitch, its pass rehearsed first.
     if stitch_tools(&world) {
         let started = Instant::now();
+        println!(
+            "scripted stitch: rehearsing the pass, the hand-off and the draw on virtual time (about a minute of \
+             one core) before the live run"
+        );
         match stitch_scripts(&world) {
             Ok(stitch) => {
                 println!(
