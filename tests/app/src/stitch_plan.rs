@@ -54,11 +54,6 @@ impl HandKeys {
         hand
     }
 
-    /// A hand on the device at `origin_mm` (world) going through `keys`, already in its device's frame.
-    pub fn from_keys(origin_mm: Vector3<f32>, keys: Vec<PoseKey>) -> Self {
-        Self { origin_mm, keys }
-    }
-
     /// Reach `world_from_tool` at `t_s` (straight from the last keyframe), holding `buttons` from then on.
     pub fn pose(&mut self, t_s: f64, world_from_tool: &Isometry3<f32>, buttons: u32) {
         let p = world_from_tool.translation.vector - self.origin_mm;
@@ -96,11 +91,6 @@ impl HandKeys {
             let p = Vector3::from(k.position_mm) + self.origin_mm;
             Isometry3::from_parts(p.into(), rotation)
         })
-    }
-
-    /// The last keyframe's buttons.
-    pub fn buttons(&self) -> u32 {
-        self.keys.last().map_or(0, |k| k.buttons)
     }
 
     /// When the last keyframe is reached, s.
@@ -201,17 +191,8 @@ pub fn pass_path(world: &World, site: &StitchSite) -> anyhow::Result<PassPlan> {
         })
         .context("the needle's tip never comes back out of the skin")?;
     let turn_deg = ((exit - start) * sign).to_degrees() + TIP_OUT_DEG;
-    let key = |t_s: f64, pose: &Isometry3<f32>| {
-        let q = pose.rotation.as_ref().coords;
-        let p = pose.translation.vector - origin;
-        PoseKey {
-            t_s,
-            position_mm: [p.x, p.y, p.z],
-            orientation_xyzw: [q.x, q.y, q.z, q.w],
-            buttons: 0,
-        }
-    };
-    let mut keys = vec![key(0.0, &pose_at(start)), key(SETTLE_S, &pose_at(start))];
+    let mut driver = HandKeys::new(origin, &pose_at(start), 0);
+    driver.hold(SETTLE_S, 0);
     let steps = (turn_deg / TURN_STEP_DEG).round() as usize;
     for k in 1..=steps {
         let turned_deg = k as f32 * TURN_STEP_DEG;
@@ -232,17 +213,17 @@ pub fn pass_path(world: &World, site: &StitchSite) -> anyhow::Result<PassPlan> {
             let (_, dir) = tip_at(turn);
             pose.translation.vector += dir * (PUSH_MM * share);
         }
-        keys.push(key(t_s, &pose));
+        driver.pose(t_s, &pose, 0);
     }
     let turn_deg = steps as f32 * TURN_STEP_DEG;
     let end_pose = pose_at(start + sign * turn_deg.to_radians());
     let turned_s = SETTLE_S + f64::from(turn_deg / TURN_DEG_PER_S);
     let done_s = turned_s + AFTER_PASS_S;
-    keys.push(key(done_s, &end_pose));
+    driver.pose(done_s, &end_pose, 0);
     // The needle goes in on the side the tip first meets and comes out on the other.
     let exit_side = -tip.x.signum();
     Ok(PassPlan {
-        driver: HandKeys::from_keys(origin, keys),
+        driver,
         done_s,
         end_pose,
         exit_side,
