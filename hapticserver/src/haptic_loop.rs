@@ -46,6 +46,7 @@ struct LoopCounters {
     last_position_mm: [f32; 3],
     models_received: u64,
     longest_command_gap_ms: f32,
+    keepalives_received: u64,
 }
 
 /// The state of one device loop.
@@ -259,15 +260,26 @@ impl HapticLoop {
         let position_mm = self.counters.last_position_mm;
         let velocity_mm_s = self.last_velocity_mm_s;
         let now_s = ns_to_s(now_ns);
-        if let Some(received) = self.inbox.latest().take_newer(&mut self.seen_writes) {
-            if let Some(previous) = self.latest {
-                // The silence the safety rule saw, between two commands (the last one, a lost server's, is not
-                // a gap: it never ends).
-                let gap_ms =
-                    received.received_ns.saturating_sub(previous.received_ns) as f32 * 1e-6;
-                self.counters.longest_command_gap_ms =
-                    self.counters.longest_command_gap_ms.max(gap_ms);
-            }
+        let newest = self.inbox.latest().take_newer(&mut self.seen_writes);
+        if let (Some(received), Some(previous)) = (newest, self.latest) {
+            // The silence the safety rule saw, between two commands (the last one, a lost server's, is not a
+            // gap: it never ends).
+            let gap_ms = received.received_ns.saturating_sub(previous.received_ns) as f32 * 1e-6;
+            self.counters.longest_command_gap_ms = self.counters.longest_command_gap_ms.max(gap_ms);
+        }
+        // The server's keepalive is its last command again, same sequence number (its sim ran slower than real
+        // time): a sign of life for the silence rule, nothing new to render or measure.
+        let keepalive = newest.is_some_and(|received| {
+            self.latest.is_some_and(|previous| {
+                previous.command.seq == received.command.seq
+                    && previous.command.device_instance == received.command.device_instance
+            })
+        });
+        if keepalive {
+            self.latest = newest;
+            self.counters.keepalives_received += 1;
+        }
+        if let Some(received) = newest.filter(|_| !keepalive) {
             self.latest = Some(received);
             let command = received.command;
             self.counters.last_commanded_force_n = command.force_n;
@@ -421,6 +433,7 @@ impl HapticLoop {
         report.publish_errors = c.publish_errors;
         report.forces_received = self.inbox.received();
         report.longest_command_gap_ms = c.longest_command_gap_ms;
+        report.keepalives_received = c.keepalives_received;
         report.round_trip.copy_from(&self.round_trip);
         report.wire_round_trip.copy_from(&self.wire_round_trip);
         report.last_round_trip_us = self.last_round_trip_us;
@@ -536,6 +549,44 @@ mod tests {
         assert_eq!(report.round_trip.count(), 1);
         assert_eq!(report.last_commanded_force_n, [0.0, 0.0, 1.0]);
         assert!((report.last_rendered_force_n[2] - 0.4).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_repeated_sequence_number_keeps_the_stream_alive_and_nothing_else() {
+        let inbox = Arc::new(ForceInbox::new(ME));
+        let mut haptic = make_loop(&inbox);
+        let mut sink = |_: &[u8]| true;
+        let ms = 1_000_000u64;
+        haptic.tick(ms, None, &mut sink);
+        let command = ForceCommand {
+            seq: 7,
+            echo_pose_seq: 1,
+            echo_device_time_ns: ms,
+            force_n: [0.0, 0.0, 1.0],
+            ..ForceCommand::default()
+        };
+        inbox.accept(&encode_to_vec(&command), 2 * ms).unwrap();
+        // The server's sim runs slow: its keepalive repeats command 7 every 8 ms for 200 ms, well past the
+        // 50 ms silence rule, and the force stays on.
+        for tick in 2..=200u64 {
+            if tick > 2 && tick % 8 == 2 {
+                inbox.accept(&encode_to_vec(&command), tick * ms).unwrap();
+            }
+            haptic.tick(tick * ms, Some(PERIOD), &mut sink);
+            assert!(!haptic.safety().is_stale(), "stale at {tick} ms");
+        }
+        assert_eq!(haptic.rendered_force_n(), [0.0, 0.0, 1.0]);
+        let mut report = HapticReport::new("left");
+        haptic.write_report(&mut report);
+        assert_eq!(report.forces_received, 25);
+        assert_eq!(report.keepalives_received, 24);
+        assert_eq!(report.round_trip.count(), 1, "a keepalive is no round trip");
+        assert!(report.longest_command_gap_ms <= 8.0);
+        // Silence: the rule fires 50 ms after the last keepalive.
+        for tick in 201..=260u64 {
+            haptic.tick(tick * ms, Some(PERIOD), &mut sink);
+        }
+        assert!(haptic.safety().is_stale());
     }
 
     #[test]

@@ -13,6 +13,7 @@
 pub mod access_refusals;
 mod device_slots;
 mod inbound;
+mod keepalive;
 mod publish_loop;
 mod session;
 mod sim_loop;

@@ -32,6 +32,9 @@ pub struct HapticReport {
     /// The longest time between two commands the loop took, ms (0 before the second): how close the stream came
     /// to the silence rule.
     pub longest_command_gap_ms: f32,
+    /// The server's keepalives received: its last command again, same sequence number, sent when its sim ran
+    /// slower than real time (`sinew_server::node::keepalive`). Only a sign of life.
+    pub keepalives_received: u64,
     /// Pose -> rendered force round trips (pose read to the tick that first renders the force answering it), ns.
     pub round_trip: LatencyHistogram,
     /// Pose read -> arrival of the force answering it (no wait for the device's next tick), ns.
@@ -106,6 +109,7 @@ impl HapticReport {
             publish_errors: 0,
             forces_received: 0,
             longest_command_gap_ms: 0.0,
+            keepalives_received: 0,
             round_trip: LatencyHistogram::new(),
             wire_round_trip: LatencyHistogram::new(),
             last_round_trip_us: 0,
@@ -153,7 +157,7 @@ impl fmt::Display for HapticReport {
         write!(
             f,
             "{id}: {mode} ticks {ticks} rtt p50 {p50:.0} us p99 {p99:.0} us (n={n}) force {force:.2} N pos [{x:.1} {y:.1} {z:.1}] mm \
-             forces_rx {rx} longest gap {gap:.1} ms overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ withheld {withheld:.2} mJ \
+             forces_rx {rx} longest gap {gap:.1} ms keepalives {keepalives} overruns {over} stale {stale} clamped {clamped} rejects {rej} port energy {energy:+.2} mJ withheld {withheld:.2} mJ \
              udp {udp} server {server} ({standing})",
             id = self.device_id,
             mode = if self.moderated {
@@ -171,6 +175,7 @@ impl fmt::Display for HapticReport {
             z = p[2],
             rx = self.forces_received,
             gap = self.longest_command_gap_ms,
+            keepalives = self.keepalives_received,
             over = self.overruns,
             stale = self.safety.stale_events,
             clamped = self.safety.clamped,

@@ -18,6 +18,7 @@ use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Reliability};
 
 use super::device_slots::PoseArrival;
+use super::keepalive::Keepalive;
 use super::{ServerError, Shared};
 use crate::recording::{FinalState, RecorderTap, TickRecord};
 use crate::server_tick::DeadbandParams;
@@ -34,6 +35,9 @@ pub struct DeviceReport {
     pub active: bool,
     /// Force commands published.
     pub forces_sent: u64,
+    /// Commands re-sent unchanged because the tick had sent the device nothing for
+    /// [`super::keepalive::KEEPALIVE_AFTER`] of wall time (the sim ran slower than real time).
+    pub keepalives_sent: u64,
     /// Largest force magnitude published, N.
     pub max_force_n: f32,
     /// The device's last reported round trip, us.
@@ -292,6 +296,7 @@ fn run(
         ..ReplayProgress::default()
     });
     let mut buf = Vec::with_capacity(256);
+    let mut keepalive = Keepalive::new(n);
     let mut frame_due = false;
     // The training layer watches every tick: live metrics and score in the report, events into the recording
     // (built here: no allocation in the loop).
@@ -366,6 +371,17 @@ fn run(
             d.active = inputs[t].is_some_and(|i| i.usable && i.age_s < world.pose_timeout_s);
             d.force_limit_n = limits[t];
             let Some(command) = &mut commands[t] else {
+                // Nothing from the tick: a device that has heard nothing for a while hears the last command again
+                // (a live replay publishes only what was recorded).
+                if !d.active || recorded.is_some() {
+                    keepalive.forget(t);
+                } else if let Some(again) = keepalive.due(t, Instant::now()) {
+                    encode(shared.instance, &again, &mut buf);
+                    if let Some(outlet) = outlets.get_mut(t) {
+                        outlet.send(&buf);
+                    }
+                    d.keepalives_sent += 1;
+                }
                 continue;
             };
             command.device_instance = last_pose[t].map_or(InstanceId::NONE, |a| a.from).0;
@@ -378,6 +394,7 @@ fn run(
             if let Some(outlet) = outlets.get_mut(t) {
                 outlet.send(&buf);
             }
+            keepalive.sent(t, command, Instant::now());
             last_sent[t] = Some((
                 command.seq,
                 command.echo_pose_seq,
