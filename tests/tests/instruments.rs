@@ -196,26 +196,11 @@ fn a_recorded_cut_session_replays_bit_for_bit() {
 fn a_cautery_line_reaches_every_viewer_and_the_picture() {
     let _serial = serial();
     let world = load_shipped_world("cautery.toml").unwrap();
-    let (demo_script, right_script) = surgeon_scripts_for(&world);
-    let hapticserver::HandScript::Cauterize {
-        at_mm,
-        depth_mm,
-        approach_mm,
-        descend_s,
-        stroke_mm,
-        stroke_s,
-    } = demo_script
-    else {
-        panic!("the demo's left hand does not cauterize: {demo_script:?}");
+    let (mut left_script, right_script) = surgeon_scripts_for(&world);
+    let hapticserver::HandScript::Cauterize { stroke_s, .. } = &mut left_script else {
+        panic!("the demo's left hand does not cauterize: {left_script:?}");
     };
-    let left_script = hapticserver::HandScript::Cauterize {
-        at_mm,
-        depth_mm,
-        approach_mm,
-        descend_s,
-        stroke_mm,
-        stroke_s: 2.0 * stroke_s,
-    };
+    *stroke_s *= 2.0;
     let endpoint = free_loopback_endpoint().unwrap();
     let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
     let viewer = start_viewer("cautery", "instructor", &endpoint).unwrap();
