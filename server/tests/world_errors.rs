@@ -423,6 +423,7 @@ fn the_shipped_exercises_and_a_test_exercise_load() {
         "exercise_coordination.toml",
         "exercise_accurate_touch.toml",
         "exercise_stiffness_ranking.toml",
+        "suture_wound.toml",
     ] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../worlds")
@@ -502,6 +503,45 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
         "{message}"
     );
     assert!(message.contains("accurate-touch"), "{message}");
+
+    // A suture exercise with three marks (it has an entry and an exit), and one with a depth limit.
+    let suture = EXERCISE.replace("kind = \"coordination\"", "kind = \"suture\"");
+    let three =
+        format!("{suture}\n[[exercise.targets]]\nat_mm = [6.0, 2.0, 0.0]\nradius_mm = 1.0\n");
+    let world = format!("{}{three}", good_world());
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error).0,
+        "exercise.targets",
+        "{message}"
+    );
+    assert!(
+        message.contains("entry mark then the exit mark (got 3)"),
+        "{message}"
+    );
+    let world = format!(
+        "{}{}",
+        good_world(),
+        suture.replace(
+            "time_limit_s = 30.0",
+            "time_limit_s = 30.0\ndepth_limit_mm = 3.0"
+        )
+    );
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        (
+            "exercise.depth_limit_mm",
+            line_of(&world, "depth_limit_mm = 3.0")
+        ),
+        "{message}"
+    );
+    // Its two marks load.
+    let world = load_world(&write_world(&format!("{}{suture}", good_world()), None)).unwrap();
+    assert_eq!(
+        world.exercise.unwrap().kind,
+        sinew_server::scene::ExerciseKind::Suture
+    );
 
     // No targets at all.
     let world = format!(

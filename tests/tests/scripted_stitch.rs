@@ -12,7 +12,7 @@ use sinew::stitch_script::{stitch_devices, stitch_scripts};
 use sinew_server::server_tick::ServerTick;
 use sinew_server::sim::{Sim, StepReport};
 use sinew_server::training::{
-    EventKind, MetricsConfig, SessionObserver, SkillState, TickView, wound_gap_mm,
+    EventKind, ExerciseRun, MetricsConfig, SessionObserver, SkillState, TickView, wound_gap_mm,
 };
 use sinew_testkit::drill::run_drill_observed;
 
@@ -51,7 +51,13 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
         scripts.tip_mm, scripts.free_end_mm
     );
     let end_s = scripts.end_s;
-    let mut observer = SessionObserver::new(2, MetricsConfig::new(0.001));
+    // The world's exercise: one stitch through its entry and exit marks.
+    let exercise = world
+        .exercise
+        .clone()
+        .expect("the wound world marks its stitch");
+    let mut observer = SessionObserver::new(2, MetricsConfig::new(0.001))
+        .with_exercise(ExerciseRun::new(exercise, 2, 0.001));
     let mut transitions: Vec<(u8, SkillState)> = Vec::new();
     let (mut punctures, mut grasper_punctures) = (0, 0);
     let (mut needle_taken, mut thread_taken, mut gap_before) = (false, false, None);
@@ -114,6 +120,29 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
         pulls[0],
         pulls[1],
         result.max_force_n,
+    );
+    let score = observer.exercise().unwrap().score();
+    println!(
+        "exercise `{}`: {} of {} marks, {:.2} mm off them on average ({:.2?} mm each), {} errors, {:.1} s; score {:.0}",
+        score.name,
+        score.targets_hit,
+        score.targets_total,
+        score.mean_distance_mm,
+        score.hits.iter().map(|h| h.distance_mm).collect::<Vec<_>>(),
+        score.errors.total(),
+        score.time_s,
+        score.score
+    );
+    // The world's marks are where the plan's bite goes in and out (the plan does not read them yet): the needle
+    // in within 0.5 mm of each, by the driver, with no error.
+    assert!(score.passed, "{score:?}");
+    assert!(
+        score
+            .hits
+            .iter()
+            .all(|h| h.distance_mm < 0.5 && h.tool == 0),
+        "{:?}",
+        score.hits
     );
     assert!(needle_taken, "the grasper never took the needle");
     assert!(thread_taken, "the driver never took the thread's free end");

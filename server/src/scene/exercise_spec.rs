@@ -15,6 +15,10 @@
 //! ```
 //!
 //! A `kind = "stiffness-ranking"` exercise names objects instead of targets: `samples = ["a", "b", "c"]`.
+//!
+//! A `kind = "suture"` exercise has exactly two targets, the marks a stitch goes in at and comes out at (as
+//! FLS's suturing task marks them on either side of the slit): `[[exercise.targets]]` the entry mark, then the
+//! exit mark, each a point on a tissue's rest surface with the radius a puncture must land within.
 
 use serde::{Deserialize, Serialize};
 
@@ -32,6 +36,11 @@ pub enum ExerciseKind {
     /// more, softest first; the order of the last touches is the answer. Scored by the pairs ranked right,
     /// against each pair's stiffness ratio (force sensitivity).
     StiffnessRanking,
+    /// Put one stitch through marked points: the needle goes in at the entry mark and comes out at the exit
+    /// mark (the punctures through the wound's faces between them are not judged). Scored by the marks hit
+    /// and how far from them the needle went in and out, mm (FLS's intracorporeal suture task: time and mm
+    /// off the marks; the wound's gap and the knot come with the knot).
+    Suture,
 }
 
 impl ExerciseKind {
@@ -41,6 +50,7 @@ impl ExerciseKind {
             ExerciseKind::Coordination => "coordination",
             ExerciseKind::AccurateTouch => "accurate-touch",
             ExerciseKind::StiffnessRanking => "stiffness-ranking",
+            ExerciseKind::Suture => "suture",
         }
     }
 }

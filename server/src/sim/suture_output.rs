@@ -27,6 +27,9 @@ pub struct SutureActivity {
     pub needle_in_tissue: bool,
     /// Surfaces the needle has punctured so far.
     pub punctures: u32,
+    /// Where the needle's newest hole lies on its tissue at rest, world, mm (the tick it punctures: where that
+    /// puncture went in, on the undeformed tissue, as marks are drawn; None while the needle holds no hole).
+    pub newest_hole_rest_mm: Option<crate::tissue::Vec3>,
     /// The tool's jaws hold a suture thread (its own needle's, or another tool's).
     pub thread_held: bool,
     /// Holes the thread this tool draws runs through (its needle's thread, or the thread its jaws hold).
@@ -68,6 +71,10 @@ impl Sim {
             activity.needle_pressing = matches!(needle.phase(), TipPhase::Pressing { .. });
             activity.needle_in_tissue = in_tissue;
             activity.punctures = needle.punctures();
+            activity.newest_hole_rest_mm = needle.holes().last().and_then(|hole| {
+                let object = self.objects.get(usize::from(hole.point.object))?;
+                hole.point.rest_position_mm(&object.model)
+            });
             if let Some(thread) = instrument.thread() {
                 activity.thread_holes = thread.holes().len().min(usize::from(u16::MAX)) as u16;
                 activity.thread_pull_n = finite_or_zero(thread.pull_on_tail_n().norm());

@@ -54,6 +54,9 @@ pub struct ToolActivity {
     pub needle_in_tissue: bool,
     /// Surfaces the needle has punctured so far.
     pub punctures: u32,
+    /// Where the needle's newest hole lies on its tissue at rest, world, mm (where a puncture this tick went
+    /// in, on the undeformed tissue, as marks are drawn).
+    pub newest_hole_rest_mm: Option<[f32; 3]>,
     /// The tool's jaws hold a suture thread.
     pub thread_held: bool,
     /// The thread the tool draws (its needle's, or the one in its jaws) runs through holes.
@@ -89,6 +92,11 @@ impl ToolActivity {
             needle_pressing: active && out.suture.needle_pressing,
             needle_in_tissue: active && out.suture.needle_in_tissue,
             punctures: out.suture.punctures,
+            newest_hole_rest_mm: out
+                .suture
+                .newest_hole_rest_mm
+                .filter(|p| active && p.iter().all(|c| c.is_finite()))
+                .map(Into::into),
             thread_held: active && out.suture.thread_held,
             thread_through: active && out.suture.thread_holes > 0,
             thread_pull_n: if active && out.suture.thread_pull_n.is_finite() {

@@ -10,6 +10,13 @@
 //! - within the next target's radius by another tool: a **wrong-tool** error;
 //! - anywhere else: an **off-target** error (tissue touched where it should not be).
 //!
+//! A suture exercise judges punctures instead of touches ([`EventKind::Puncture`], where the needle went in on
+//! the tissue at rest, [`ToolActivity::newest_hole_rest_mm`], in 3-D: marks lie on any face): a puncture within
+//! the next mark's radius hits it (the entry mark, then the exit mark), by the tool it names if it names one
+//! (else a wrong-tool error); any other puncture (the bites through the wound's faces between the marks, or one
+//! off its mark) is not judged, and touches are not judged at all. `mean_distance_mm` is then the mm off the
+//! marks.
+//!
 //! A stiffness-ranking exercise has samples instead of targets: every touch over a sample (inside its rest
 //! extent across the surface) is that sample's latest, and a touch over none is off target. The answer is the
 //! order of the samples' last touches (softest first); each pair of samples in the right order scores, and the
@@ -211,7 +218,12 @@ impl ExerciseRun {
             EventKind::Joined if self.started_tick.is_none() => {
                 self.started_tick = Some(event.tick)
             }
-            EventKind::ContactBegin => self.touch(event.tick, tool, activity),
+            EventKind::ContactBegin if self.spec.kind != ExerciseKind::Suture => {
+                self.touch(event.tick, tool, activity)
+            }
+            EventKind::Puncture if self.spec.kind == ExerciseKind::Suture => {
+                self.puncture(event.tick, tool, activity)
+            }
             EventKind::ContactEnd | EventKind::Left => {
                 if let Some(slot) = self.open.get_mut(tool) {
                     *slot = None;
@@ -255,6 +267,36 @@ impl ExerciseRun {
                 flagged: false,
             });
         }
+        if self.hits.len() == self.spec.targets.len() {
+            self.finished_tick = Some(tick);
+        }
+    }
+
+    fn puncture(&mut self, tick: u64, tool: usize, activity: &ToolActivity) {
+        let (Some(next), Some(at)) = (self.next_target(), activity.newest_hole_rest_mm) else {
+            return;
+        };
+        let target = &self.spec.targets[next];
+        let distance_mm = at
+            .iter()
+            .zip(&target.at_mm)
+            .map(|(a, b)| f64::from(a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if distance_mm.is_nan() || distance_mm > f64::from(target.radius_mm) {
+            return;
+        }
+        if target.tool.is_some_and(|t| t != tool) {
+            self.errors.wrong_tool += 1;
+            return;
+        }
+        self.hits.push(TargetHit {
+            target: next,
+            tool,
+            at_s: self.elapsed_s(tick),
+            distance_mm,
+            max_depth_mm: 0.0,
+        });
         if self.hits.len() == self.spec.targets.len() {
             self.finished_tick = Some(tick);
         }
@@ -530,5 +572,60 @@ mod tests {
         let score = run.score();
         assert_eq!(score.errors.wrong_tool, 12);
         assert_eq!(score.score, 0.0);
+    }
+
+    #[test]
+    fn a_suture_exercise_judges_punctures_at_the_marks_not_touches() {
+        // Entry mark at the origin, exit mark 10 mm along x, each 2 mm across; the driver (tool 0) named.
+        let suture = || ExerciseSpec {
+            kind: ExerciseKind::Suture,
+            ..spec(60.0)
+        };
+        let mut run = ExerciseRun::new(suture(), 2, 0.001);
+        let puncture = |hole_mm: [f32; 3]| ToolActivity {
+            newest_hole_rest_mm: Some(hole_mm),
+            ..at(0.0)
+        };
+        run.on_event(&event(0, EventKind::Joined), &at(0.0));
+        // Touches anywhere are not judged.
+        run.on_event(&event(5, EventKind::ContactBegin), &at(30.0));
+        // In 1.5 mm from the entry mark (a 3-D distance: 0.9 across, 1.2 down a face).
+        run.on_event(
+            &event(100, EventKind::Puncture),
+            &puncture([0.9, 0.0, -1.2]),
+        );
+        assert_eq!(run.next_target(), Some(1));
+        // The bites through the wound's faces, off both marks: not judged.
+        run.on_event(
+            &event(200, EventKind::Puncture),
+            &puncture([4.0, 0.0, -5.0]),
+        );
+        run.on_event(
+            &event(300, EventKind::Puncture),
+            &puncture([6.0, 0.0, -5.0]),
+        );
+        // Tool 1 comes out at the exit mark: the wrong tool.
+        let by_grasper = SessionEvent {
+            tick: 350,
+            tool: 1,
+            kind: EventKind::Puncture,
+        };
+        run.on_event(&by_grasper, &puncture([10.0, 0.0, 0.0]));
+        // The driver's needle out 0.5 mm from it.
+        run.on_event(
+            &event(400, EventKind::Puncture),
+            &puncture([10.0, 0.5, 0.0]),
+        );
+        let score = run.score();
+        assert!(score.completed && !score.passed, "{score:?}");
+        assert_eq!((score.targets_hit, score.errors.total()), (2, 1));
+        assert_eq!(score.errors.wrong_tool, 1);
+        assert!((score.hits[0].distance_mm - 1.5).abs() < 1e-6);
+        assert!((score.mean_distance_mm - 1.0).abs() < 1e-6);
+        assert!((score.time_s - 0.401).abs() < 1e-9);
+        // A puncture with no place (no hole) is not judged either.
+        let mut run = ExerciseRun::new(suture(), 1, 0.001);
+        run.on_event(&event(1, EventKind::Puncture), &at(0.0));
+        assert_eq!(run.next_target(), Some(0));
     }
 }

@@ -35,6 +35,13 @@ impl Context<'_> {
                 "an accurate-touch exercise needs a depth limit",
             ));
         }
+        if let (ExerciseKind::Suture, Some(at)) = (e.kind, &e.depth_limit_mm) {
+            return Err(self.invalid(
+                at,
+                "exercise.depth_limit_mm",
+                "a suture exercise judges punctures, not presses: it has no depth limit",
+            ));
+        }
         let samples = self.exercise_samples(section, objects)?;
         let ranking = e.kind == ExerciseKind::StiffnessRanking;
         let list: &[Spanned<TargetSection>] = match &e.targets {
@@ -47,6 +54,15 @@ impl Context<'_> {
             }
             Some(at) => {
                 let list = at.get_ref();
+                self.check(
+                    at,
+                    "exercise.targets",
+                    e.kind != ExerciseKind::Suture || list.len() == 2,
+                    &format!(
+                        "a suture exercise has two targets, the entry mark then the exit mark (got {})",
+                        list.len()
+                    ),
+                )?;
                 self.check(
                     at,
                     "exercise.targets",
