@@ -37,6 +37,8 @@ pub struct ServerTick {
     outputs: Vec<ToolOutput>,
     streams: Vec<ModelStream>,
     was_active: Vec<bool>,
+    /// What the last step reported.
+    last_step: StepReport,
 }
 
 impl ServerTick {
@@ -56,7 +58,13 @@ impl ServerTick {
             outputs: vec![ToolOutput::default(); n],
             streams,
             was_active: vec![false; n],
+            last_step: StepReport::default(),
         }
+    }
+
+    /// What the last step reported (the same [`StepReport`] [`ServerTick::step`] returned).
+    pub fn last_step(&self) -> &StepReport {
+        &self.last_step
     }
 
     /// Run the tick's tail ([`Sim::finish_tick`]) once its force commands are published.
@@ -112,6 +120,7 @@ impl ServerTick {
             };
         }
         let report = self.sim.step(self.dt_s, &self.commands, &mut self.outputs);
+        self.last_step = report;
         let now_s = self.sim.time_s();
         for (t, slot) in out.iter_mut().enumerate() {
             *slot = None;

@@ -38,6 +38,7 @@ mod tissue_contact;
 mod tool;
 mod tool_output;
 mod topology;
+mod wound_watch;
 
 use guarded::TickStepper;
 pub use object::SimObject;
@@ -119,6 +120,8 @@ pub struct Sim {
     /// Topology changes so far (seams opened): how an instrument out of its tool during a hook learns it
     /// missed one ([`Sim::with_instrument`]).
     openings: u64,
+    /// The two objects whose gap the world's suture exercise judges (`wound_watch.rs`).
+    wound: Option<[usize; 2]>,
 }
 
 impl Sim {
@@ -346,6 +349,7 @@ impl Sim {
                 *slot = *out;
             }
         }
+        report.wound_gap_mm = self.wound_gap_now();
         self.time_s += f64::from(dt_s);
         self.steps += 1;
         report

@@ -542,6 +542,37 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
         world.exercise.unwrap().kind,
         sinew_server::scene::ExerciseKind::Suture
     );
+    // A wound named with an object the world lacks, a coordination exercise naming a wound, and a wound
+    // between an object and itself.
+    let with_wound = |kind: &str, wound: &str| {
+        format!(
+            "{}{}",
+            good_world(),
+            EXERCISE.replace(
+                "kind = \"coordination\"",
+                &format!("kind = \"{kind}\"\nwound = {wound}")
+            )
+        )
+    };
+    let world = with_wound("suture", "[\"sheet\", \"liver\"]");
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        ("exercise.wound", line_of(&world, "wound = ")),
+        "{message}"
+    );
+    assert!(message.contains("no object named `liver`"), "{message}");
+    let world = with_wound("coordination", "[\"sheet\", \"sheet\"]");
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error).0,
+        "exercise.wound",
+        "{message}"
+    );
+    assert!(message.contains("only a suture exercise"), "{message}");
+    let world = with_wound("suture", "[\"sheet\", \"sheet\"]");
+    let (_, message, _) = refused(&world, None);
+    assert!(message.contains("names one object twice"), "{message}");
 
     // No targets at all.
     let world = format!(

@@ -10,7 +10,7 @@
 
 use sinew::stitch_script::{stitch_devices, stitch_scripts};
 use sinew_server::server_tick::ServerTick;
-use sinew_server::sim::{Sim, StepReport};
+use sinew_server::sim::Sim;
 use sinew_server::training::{
     EventKind, ExerciseRun, MetricsConfig, SessionObserver, SkillState, TickView, wound_gap_mm,
 };
@@ -62,7 +62,6 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
     let (mut punctures, mut grasper_punctures) = (0, 0);
     let (mut needle_taken, mut thread_taken, mut gap_before) = (false, false, None);
     let mut last = (0.0f32, 0usize, [0.0f32; 2]);
-    let report = StepReport::default();
     let result = run_drill_observed(
         &world,
         &stitch_devices(scripts.driver, scripts.grasper),
@@ -77,7 +76,7 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
                 tick: sim.steps() - 1,
                 active: server.tools_active(),
                 outputs: server.outputs(),
-                step: &report,
+                step: server.last_step(),
             };
             observer.observe(
                 &view,
@@ -123,7 +122,8 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
     );
     let score = observer.exercise().unwrap().score();
     println!(
-        "exercise `{}`: {} of {} marks, {:.2} mm off them on average ({:.2?} mm each), {} errors, {:.1} s; score {:.0}",
+        "exercise `{}`: {} of {} marks, {:.2} mm off them on average ({:.2?} mm each), {} errors, {:.1} s; the \
+         wound's gap at the end {:?} mm; score {:.0}, passed {}",
         score.name,
         score.targets_hit,
         score.targets_total,
@@ -131,11 +131,18 @@ fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_s
         score.hits.iter().map(|h| h.distance_mm).collect::<Vec<_>>(),
         score.errors.total(),
         score.time_s,
-        score.score
+        score.wound_gap_mm,
+        score.score,
+        score.passed
     );
     // The world's marks are where the plan's bite goes in and out (the plan does not read them yet): the needle
-    // in within 0.5 mm of each, by the driver, with no error.
+    // in within 0.5 mm of each, by the driver, with no error; the exercise saw the wound close as the test did.
     assert!(score.passed, "{score:?}");
+    let scored_gap = score.wound_gap_mm.expect("the exercise names its wound") as f32;
+    assert!(
+        (scored_gap - gap).abs() < 0.05,
+        "scored {scored_gap} mm, measured {gap} mm"
+    );
     assert!(
         score
             .hits

@@ -18,9 +18,15 @@
 //!
 //! A `kind = "suture"` exercise has exactly two targets, the marks a stitch goes in at and comes out at (as
 //! FLS's suturing task marks them on either side of the slit): `[[exercise.targets]]` the entry mark, then the
-//! exit mark, each a point on a tissue's rest surface with the radius a puncture must land within.
+//! exit mark, each a point on a tissue's rest surface with the radius a puncture must land within. It may name
+//! the wound's two edges, `wound = ["left", "right"]` (two objects facing each other): its gap after the
+//! stitch is then scored too (closed to [`SUTURE_GAP_LIMIT_MM`] or less to pass).
 
 use serde::{Deserialize, Serialize};
+
+/// The widest a suture exercise's wound may be left open at its end and pass, mm (issue 32's closure: a 5 mm
+/// gap closed to 1 mm or less).
+pub const SUTURE_GAP_LIMIT_MM: f32 = 1.0;
 
 /// What the exercise trains.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -96,4 +102,7 @@ pub struct ExerciseSpec {
     pub targets: Vec<TargetSpec>,
     /// Samples to rank (stiffness-ranking), in world order.
     pub samples: Vec<SampleSpec>,
+    /// The wound a suture exercise closes: its two edges, by object index (None: its gap is not scored).
+    #[serde(default)]
+    pub wound: Option<[usize; 2]>,
 }

@@ -222,6 +222,7 @@ impl Sim {
             last_energy_n_mm: None,
             tail_due: false,
             openings: 0,
+            wound: world.exercise.as_ref().and_then(|e| e.wound),
             collision_margin_mm: world.collision_margin_mm,
             time_s: 0.0,
             steps: 0,

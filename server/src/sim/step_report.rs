@@ -40,4 +40,6 @@ pub struct StepReport {
     pub tissue_contacts: u32,
     /// Holes a needle left this tick (drawn back through them, or pulled through past its tail).
     pub needle_holes_closed: u32,
+    /// How far open the wound the world's suture exercise names is after the tick, mm (None: no wound named).
+    pub wound_gap_mm: Option<f32>,
 }

@@ -15,7 +15,9 @@
 //! the next mark's radius hits it (the entry mark, then the exit mark), by the tool it names if it names one
 //! (else a wrong-tool error); any other puncture (the bites through the wound's faces between the marks, or one
 //! off its mark) is not judged, and touches are not judged at all. `mean_distance_mm` is then the mm off the
-//! marks.
+//! marks. A suture exercise that names its wound also keeps the wound's latest gap (each tick's
+//! [`crate::sim::StepReport::wound_gap_mm`], through [`ExerciseRun::on_wound_gap`]); it passes only closed to
+//! [`SUTURE_GAP_LIMIT_MM`] or less.
 //!
 //! A stiffness-ranking exercise has samples instead of targets: every touch over a sample (inside its rest
 //! extent across the surface) is that sample's latest, and a touch over none is off target. The answer is the
@@ -32,7 +34,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::events::{EventKind, SessionEvent, ToolActivity};
-use crate::scene::{ExerciseKind, ExerciseSpec};
+use crate::scene::{ExerciseKind, ExerciseSpec, SUTURE_GAP_LIMIT_MM};
 
 /// Points lost per error.
 pub const POINTS_PER_ERROR: f64 = 10.0;
@@ -127,6 +129,9 @@ pub struct ExerciseScore {
     pub hits: Vec<TargetHit>,
     /// A stiffness ranking's answer.
     pub ranking: Option<RankingResult>,
+    /// A suture exercise's wound: its gap when last told, mm (None: it names no wound).
+    #[serde(default)]
+    pub wound_gap_mm: Option<f64>,
 }
 
 /// The running score, without the lists (no allocation: read on the sim thread).
@@ -171,6 +176,8 @@ pub struct ExerciseRun {
     /// Per sample (ranking): the tick of its last touch, and its touches.
     last_touch: Vec<Option<u64>>,
     touches: Vec<u32>,
+    /// The wound's gap when last told, mm (a suture exercise that names its wound).
+    wound_gap_mm: Option<f32>,
 }
 
 impl ExerciseRun {
@@ -190,6 +197,18 @@ impl ExerciseRun {
             hits,
             errors: ExerciseErrors::default(),
             open: vec![None; tools],
+            wound_gap_mm: None,
+        }
+    }
+
+    /// The wound's gap after a tick, mm (None, or a non-finite one, changes nothing). Kept only for a suture
+    /// exercise that names its wound.
+    pub fn on_wound_gap(&mut self, gap_mm: Option<f32>) {
+        if self.spec.kind == ExerciseKind::Suture
+            && self.spec.wound.is_some()
+            && let Some(gap) = gap_mm.filter(|g| g.is_finite())
+        {
+            self.wound_gap_mm = Some(gap);
         }
     }
 
@@ -469,11 +488,14 @@ impl ExerciseRun {
         let score = (100.0 * hit as f64 / total.max(1) as f64
             - POINTS_PER_ERROR * f64::from(errors.total()))
         .max(0.0);
+        // A suture exercise's wound must be closed (a wound named but never told of is not).
+        let closed = self.spec.wound.is_none()
+            || self.wound_gap_mm.is_some_and(|g| g <= SUTURE_GAP_LIMIT_MM);
         ExerciseScore {
             name: self.spec.name.clone(),
             kind: self.spec.kind,
             completed,
-            passed: completed && errors.total() == 0 && hit == total,
+            passed: completed && errors.total() == 0 && hit == total && closed,
             score,
             time_s,
             timed_out: self.timed_out_tick.is_some() && (!completed || ranking.is_some()),
@@ -488,6 +510,7 @@ impl ExerciseRun {
             max_depth_mm: self.hits.iter().map(|h| h.max_depth_mm).fold(0.0, f64::max),
             hits: self.hits.clone(),
             ranking,
+            wound_gap_mm: self.wound_gap_mm.map(f64::from),
         }
     }
 }
@@ -512,6 +535,7 @@ mod tests {
             depth_limit_mm: None,
             targets: vec![target(0.0), target(10.0)],
             samples: Vec::new(),
+            wound: None,
         }
     }
 
@@ -627,5 +651,29 @@ mod tests {
         let mut run = ExerciseRun::new(suture(), 1, 0.001);
         run.on_event(&event(1, EventKind::Puncture), &at(0.0));
         assert_eq!(run.next_target(), Some(0));
+        // Named, its wound must close: both marks hit cleanly, the gap left at 1.4 mm, then closed to 0.6.
+        let mut run = ExerciseRun::new(
+            ExerciseSpec {
+                wound: Some([0, 1]),
+                ..suture()
+            },
+            1,
+            0.001,
+        );
+        run.on_event(&event(0, EventKind::Joined), &at(0.0));
+        run.on_event(&event(10, EventKind::Puncture), &puncture([0.0, 0.0, 0.0]));
+        run.on_event(&event(20, EventKind::Puncture), &puncture([10.0, 0.0, 0.0]));
+        run.on_wound_gap(Some(1.4));
+        run.on_wound_gap(None);
+        run.on_wound_gap(Some(f32::NAN));
+        let score = run.score();
+        assert!(score.completed && !score.passed, "{score:?}");
+        assert_eq!(score.wound_gap_mm, Some(f64::from(1.4f32)));
+        run.on_wound_gap(Some(0.6));
+        assert!(run.score().passed);
+        // Not kept for an exercise that names no wound.
+        let mut run = ExerciseRun::new(suture(), 1, 0.001);
+        run.on_wound_gap(Some(0.6));
+        assert_eq!(run.score().wound_gap_mm, None);
     }
 }

@@ -80,6 +80,8 @@ pub(crate) struct ExerciseSection {
     pub targets: Option<Spanned<Vec<Spanned<TargetSection>>>>,
     #[serde(default)]
     pub samples: Option<Spanned<Vec<String>>>,
+    #[serde(default)]
+    pub wound: Option<Spanned<[String; 2]>>,
 }
 
 #[derive(Debug, Deserialize)]

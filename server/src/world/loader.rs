@@ -33,6 +33,11 @@ pub fn load_world(path: &Path) -> Result<World, WorldError> {
     parse_world(path, &text)
 }
 
+/// Names for an error message, comma-separated (what a key could have named instead).
+fn listed<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    names.collect::<Vec<_>>().join(", ")
+}
+
 /// The most ticks one step of a multi-rate object may span (`sim.tick_hz / step_hz`): 10 Hz at a 1 kHz tick.
 pub const MAX_TICKS_PER_STEP: u32 = 100;
 

@@ -197,8 +197,10 @@ pub fn summary(report: &SessionReport) -> String {
             e.kind.as_str(),
             if e.passed {
                 "passed"
-            } else if e.completed {
+            } else if e.completed && e.errors.total() > 0 {
                 "completed with errors"
+            } else if e.completed {
+                "completed, the wound left open"
             } else {
                 "not completed"
             },
@@ -218,6 +220,13 @@ pub fn summary(report: &SessionReport) -> String {
             e.mean_distance_mm,
             e.max_depth_mm
         );
+        if let Some(gap) = e.wound_gap_mm {
+            let _ = writeln!(
+                s,
+                "  the wound's gap at the end {gap:.2} mm (to pass: {} mm or less)",
+                sinew_server::scene::SUTURE_GAP_LIMIT_MM
+            );
+        }
         if let Some(r) = &e.ranking {
             let pairs: Vec<String> = r
                 .pairs

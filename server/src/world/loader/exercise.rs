@@ -107,11 +107,7 @@ impl Context<'_> {
                             &key("tool"),
                             format!(
                                 "no tool named `{name}` (tools: {})",
-                                tools
-                                    .iter()
-                                    .map(|s| s.name.as_str())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
+                                listed(tools.iter().map(|s| s.name.as_str()))
                             ),
                         )
                     })?)
@@ -131,6 +127,10 @@ impl Context<'_> {
                 tool,
             });
         }
+        let wound = match &e.wound {
+            Some(at) => Some(self.exercise_wound(at, e.kind, objects)?),
+            None => None,
+        };
         Ok(ExerciseSpec {
             name,
             kind: e.kind,
@@ -138,7 +138,44 @@ impl Context<'_> {
             depth_limit_mm,
             targets,
             samples,
+            wound,
         })
+    }
+
+    /// A suture exercise's wound: two distinct objects of the world, by name.
+    fn exercise_wound(
+        &self,
+        at: &Spanned<[String; 2]>,
+        kind: ExerciseKind,
+        objects: &[ObjectSpec],
+    ) -> Result<[usize; 2], WorldError> {
+        self.check(
+            at,
+            "exercise.wound",
+            kind == ExerciseKind::Suture,
+            "only a suture exercise names a wound",
+        )?;
+        let index = |name: &String| {
+            objects.iter().position(|o| &o.name == name).ok_or_else(|| {
+                self.invalid(
+                    at,
+                    "exercise.wound",
+                    format!(
+                        "no object named `{name}` (objects: {})",
+                        listed(objects.iter().map(|o| o.name.as_str()))
+                    ),
+                )
+            })
+        };
+        let [a, b] = at.get_ref();
+        let (a, b) = (index(a)?, index(b)?);
+        self.check(
+            at,
+            "exercise.wound",
+            a != b,
+            "names one object twice: a wound lies between two edges",
+        )?;
+        Ok([a, b])
     }
 
     /// A ranking exercise's samples: at least two distinct objects of the world (none for other kinds).

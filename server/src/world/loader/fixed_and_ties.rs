@@ -69,11 +69,7 @@ impl Context<'_> {
                 &format!("{key}.objects"),
                 format!(
                     "names an unknown object (known: {})",
-                    objects
-                        .iter()
-                        .map(|o| o.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    listed(objects.iter().map(|o| o.name.as_str()))
                 ),
             ));
         };

@@ -1,0 +1,17 @@
+//! The wound an exercise judges: how far open it is after each tick ([`StepReport::wound_gap_mm`]), for the
+//! training layer to score a stitch by ("wound gap after tightening").
+//!
+//! Owns: [`Sim::wound_gap_now`]. The two objects are the world's suture exercise's `wound`
+//! (`scene/exercise_spec.rs`); the gap is `training::wound_gap_mm`'s. Must not: allocate or panic (a
+//! world without a wound reports none).
+
+use super::*;
+
+impl Sim {
+    /// The gap of the exercise's wound now, mm (None: the world names no wound, or it has no gap to tell).
+    pub(super) fn wound_gap_now(&self) -> Option<f32> {
+        let [a, b] = self.wound?;
+        let gap = crate::training::wound_gap_mm(self.objects.get(a)?, self.objects.get(b)?)?;
+        gap.is_finite().then_some(gap)
+    }
+}
