@@ -78,7 +78,12 @@ fn a_published_replay_is_watched_by_a_viewer_and_sends_no_force() {
         let mut peak_force_n = 0.0f32;
         let mut saw_contact = false;
         let mut saw_training = false;
-        for _ in 0..150 {
+        // Stats come once a second: watch until they carried the touches, or 5 s (the replay's 1.3 s and its
+        // linger; a fixed 1.5 s window could hold no stats message at all on a loaded machine).
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        while std::time::Instant::now() < deadline
+            && !(saw_training && saw_contact && peak_force_n > 0.5)
+        {
             std::thread::sleep(Duration::from_millis(10));
             viewer.with_replica(|replica| {
                 for tool in &replica.tool_states().tools {
@@ -104,7 +109,8 @@ fn a_published_replay_is_watched_by_a_viewer_and_sends_no_force() {
         &PublishOptions {
             endpoint,
             speed: 1.0,
-            linger: Duration::from_millis(200),
+            // Long enough for a stats message after the last tick (they come once a second).
+            linger: Duration::from_millis(1500),
         },
         |_, _| lines += 1,
     )
