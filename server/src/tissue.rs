@@ -30,6 +30,7 @@ mod state;
 mod surface_mesh;
 pub mod ties;
 pub mod volume;
+pub mod wound_gap;
 
 pub use guard::{DivergenceGuard, Verdict};
 pub use guarded_step::{GuardedStep, MAX_HALVINGS, Stepped, step_guarded};
