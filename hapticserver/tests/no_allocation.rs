@@ -54,6 +54,15 @@ fn command(k: u64, moderated: bool) -> Vec<u8> {
         friction_coefficient: 0.5,
         stick_stiffness_n_per_mm: 1.5,
         cut_facet_mm: 1.0,
+        // A needle's tip pressing, popped at the device: a new press every 50 ticks.
+        puncture: sinew_protocol::PunctureTerm {
+            press: (k / 50 + 1) as u32,
+            pop_at_n: 0.3,
+            tip_axis: [0.0, 0.0, -1.0],
+            f0_after_n: [0.0, 0.0, 0.1],
+            stiffness_after_n_per_mm: [0.2, 0.2, 0.0, 0.0, 0.0, 0.0],
+            drag_after_n: 0.1,
+        },
     };
     let command = ForceCommand {
         seq: k + 1,

@@ -6,6 +6,7 @@ pub mod local_model;
 mod mesh_delta;
 mod needle_geometry;
 mod pose;
+pub mod puncture_term;
 mod snapshot;
 mod stats;
 mod tools;
@@ -19,6 +20,7 @@ pub use local_model::{
 pub use mesh_delta::{MeshDelta, TopologyDelta};
 pub use needle_geometry::needle_point_in_tool_mm;
 pub use pose::{DevicePose, RenderMode};
+pub use puncture_term::PunctureTerm;
 pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShaft, ToolShape};
 pub use stats::{DeviceStats, ExerciseStats, RejectCounts, ServerStats, TrainingStats};
 pub use tools::{NeedleState, ThreadState, ToolState, ToolStates};

@@ -76,6 +76,22 @@ fn local_model(rng: &mut fastrand::Rng) -> LocalModel {
         friction_coefficient: rng.f32() * 2.0,
         stick_stiffness_n_per_mm: rng.f32() * 3.0,
         cut_facet_mm: if rng.bool() { rng.f32() * 2.0 } else { 0.0 },
+        puncture: if rng.bool() {
+            let axis = v3(rng);
+            let len = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
+                .sqrt()
+                .max(1e-3);
+            PunctureTerm {
+                press: rng.u32(1..),
+                pop_at_n: 0.1 + rng.f32() * 3.0,
+                tip_axis: axis.map(|c| c / len),
+                f0_after_n: v3(rng).map(|c| c / 50.0),
+                stiffness_after_n_per_mm: psd(rng, 1.0),
+                drag_after_n: rng.f32() * 0.5,
+            }
+        } else {
+            PunctureTerm::default()
+        },
     }
 }
 
@@ -691,6 +707,18 @@ fn local_model_fields_out_of_domain_are_refused_by_name() {
         m.cut_facet_mm = bad;
         assert_eq!(refused(m), "local_model.cut_facet_mm");
     }
+    // A needle's puncture term out of its domain (each field's own refusals: puncture_term.rs).
+    let mut m = good;
+    m.puncture = PunctureTerm {
+        press: 2,
+        pop_at_n: 2.5,
+        tip_axis: [0.0, 0.0, 3.0],
+        ..PunctureTerm::default()
+    };
+    assert_eq!(refused(m), "local_model.puncture.tip_axis");
+    let mut m = good;
+    m.puncture.pop_at_n = 1.0;
+    assert_eq!(refused(m), "local_model.puncture");
     // A friction coefficient out of 0..=2, or not finite; a negative stick spring.
     for bad in [-0.1, 2.5, f32::NAN] {
         let mut m = good;

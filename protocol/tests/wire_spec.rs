@@ -64,6 +64,7 @@ fn force_local_model() -> ForceCommand {
             friction_coefficient: 0.0,
             stick_stiffness_n_per_mm: 0.0,
             cut_facet_mm: 0.0,
+            puncture: PunctureTerm::default(),
         }),
         ..force_direct()
     }

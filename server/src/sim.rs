@@ -30,6 +30,7 @@ mod from_scene;
 mod guarded;
 mod instrument;
 mod instruments;
+mod needle_model;
 mod object;
 mod step_report;
 mod suture_output;
@@ -41,6 +42,7 @@ mod topology;
 mod wound_watch;
 
 use guarded::TickStepper;
+pub use needle_model::NeedlePop;
 pub use object::SimObject;
 pub use step_report::StepReport;
 pub use suture_output::SutureActivity;
@@ -344,6 +346,7 @@ impl Sim {
             let out = &mut self.tool_output(t);
             report.held_nodes += out.held_nodes;
             self.local_model(t, dt_s, out);
+            out.needle_pop = self.needle_pop(t, out);
             out.suture = self.suture_activity(t);
             if let Some(slot) = outputs.get_mut(t) {
                 *slot = *out;

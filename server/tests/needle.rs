@@ -177,6 +177,24 @@ fn the_tip_tents_the_skin_below_the_puncture_force_and_punctures_past_it() {
     assert!(tent_mm > 0.5, "the skin did not tent: {tent_mm} mm");
     for out in &held {
         assert!((driver.along_tip_n(out) - 0.9 * threshold).abs() < 0.1 * threshold);
+        // The model a distant device gets carries the pop (sim/needle_model.rs): at the tip's threshold (only
+        // the tip loads the tool), along the tip, and after it free along the tip.
+        let pop = &out.needle_pop;
+        assert_eq!(pop.press, 1, "{pop:?}");
+        assert!(
+            (pop.pop_at_n - threshold).abs() < 0.05 * threshold,
+            "{pop:?}"
+        );
+        assert!((pop.tip_axis - driver.tip_dir()).norm() < 1e-3, "{pop:?}");
+        let along = (pop.stiffness_after_n_per_mm * pop.tip_axis).norm();
+        assert!(
+            along < 1e-4,
+            "the needle is held along its path after the pop: {pop:?}"
+        );
+        assert!(
+            pop.drag_after_n > 0.0 && pop.drag_after_n < threshold,
+            "{pop:?}"
+        );
     }
     // Past the threshold: it punctures, and the force drops at once.
     let before = driver.punctures();
@@ -207,6 +225,8 @@ fn the_tip_tents_the_skin_below_the_puncture_force_and_punctures_past_it() {
         "the pop did not drop the force"
     );
     assert!(matches!(driver.phase(), TipPhase::Inside { object: 0 }));
+    assert_eq!(after.needle_pop.press, 0, "the press is over");
+    assert!(after.in_contact, "the needle in the skin loads the tool");
     let needle = driver.sim.tools[0].needle().unwrap();
     assert_eq!(needle.holes().len(), 1);
     assert!(!needle.holes()[0].exit);
@@ -227,7 +247,8 @@ fn a_tip_meeting_the_skin_at_a_glancing_angle_slides_instead_of_puncturing() {
     }
     let mut most_along_n = 0.0f32;
     for k in 0..4000 {
-        driver.step(&(at + dir * (-6.0 + 0.005 * k as f32)));
+        let out = driver.step(&(at + dir * (-6.0 + 0.005 * k as f32)));
+        assert_eq!(out.needle_pop.press, 0, "a glancing tip has no pop to make");
         if let TipPhase::Pressing { contact, .. } = driver.phase() {
             most_along_n = most_along_n.max(-contact.force_n.dot(&dir));
         }

@@ -3,7 +3,8 @@
 //! Owns: the evaluation of a local model, split into its linear part ([`local_model`]: `f0 - K (x - x0) - D v`,
 //! one-sided along the contact normal and faded out towards its radius), the drag of cutting with the sawtooth
 //! of the facets the device's own travel cuts ([`cut_texture`]), its friction
-//! about a stick point the device keeps ([`friction_stick`]), its unilateral planes rendered through
+//! about a stick point the device keeps ([`friction_stick`]), a needle's puncture popped at the device the tick
+//! its push passes the threshold ([`puncture_pop`]), its unilateral planes rendered through
 //! a god-object proxy ([`plane_proxy`], after Zilles and Salisbury, 1995) and the renderer that keeps the force
 //! continuous when models are swapped ([`blend`]: [`ModelRenderer`]).
 //!
@@ -24,12 +25,14 @@ pub mod cut_texture;
 pub mod friction_stick;
 pub mod local_model;
 pub mod plane_proxy;
+pub mod puncture_pop;
 
 pub use blend::{ModelRenderer, RenderConfig, RenderConfigError};
 pub use cut_texture::CutTexture;
 pub use friction_stick::StickPoint;
 pub use local_model::linear_force_n;
 pub use plane_proxy::PlaneProxy;
+pub use puncture_pop::PopLatch;
 
 /// The dissipative and tangential parts of a one-sided contact force are at most this multiple of its elastic
 /// normal part (dimensionless).

@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 15
+PROTOCOL_VERSION = 16
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -213,6 +213,19 @@ class ContactPlane:
 
 
 @dataclass
+class PunctureTerm:
+    """A needle's tip pressing a surface (v16): the device pops it when its push back along the tip passes
+    `pop_at_n`, then renders the model with the `*_after` terms. `press` 0: no term."""
+
+    press: int = wire_field("u32", default=0)
+    pop_at_n: float = wire_field("f32", default=0.0)
+    tip_axis: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    f0_after_n: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    stiffness_after_n_per_mm: List[float] = wire_field(SYM3, default_factory=lambda: [0.0] * 6)
+    drag_after_n: float = wire_field("f32", default=0.0)
+
+
+@dataclass
 class LocalModel:
     """The tissue near the tool: f = f0 - K (x - x0) - D v within the radius, plus planes (WIRE.md)."""
 
@@ -236,6 +249,8 @@ class LocalModel:
     stick_stiffness_n_per_mm: float = wire_field("f32", default=0.0)
     # How far the blade's edge travels between the facets it cuts, mm: the drag's sawtooth (v12).
     cut_facet_mm: float = wire_field("f32", default=0.0)
+    # A needle's tip pressing a surface: the pop the device makes itself (v16).
+    puncture: PunctureTerm = wire_field(PunctureTerm, default_factory=PunctureTerm)
 
 
 @dataclass

@@ -20,6 +20,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::codec::{FieldError, check};
+use crate::messages::puncture_term::PunctureTerm;
 
 /// Planes a model can carry.
 pub const MAX_CONTACT_PLANES: usize = 4;
@@ -123,6 +124,9 @@ pub struct LocalModel {
     /// sawtooth the tissue makes, `cut_drag_n * exp(-t / CUT_DRAG_TAU_S)` with `t` the time since it last
     /// travelled another `cut_facet_mm`, against its own motion.
     pub cut_facet_mm: f32,
+    /// A needle's tip pressing a surface ([`PunctureTerm`]; inactive otherwise): the device pops it locally
+    /// when its own rendered push along the tip passes the threshold.
+    pub puncture: PunctureTerm,
 }
 
 /// The time constant of the drag of cutting's decay after a facet is cut, s: at a steady 10-20 mm/s an edge
@@ -200,6 +204,7 @@ impl LocalModel {
         if self.energy_allowance_mj < 0.0 {
             return Err(("local_model.energy_allowance_mj", "negative"));
         }
+        self.puncture.validate()?;
         for plane in self.active_planes() {
             check::finite("local_model.planes.normal", &plane.normal)?;
             check::finite(

@@ -42,7 +42,7 @@ pub use hole::Hole;
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
 pub use needle_hold::{NeedleHold, NeedleHolder};
-pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, TipPhase};
+pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, PopPreview, TipPhase};
 pub use thread::{
     STANDARD_GRAVITY_MM_PER_S2, SutureThread, THREAD_DIAMETER_MM, ThreadObject, ThreadSpec,
     ThreadTool,

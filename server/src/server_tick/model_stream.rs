@@ -29,11 +29,11 @@
 use nalgebra::Matrix3;
 use sinew_protocol::{
     ContactPlane, DevicePose, ForceCommand, ForceMode, LocalModel, MAX_CONTACT_PLANES,
-    MAX_FRICTION_COEFFICIENT, RenderMode, Sym3,
+    MAX_FRICTION_COEFFICIENT, PunctureTerm, RenderMode, Sym3,
 };
 
 use crate::haptics::contact_stiffness::psd_part;
-use crate::sim::ToolOutput;
+use crate::sim::{NeedlePop, ToolOutput};
 use crate::tissue::Vec3;
 
 /// Slack on the heartbeat period, s: a tenth of a 1 kHz tick.
@@ -250,6 +250,7 @@ impl ModelStream {
             } else {
                 0.0
             },
+            puncture: puncture_term(&out.needle_pop, max_force_n),
         }
     }
 
@@ -330,6 +331,7 @@ impl ModelStream {
             || (last.cut_facet_mm - model.cut_facet_mm).abs()
                 > p.stiffness_fraction * last.cut_facet_mm
             || last.friction_coefficient != model.friction_coefficient
+            || last.puncture.press != model.puncture.press
             || (last.stick_stiffness_n_per_mm - model.stick_stiffness_n_per_mm).abs()
                 > p.stiffness_fraction * last.stick_stiffness_n_per_mm.max(0.01)
         {
@@ -356,6 +358,32 @@ impl ModelStream {
                     || (a.stiffness_n_per_mm - b.stiffness_n_per_mm).abs()
                         > p.stiffness_fraction * a.stiffness_n_per_mm.max(0.01)
             })
+    }
+}
+
+/// The wire's [`PunctureTerm`] of a needle's pop (world and device axes are parallel), its forces limited to
+/// `max_force_n`; inactive when the pop is not (a threshold past the limit, or anything non-finite: a device
+/// never pops what it cannot render).
+fn puncture_term(pop: &NeedlePop, max_force_n: f32) -> PunctureTerm {
+    let axis = pop.tip_axis.try_normalize(1e-6);
+    match axis {
+        Some(axis)
+            if pop.press != 0
+                && pop.pop_at_n.is_finite()
+                && pop.pop_at_n > 0.0
+                && pop.pop_at_n <= max_force_n
+                && pop.drag_after_n.is_finite() =>
+        {
+            PunctureTerm {
+                press: pop.press,
+                pop_at_n: pop.pop_at_n,
+                tip_axis: axis.into(),
+                f0_after_n: clamp_to(pop.f0_after_n, max_force_n).into(),
+                stiffness_after_n_per_mm: sym3(&psd_part(&pop.stiffness_after_n_per_mm)),
+                drag_after_n: pop.drag_after_n.clamp(0.0, max_force_n),
+            }
+        }
+        _ => PunctureTerm::default(),
     }
 }
 

@@ -88,6 +88,19 @@ pub(crate) trait Instrument: Debug + Send + Sync {
         Vec3::zeros()
     }
 
+    /// The work tool `tool` did on the tissue this tick by turning what this instrument carries (beyond its
+    /// force times its translation), mJ: a needle's loads times the motion the turn of the jaws holding it gave
+    /// their points ([`crate::haptics::energy_budget`]).
+    fn turn_work_mj(&self, _tool: u16) -> f64 {
+        0.0
+    }
+
+    /// The tool bears a load through what its jaws hold other than tissue (a needle in the tissue, a suture
+    /// thread): its output is in contact, so a distant device renders its model.
+    fn loads_tool(&self) -> bool {
+        false
+    }
+
     /// Points of tissue held (counted as held nodes, and reported).
     fn held_points(&self) -> u16 {
         0

@@ -279,4 +279,6 @@ pub struct ToolOutput {
     pub stick_stiffness_n_per_mm: f32,
     /// What the tool's needle and thread are doing (the training layer's suturing states).
     pub suture: super::SutureActivity,
+    /// The pop of the needle its jaws hold, while its tip presses a surface (the model's puncture term).
+    pub needle_pop: super::NeedlePop,
 }

@@ -44,6 +44,10 @@ impl Sim {
         force += Vec3::zeros() + instrument.map_or(Vec3::zeros(), |i| i.force_on_tool_n());
         held += u32::from(attachments);
         let mut out = limit_force(force, tool.max_force_n, held);
+        // A needle in the tissue or a thread in the jaws loads the tool as held tissue does: the output is in
+        // contact (a distant device renders the model only in contact; before, the needle driver's model was
+        // out of contact once the needle was through, and a remote surgeon felt nothing of a stitch).
+        out.in_contact |= tool.active && instrument.is_some_and(|i| i.loads_tool());
         // The friction along the surface: each node's pull is tangent to the tool where that node touches
         // it, so on a curved tool the sum has a part along the contact normal; that part stays in the push
         // (the device's cone is about the push's normal). Scaled as the clamp scaled the force (zero if the
@@ -70,6 +74,13 @@ impl Sim {
     /// Complete `out` with the local model around tool `t` (contact stiffness and damping, nearby surfaces,
     /// the energy allowance) and remember what the coupling needs next tick. No allocation once warm.
     pub(super) fn local_model(&mut self, t: usize, dt_s: f32, out: &mut ToolOutput) {
+        // The work this tool's hand did by turning a needle its jaws hold (whichever tool carries it).
+        let turned_mj: f64 = self
+            .tools
+            .iter()
+            .filter_map(|other| other.instrument_state.as_ref())
+            .map(|i| i.turn_work_mj(t as u16))
+            .sum();
         let tool = &mut self.tools[t];
         let mut k = Matrix3::zeros();
         let mut d = Matrix3::zeros();
@@ -349,6 +360,7 @@ impl Sim {
         if tool.active {
             let step = tool.position_mm - tool.drive.last_position_mm;
             self.budget.record(t, &out.force_world_n, &step, dt_s);
+            self.budget.record_turn(t, turned_mj, dt_s);
         } else {
             self.budget.release(t);
         }

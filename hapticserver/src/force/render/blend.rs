@@ -21,6 +21,7 @@ use super::cut_texture::CutTexture;
 use super::friction_stick::StickPoint;
 use super::local_model::linear_force_n;
 use super::plane_proxy::PlaneProxy;
+use super::puncture_pop::PopLatch;
 
 /// A [`RenderConfig`] value out of its domain.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -145,6 +146,8 @@ pub struct ModelRenderer {
     model: Option<LocalModel>,
     state: RenderState,
     blend: ForceBlend,
+    /// A needle's puncture popped here ([`PopLatch`]).
+    pop: PopLatch,
 }
 
 impl Default for ModelRenderer {
@@ -158,6 +161,7 @@ impl Default for ModelRenderer {
                 texture: CutTexture::default(),
             },
             blend: ForceBlend::default(),
+            pop: PopLatch::default(),
         }
     }
 }
@@ -209,6 +213,11 @@ impl ModelRenderer {
         self.state.stick.anchor_mm()
     }
 
+    /// Needle punctures popped at this device ([`PopLatch`]).
+    pub fn pops(&self) -> u32 {
+        self.pop.pops()
+    }
+
     /// The blend offset rendered on top of the model at `now_s`, N (zero once a blend is over).
     pub fn blend_offset_n(&self, now_s: f64) -> [f32; 3] {
         self.blend.offset_at(now_s, self.config.blend_s)
@@ -221,6 +230,8 @@ impl ModelRenderer {
     /// same state; their difference becomes the offset, decaying to zero over [`RenderConfig::blend_s`]. The
     /// proxy is kept. Non-finite input: the model is taken, the proxy reset, and the next finite tick blends
     /// in from zero.
+    /// A model of a needle press this device has already popped is taken as it is after the puncture
+    /// ([`PopLatch::view`]).
     ///
     /// Real-time contract: no allocation, never blocks, never panics.
     pub fn accept(
@@ -230,6 +241,7 @@ impl ModelRenderer {
         position_mm: [f32; 3],
         velocity_mm_s: [f32; 3],
     ) {
+        let model = &self.pop.view(model);
         if !(now_s.is_finite() && all_finite(position_mm) && all_finite(velocity_mm_s)) {
             self.model = Some(*model);
             self.state.reset();
@@ -278,10 +290,23 @@ impl ModelRenderer {
             self.blend = ForceBlend::FROM_ZERO_NEXT;
             return ZERO;
         }
-        let Some(model) = &self.model else {
+        let Some(mut model) = self.model else {
             return ZERO;
         };
-        let model_n = self.state.force_n(model, now_s, position_mm, velocity_mm_s);
+        // A needle's tip tenting a surface punctures here the tick the model's push back along the tip passes
+        // the threshold: the model is the punctured one from now on, the step not blended (module doc of
+        // `puncture_pop`).
+        if model.puncture.is_active()
+            && self
+                .pop
+                .watch(&model, linear_force_n(&model, position_mm, velocity_mm_s))
+        {
+            model = self.pop.view(&model);
+            self.model = Some(model);
+        }
+        let model_n = self
+            .state
+            .force_n(&model, now_s, position_mm, velocity_mm_s);
         if self.blend.from_zero_next {
             self.blend = ForceBlend {
                 offset_n: model_n.map(|c| -c),
@@ -502,5 +527,74 @@ mod tests {
                 "step {step}: {f:?}"
             );
         }
+    }
+
+    /// A needle's tip pressing down -z into tissue that pushes back +z with 1 N/mm (bilateral: the pressed
+    /// point is held), popping at 2.45 N into a needle free along z, held 0.3 N/mm across it, dragging 0.2 N.
+    fn needle_pressing(press: u32, server_time_ns: u64) -> LocalModel {
+        LocalModel {
+            server_time_ns,
+            in_contact: true,
+            f0_n: [0.0, 0.0, 1.0],
+            stiffness_n_per_mm: [0.3, 0.3, 1.0, 0.0, 0.0, 0.0],
+            radius_mm: 10.0,
+            fade_mm: 2.0,
+            attached: true,
+            puncture: sinew_protocol::PunctureTerm {
+                press,
+                pop_at_n: 2.45,
+                tip_axis: [0.0, 0.0, -1.0],
+                f0_after_n: [0.0, 0.0, 0.0],
+                stiffness_after_n_per_mm: [0.3, 0.3, 0.0, 0.0, 0.0, 0.0],
+                drag_after_n: 0.2,
+            },
+            ..LocalModel::default()
+        }
+    }
+
+    #[test]
+    fn a_needle_pops_the_tick_its_push_passes_the_threshold_and_later_models_of_the_press_stay_popped()
+     {
+        let mut renderer = renderer();
+        renderer.accept(&needle_pressing(7, 0), 0.0, [0.0; 3], [0.0; 3]);
+        // The hand drives the tip down 0.1 mm a tick (100 mm/s): the push back grows 0.1 N a tick and passes
+        // 2.45 N between 1.4 and 1.5 mm.
+        let mut popped_at = None;
+        let mut felt = Vec::new();
+        for tick in 0..30u32 {
+            let z = -0.1 * tick as f32;
+            let f = renderer.force_n(
+                0.05 + f64::from(tick) * DT_S,
+                [0.0, 0.0, z],
+                [0.0, 0.0, -100.0],
+            );
+            felt.push(f[2]);
+            if popped_at.is_none() && renderer.pops() == 1 {
+                popped_at = Some(tick);
+            }
+        }
+        let tick = popped_at.expect("no pop");
+        assert_eq!(tick, 15, "{felt:?}");
+        // Up to the pop the tissue pushes back; the tick it pops the hand feels the needle's drag alone (no
+        // blend: the tissue gave way).
+        assert!((felt[14] - 2.4).abs() < 1e-4, "{felt:?}");
+        assert!((felt[15] - 0.2).abs() < 0.01, "{felt:?}");
+        assert!(
+            felt[15..].iter().all(|f| (f - 0.2).abs() < 0.01),
+            "{felt:?}"
+        );
+        // A model of the same press the server built before its needle got there: rendered popped.
+        renderer.accept(
+            &needle_pressing(7, 100_000_000),
+            0.080,
+            [0.0, 0.0, -3.0],
+            [0.0, 0.0, -100.0],
+        );
+        let f = renderer.force_n(0.1, [0.0, 0.0, -3.0], [0.0, 0.0, -100.0]);
+        assert!((f[2] - 0.2).abs() < 0.01, "{f:?}");
+        assert_eq!(renderer.pops(), 1);
+        // Across the path the needle is held: a 1 mm push sideways meets 0.3 N.
+        let f = renderer.force_n(0.2, [1.0, 0.0, -3.0], [0.0; 3]);
+        assert!((f[0] + 0.3).abs() < 1e-3, "{f:?}");
     }
 }

@@ -14,8 +14,8 @@ pub const MIN_CONTACT_FORCE_N: f32 = 1e-6;
 
 /// The linear part of `model` at the device position `position_mm` moving at `velocity_mm_s` (device frame), N.
 ///
-/// Zero unless `model.in_contact` and `|f0| > MIN_CONTACT_FORCE_N`. With the contact normal `n = f0 / |f0|` and
-/// the spring part `s = f0 - K (x - x0)`:
+/// Zero unless `model.in_contact` and (for a one-sided model) `|f0| > MIN_CONTACT_FORCE_N`. With the contact
+/// normal `n = f0 / |f0|` and the spring part `s = f0 - K (x - x0)`:
 /// - with `model.attached` (the tool holds tissue) the result is `s - D v`, faded: held tissue pulls back
 ///   whichever way the tool moves, so none of the one-sided rules below apply;
 /// - `n . s <= 0`: the tool has left the tissue, exactly zero (tissue never pulls);
@@ -42,11 +42,6 @@ pub fn linear_force_n(
         return ZERO;
     }
     let f0 = model.f0_n;
-    let f0_norm_n = dot3(f0, f0).sqrt();
-    if !f0_norm_n.is_finite() || f0_norm_n <= MIN_CONTACT_FORCE_N {
-        return ZERO;
-    }
-    let normal = f0.map(|c| c / f0_norm_n);
     let offset_mm: [f32; 3] = std::array::from_fn(|i| position_mm[i] - model.x0_mm[i]);
     let weight = fade_weight(
         dot3(offset_mm, offset_mm).sqrt(),
@@ -58,15 +53,22 @@ pub fn linear_force_n(
     }
     let k_dx_n = sym3_mul(&model.stiffness_n_per_mm, &offset_mm);
     let spring_n: [f32; 3] = std::array::from_fn(|i| f0[i] - k_dx_n[i]);
-    let spring_normal_n = dot3(normal, spring_n);
-    if spring_normal_n.is_nan() || (spring_normal_n <= 0.0 && !model.attached) {
-        return ZERO;
-    }
     let d_v_n = sym3_mul(&model.damping_n_s_per_mm, &velocity_mm_s);
     if model.attached {
-        // Held tissue pulls back whichever way the tool moves: no one-sided cut-off, no drag cap.
+        // Held tissue pulls back whichever way the tool moves: no one-sided cut-off, no drag cap, and no
+        // contact normal needed (a needle just through its hole, or a grasp at rest, holds with `f0` near
+        // zero).
         let force_n: [f32; 3] = std::array::from_fn(|i| weight * (spring_n[i] - d_v_n[i]));
         return if all_finite(force_n) { force_n } else { ZERO };
+    }
+    let f0_norm_n = dot3(f0, f0).sqrt();
+    if !f0_norm_n.is_finite() || f0_norm_n <= MIN_CONTACT_FORCE_N {
+        return ZERO;
+    }
+    let normal = f0.map(|c| c / f0_norm_n);
+    let spring_normal_n = dot3(normal, spring_n);
+    if spring_normal_n.is_nan() || spring_normal_n <= 0.0 {
+        return ZERO;
     }
     // Everything but the elastic normal part: the tangential spring and the damping.
     let drag_n: [f32; 3] =

@@ -80,6 +80,24 @@ pub struct NeedleTissue {
     /// ([`NeedleTissue::take_passed_tail`]).
     passed_tail: Vec<Hole>,
     punctures: u32,
+    /// Surfaces the tip has started to press since it was built (each press is numbered by it).
+    presses: u32,
+}
+
+/// What the tip pressing a surface would do if it punctured now: what a distant device needs to make the pop
+/// itself ([`NeedleTissue::pop_preview`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PopPreview {
+    /// The press (numbered from 1).
+    pub press: u32,
+    /// The tip's direction, unit, world.
+    pub tip_axis: Vec3,
+    /// The tissue's force on the tip now, world, N (it goes at the puncture).
+    pub tip_force_n: Vec3,
+    /// The push back along the tip that punctures, N (the material's puncture force).
+    pub threshold_n: f32,
+    /// The new hole's friction on the needle sliding through it, N (its squeeze times the needle friction).
+    pub drag_n: f32,
 }
 
 impl NeedleTissue {
@@ -96,7 +114,41 @@ impl NeedleTissue {
                 .map(|_| Vec::with_capacity(3 * (MAX_HOLES + 1)))
                 .collect(),
             punctures: 0,
+            presses: 0,
         }
+    }
+
+    /// Surfaces the tip has started to press since it was built.
+    pub fn presses(&self) -> u32 {
+        self.presses
+    }
+
+    /// While the tip presses a surface at an angle it may puncture at (within the material's `spec`): the
+    /// press, the tip's direction and load, and the drag of the hole it would make ([`PopPreview`]). None
+    /// otherwise (free, inside, or glancing: the tip would skate, not pop).
+    pub fn pop_preview(
+        &self,
+        world_from_needle: &Isometry3<f32>,
+        model: &MassSpringModel,
+        state: &TissueState,
+        spec: &PunctureSpec,
+    ) -> Option<PopPreview> {
+        let TipPhase::Pressing { contact, .. } = &self.phase else {
+            return None;
+        };
+        let (_, tip_axis) = self.tip(world_from_needle);
+        if contact.push.dot(&tip_axis) < spec.max_angle_rad.cos() {
+            return None;
+        }
+        let squeeze = Hole::squeeze_for(tent_stiffness(contact, model, state), self.diameter_mm);
+        let drag_n = spec.needle_friction.max(0.0) * squeeze;
+        (tip_axis.iter().all(|c| c.is_finite()) && drag_n.is_finite()).then_some(PopPreview {
+            press: self.presses,
+            tip_axis,
+            tip_force_n: contact.force_n,
+            threshold_n: spec.force_n,
+            drag_n,
+        })
     }
 
     /// Where the tip is.
@@ -140,6 +192,32 @@ impl NeedleTissue {
             _ => Vec3::zeros(),
         };
         self.holes.iter().fold(tip, |sum, h| sum + h.force_n)
+    }
+
+    /// The work the needle did on the tissue through its tip and holes as it moved from `before` to `after`
+    /// (world from needle), beyond what the holder's translation `step_mm` accounts for, mJ (N mm):
+    /// `-sum f_k . (dp_k - step)` over the loads `f_k` the tissue puts on the needle's points (this tick's)
+    /// and the motion `dp_k` the move gave those points. Zero for a needle that only translated. No allocation.
+    pub fn turn_work_mj(
+        &self,
+        before: &Isometry3<f32>,
+        after: &Isometry3<f32>,
+        step_mm: &Vec3,
+    ) -> f64 {
+        let moved = |theta: f32| {
+            let local = Point3::from(self.arc.at(theta).point_mm);
+            (after * local).coords - (before * local).coords - step_mm
+        };
+        let tip = match self.phase {
+            TipPhase::Pressing { contact, .. } => {
+                -f64::from(contact.force_n.dot(&moved(self.arc.sweep_rad())))
+            }
+            _ => 0.0,
+        };
+        let work = self.holes.iter().fold(tip, |sum, h| {
+            sum - f64::from(h.force_n.dot(&moved(h.theta_rad)))
+        });
+        if work.is_finite() { work } else { 0.0 }
     }
 
     /// The holes the needle's tail left since the last call (the thread takes them), oldest first. No
@@ -335,15 +413,8 @@ impl NeedleTissue {
             events.punctures += 1;
             self.punctures += 1;
             if self.holes.len() < MAX_HOLES {
-                // The tissue's stiffness against the tip: the load over how far the tent has carried the point
-                // from its rest along the push.
-                let depth_mm = contact
-                    .point
-                    .position_mm(model, state)
-                    .zip(contact.point.rest_position_mm(model))
-                    .map_or(0.0, |(x, rest)| (x - rest).dot(&contact.push));
-                let stiffness = contact.load_n / depth_mm.max(MIN_TENT_MM);
-                let squeeze = Hole::squeeze_for(stiffness, self.diameter_mm);
+                let squeeze =
+                    Hole::squeeze_for(tent_stiffness(&contact, model, state), self.diameter_mm);
                 self.holes
                     .push(Hole::new(contact.point, &self.arc, exit, squeeze));
             }
@@ -385,6 +456,7 @@ impl NeedleTissue {
             barycentric,
         };
         if let Some(contact) = TipContact::new(point, exit, model) {
+            self.presses = self.presses.wrapping_add(1).max(1);
             self.phase = TipPhase::Pressing { contact, exit };
             self.rebuild_nodes(object, model);
         }
@@ -445,6 +517,17 @@ impl NeedleTissue {
         }
         (before - self.holes.len()) as u32
     }
+}
+
+/// The tissue's stiffness against the tip, N/mm: the load over how far the tent has carried the point from its
+/// rest along the push.
+fn tent_stiffness(contact: &TipContact, model: &MassSpringModel, state: &TissueState) -> f32 {
+    let depth_mm = contact
+        .point
+        .position_mm(model, state)
+        .zip(contact.point.rest_position_mm(model))
+        .map_or(0.0, |(x, rest)| (x - rest).dot(&contact.push));
+    contact.load_n / depth_mm.max(MIN_TENT_MM)
 }
 
 /// A tent shallower than this is taken as this deep when the tissue's stiffness is read from it, mm.

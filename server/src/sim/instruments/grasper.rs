@@ -203,6 +203,10 @@ impl Instrument for Grasper {
         self.grasp.attachments().len() as u16
     }
 
+    fn loads_tool(&self) -> bool {
+        self.thread_of.is_some() || self.needle_of.is_some()
+    }
+
     fn mark_output(&self, out: &mut ToolOutput) {
         out.jaws_closed = self.jaws.closed();
         out.jaw_angle_rad = self.jaws.angle_rad();

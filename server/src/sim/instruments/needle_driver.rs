@@ -22,7 +22,8 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 
 use crate::interaction::suture::{
-    NeedleDriverSpec, NeedleHold, NeedleTissue, SutureThread, THREAD_DIAMETER_MM, TipPhase,
+    NeedleDriverSpec, NeedleHold, NeedleHolder, NeedleTissue, SutureThread, THREAD_DIAMETER_MM,
+    TipPhase,
 };
 use crate::interaction::{JawActivation, JawInput, Jaws};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -50,6 +51,11 @@ pub(in crate::sim) struct NeedleDriver {
     /// jaws open): the hand does not lose the needle's load in one tick.
     let_go_pull_n: Vec3,
     let_go_share: f32,
+    /// The needle's pose at the last tick, and the tool whose jaws held it then (None: no jaws did).
+    last_pose: Option<(u16, Isometry3<f32>)>,
+    /// The work the turn of the jaws that hold the needle did on the tissue this tick through the needle and
+    /// the thread on its tail, mJ, and the tool whose jaws they are ([`Instrument::turn_work_mj`]).
+    turn_work_mj: (u16, f64),
 }
 
 impl NeedleDriver {
@@ -71,6 +77,8 @@ impl NeedleDriver {
             own_tool: None,
             let_go_pull_n: Vec3::zeros(),
             let_go_share: 0.0,
+            last_pose: None,
+            turn_work_mj: (0, 0.0),
         }
     }
 
@@ -268,6 +276,33 @@ impl Instrument for NeedleDriver {
                 thread.lay_out(&tail_mm, &away);
             }
         }
+        // The turn's work through the needle's loads and the thread's pull on its tail, for the jaws that hold it
+        // (the driver's, or a grasper's drawing it out along its curve).
+        self.turn_work_mj = (0, 0.0);
+        let holder = match self.hold.holder() {
+            NeedleHolder::Driver { .. } => Some(t as u16),
+            NeedleHolder::Tool { tool, .. } => Some(*tool),
+            NeedleHolder::Loose => None,
+        };
+        let held = holder.and_then(|h| sim.tools.get(usize::from(h)).map(|tool| (h, tool)));
+        if let Some((h, tool)) = held {
+            let step_mm = tool.position_mm - tool.drive.last_position_mm;
+            if let Some((before_holder, before)) = self.last_pose
+                && before_holder == h
+            {
+                let tail = Point3::from(self.needle.arc().tail().point_mm);
+                let tail_moved = (pose * tail).coords - (before * tail).coords - step_mm;
+                let thread = self
+                    .thread
+                    .as_ref()
+                    .map_or(0.0, |th| -f64::from(th.pull_on_tail_n().dot(&tail_moved)));
+                let work = self.needle.turn_work_mj(&before, &pose, &step_mm) + thread;
+                self.turn_work_mj = (h, if work.is_finite() { work } else { 0.0 });
+            }
+            self.last_pose = Some((h, pose));
+        } else {
+            self.last_pose = None;
+        }
     }
 
     fn attached_nodes(&self, object: usize) -> &[u32] {
@@ -378,6 +413,30 @@ impl Instrument for NeedleDriver {
 
     fn needle_pull_on_n(&self, holder: u16) -> Option<Vec3> {
         self.hold.held_by(holder).then(|| self.pull_on_holder_n())
+    }
+
+    fn turn_work_mj(&self, tool: u16) -> f64 {
+        if self.turn_work_mj.0 == tool {
+            self.turn_work_mj.1
+        } else {
+            0.0
+        }
+    }
+
+    fn loads_tool(&self) -> bool {
+        let needle_in_tissue =
+            !matches!(self.needle.phase(), TipPhase::Free) || !self.needle.holes().is_empty();
+        let needle_pulls = if self.hold.in_drivers_jaws() {
+            needle_in_tissue || self.thread.as_ref().is_some_and(|t| !t.holes().is_empty())
+        } else {
+            self.let_go_share > 0.0
+        };
+        let grips_thread = self
+            .thread
+            .as_ref()
+            .zip(self.own_tool)
+            .is_some_and(|(thread, me)| thread.grip_of(me).is_some());
+        needle_pulls || grips_thread
     }
 
     fn held_points(&self) -> u16 {

@@ -98,6 +98,8 @@ fn random_model(rng: &mut fastrand::Rng, near_mm: [f32; 3], normals: &[[f32; 3]]
         } else {
             0.0
         },
+        // A needle's pop is a step by design (the tissue gives way): `puncture_pop`'s own tests cover it.
+        puncture: sinew_protocol::PunctureTerm::default(),
     };
     assert!(model.validate().is_ok(), "{model:?}");
     model
