@@ -55,23 +55,14 @@ impl EnergyBudget {
         let Some(work) = self.work_mj.get_mut(t) else {
             return;
         };
-        let leak = (-f64::from(dt_s) / Self::LEAK_TIME_S).exp();
-        let done = -f64::from(force_on_tool_n.dot(step_mm));
-        *work *= leak;
-        if done.is_finite() {
-            *work += done;
-        }
+        leak_and_add(work, -f64::from(force_on_tool_n.dot(step_mm)), dt_s);
     }
 
     /// Record one tick of tool `t`'s turning work on the tissue, `turn_work_mj` (mJ; the work beyond its
     /// force times its translation). No allocation, never panics (non-finite input is ignored).
     pub fn record_turn(&mut self, t: usize, turn_work_mj: f64, dt_s: f32) {
-        let Some(work) = self.turn_mj.get_mut(t) else {
-            return;
-        };
-        *work *= (-f64::from(dt_s) / Self::LEAK_TIME_S).exp();
-        if turn_work_mj.is_finite() {
-            *work += turn_work_mj;
+        if let Some(work) = self.turn_mj.get_mut(t) {
+            leak_and_add(work, turn_work_mj, dt_s);
         }
     }
 
@@ -102,6 +93,15 @@ impl EnergyBudget {
             .sum();
         let turned = self.turn_mj.get(t).copied().unwrap_or(0.0).max(0.0);
         (others + turned).min(Self::MAX_ALLOWANCE_MJ)
+    }
+}
+
+/// One tick of a leaky account: `work` decays over `dt_s` with [`EnergyBudget::LEAK_TIME_S`], then takes `done`
+/// (ignored when not finite).
+fn leak_and_add(work: &mut f64, done: f64, dt_s: f32) {
+    *work *= (-f64::from(dt_s) / EnergyBudget::LEAK_TIME_S).exp();
+    if done.is_finite() {
+        *work += done;
     }
 }
 

@@ -15,7 +15,6 @@
 
 use nalgebra::Matrix3;
 
-use crate::interaction::suture::{NeedleHold, NeedleTissue};
 use crate::tissue::Vec3;
 
 use super::*;
@@ -38,22 +37,6 @@ pub struct NeedlePop {
 }
 
 impl Sim {
-    /// The needle tool `t`'s jaws hold, with its hold: its own in a needle driver's jaws, or another tool's
-    /// needle its jaws took.
-    fn needle_in_jaws(&self, t: usize) -> Option<(&NeedleTissue, &NeedleHold)> {
-        let me = u16::try_from(t).ok()?;
-        self.tools.iter().enumerate().find_map(|(k, other)| {
-            let instrument = other.instrument_state.as_ref()?;
-            let (needle, hold) = (instrument.needle()?, instrument.needle_hold()?);
-            let held = if k == t {
-                hold.in_drivers_jaws()
-            } else {
-                hold.held_by(me)
-            };
-            held.then_some((needle, hold))
-        })
-    }
-
     /// Tool `t`'s needle pop for its output `out` (after [`Sim::local_model`]): see the module doc. No
     /// allocation.
     pub(super) fn needle_pop(&self, t: usize, out: &ToolOutput) -> NeedlePop {
@@ -61,7 +44,7 @@ impl Sim {
         if !self.tools.get(t).is_some_and(|tool| tool.active) || !out.attached {
             return none;
         }
-        let Some((needle, hold)) = self.needle_in_jaws(t) else {
+        let Some((_, needle, hold)) = self.needle_in_jaws(t) else {
             return none;
         };
         let crate::interaction::suture::TipPhase::Pressing { contact, .. } = needle.phase() else {

@@ -7,7 +7,9 @@
 //! the tissue, and a grasper's grip on any tool's thread. Must not: change anything (it reads the tick's
 //! result).
 
-use crate::interaction::suture::{NeedleHolder, TipPhase};
+use crate::interaction::suture::{NeedleHold, NeedleHolder, NeedleTissue, TipPhase};
+
+use super::instrument::Instrument;
 
 use super::*;
 
@@ -40,6 +42,25 @@ pub struct SutureActivity {
 }
 
 impl Sim {
+    /// The needle tool `t`'s jaws hold, with the instrument that carries it and its hold: its own in a needle
+    /// driver's jaws, or another tool's needle its jaws took.
+    pub(super) fn needle_in_jaws(
+        &self,
+        t: usize,
+    ) -> Option<(&dyn Instrument, &NeedleTissue, &NeedleHold)> {
+        let me = u16::try_from(t).ok()?;
+        self.tools.iter().enumerate().find_map(|(k, other)| {
+            let instrument = other.instrument_state.as_deref()?;
+            let (needle, hold) = (instrument.needle()?, instrument.needle_hold()?);
+            let held = if k == t {
+                hold.in_drivers_jaws()
+            } else {
+                hold.held_by(me)
+            };
+            held.then_some((instrument, needle, hold))
+        })
+    }
+
     /// Tool `t`'s suturing now.
     pub(super) fn suture_activity(&self, t: usize) -> SutureActivity {
         let mut activity = SutureActivity::default();
@@ -49,23 +70,14 @@ impl Sim {
         let Ok(me) = u16::try_from(t) else {
             return activity;
         };
-        for (k, other) in self.tools.iter().enumerate() {
-            let Some(instrument) = other.instrument_state.as_ref() else {
-                continue;
-            };
-            let (Some(needle), Some(hold)) = (instrument.needle(), instrument.needle_hold()) else {
-                continue;
-            };
+        if let Some(own) = self.tools[t].instrument_state.as_ref()
+            && let (Some(needle), Some(hold)) = (own.needle(), own.needle_hold())
+        {
+            activity.needle_released =
+                !needle.holes().is_empty() && *hold.holder() == NeedleHolder::Loose;
+        }
+        if let Some((instrument, needle, hold)) = self.needle_in_jaws(t) {
             let in_tissue = !needle.holes().is_empty();
-            let held = if k == t {
-                activity.needle_released = in_tissue && *hold.holder() == NeedleHolder::Loose;
-                hold.in_drivers_jaws()
-            } else {
-                hold.held_by(me)
-            };
-            if !held {
-                continue;
-            }
             activity.needle_held = true;
             activity.needle_regrasped = in_tissue && hold.taken_in_tissue();
             activity.needle_pressing = matches!(needle.phase(), TipPhase::Pressing { .. });

@@ -194,15 +194,17 @@ impl NeedleTissue {
         self.holes.iter().fold(tip, |sum, h| sum + h.force_n)
     }
 
-    /// The work the needle did on the tissue through its tip and holes as it moved from `before` to `after`
-    /// (world from needle), beyond what the holder's translation `step_mm` accounts for, mJ (N mm):
-    /// `-sum f_k . (dp_k - step)` over the loads `f_k` the tissue puts on the needle's points (this tick's)
-    /// and the motion `dp_k` the move gave those points. Zero for a needle that only translated. No allocation.
+    /// The work the needle did on the tissue through its tip, its holes and its tail (pulled by `tail_pull_n`,
+    /// its thread's load) as it moved from `before` to `after` (world from needle), beyond what the holder's
+    /// translation `step_mm` accounts for, mJ (N mm): `-sum f_k . (dp_k - step)` over the loads `f_k` on the
+    /// needle's points (this tick's) and the motion `dp_k` the move gave those points. Zero for a needle that
+    /// only translated. No allocation.
     pub fn turn_work_mj(
         &self,
         before: &Isometry3<f32>,
         after: &Isometry3<f32>,
         step_mm: &Vec3,
+        tail_pull_n: &Vec3,
     ) -> f64 {
         let moved = |theta: f32| {
             let local = Point3::from(self.arc.at(theta).point_mm);
@@ -217,6 +219,8 @@ impl NeedleTissue {
         let work = self.holes.iter().fold(tip, |sum, h| {
             sum - f64::from(h.force_n.dot(&moved(h.theta_rad)))
         });
+        // The thread's pull on the tail.
+        let work = work - f64::from(tail_pull_n.dot(&moved(0.0)));
         if work.is_finite() { work } else { 0.0 }
     }
 

@@ -290,13 +290,13 @@ impl Instrument for NeedleDriver {
             if let Some((before_holder, before)) = self.last_pose
                 && before_holder == h
             {
-                let tail = Point3::from(self.needle.arc().tail().point_mm);
-                let tail_moved = (pose * tail).coords - (before * tail).coords - step_mm;
-                let thread = self
+                let tail_pull_n = self
                     .thread
                     .as_ref()
-                    .map_or(0.0, |th| -f64::from(th.pull_on_tail_n().dot(&tail_moved)));
-                let work = self.needle.turn_work_mj(&before, &pose, &step_mm) + thread;
+                    .map_or(Vec3::zeros(), |th| th.pull_on_tail_n());
+                let work = self
+                    .needle
+                    .turn_work_mj(&before, &pose, &step_mm, &tail_pull_n);
                 self.turn_work_mj = (h, if work.is_finite() { work } else { 0.0 });
             }
             self.last_pose = Some((h, pose));
