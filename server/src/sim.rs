@@ -14,7 +14,8 @@
 //!    verdict (`guarded.rs`, over
 //!    [`crate::tissue::guarded_step`]); a fault still there at the smallest substep is contained (here);
 //! 4. overstretched tissue tears (`tearing.rs`, through `topology.rs`); instruments act on the step's result (grasps
-//!    take hold, slip and let go: `instruments/grasper.rs`);
+//!    take hold, slip and let go: `instruments/grasper.rs`; the needle and its thread step); a thread pulled
+//!    past its tissue's limit tears it at its holes (`hole_tearing.rs`);
 //! 5. per tool: its instrument acts on the surface it touches (the cautery burns: `instruments/cautery_tip.rs`);
 //!    the reaction force, clamped, and the local model a distant device renders (`tool_output.rs`);
 //! 6. the tail, after the forces are out: colliders refit, contact-stiffness iterations ([`Sim::finish_tick`]).
@@ -28,6 +29,7 @@
 mod drive;
 mod from_scene;
 mod guarded;
+mod hole_tearing;
 mod instrument;
 mod instruments;
 mod needle_model;
@@ -124,6 +126,8 @@ pub struct Sim {
     openings: u64,
     /// The two objects whose gap the world's suture exercise judges (`wound_watch.rs`).
     wound: Option<[usize; 2]>,
+    /// The slits a suture cuts through its tissue (`hole_tearing.rs`).
+    hole_tear_scratch: crate::interaction::CutScratch,
 }
 
 impl Sim {
@@ -341,6 +345,8 @@ impl Sim {
         for t in 0..self.tools.len() {
             self.with_instrument(t, |i, sim| i.after_substeps(sim, t, dt_s, &mut report));
         }
+        // A suture pulled past its tissue's limit cuts through it at its holes, once the thread has stepped.
+        self.tear_at_holes(&mut report);
         for t in 0..self.tools.len() {
             self.with_instrument(t, |i, sim| i.before_output(sim, t, dt_s, &mut report));
             let out = &mut self.tool_output(t);

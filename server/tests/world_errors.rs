@@ -1272,13 +1272,14 @@ fn a_needle_driver_and_the_puncture_keys_load_and_bad_ones_name_the_key_and_line
     }
     let good = good_world().replace(
         "anchor_stiffness_n_per_mm = 0.001",
-        "anchor_stiffness_n_per_mm = 0.001\npuncture_force_n = 3.0\npuncture_max_angle_deg = 30.0\nneedle_friction = 0.3",
+        "anchor_stiffness_n_per_mm = 0.001\npuncture_force_n = 3.0\npuncture_max_angle_deg = 30.0\nneedle_friction = 0.3\nsuture_tear_n = 3.7",
     );
     let world = load_world(&write_world(&good, None)).unwrap();
     let puncture = world.objects[0].material.puncture;
     assert_eq!(puncture.force_n, 3.0);
     assert!((puncture.max_angle_rad - 30f32.to_radians()).abs() < 1e-6);
     assert_eq!(puncture.needle_friction, 0.3);
+    assert_eq!(puncture.suture_tear_n, Some(3.7));
     assert_refused_on_its_line(
         &good,
         &[
@@ -1299,6 +1300,12 @@ fn a_needle_driver_and_the_puncture_keys_load_and_bad_ones_name_the_key_and_line
                 "needle_friction = nan",
                 "objects[0].material.needle_friction",
                 "0 to 2",
+            ),
+            (
+                "suture_tear_n = 3.7",
+                "suture_tear_n = 0.0",
+                "objects[0].material.suture_tear_n",
+                "0.1 to 50 N",
             ),
         ],
     );

@@ -13,6 +13,8 @@
 //! - the thread's chain held to length by a direct solve ([`ThreadChain`]), with soft bending;
 //! - the thread on the needle's tail ([`SutureThread`]): it follows the needle, hangs and lies on the tissue
 //!   and against the tools without passing into them, and keeps off itself (`thread_self_contact`).
+//! - a suture cutting out of its tissue ([`plan_hole_tear`]): a hole pulled past the material's limit tears
+//!   the tissue toward the pull, and the thread cuts through a bite's edge.
 //!
 //! The rest of the thread and the stitches come next, each in its own file here, behind the tick's
 //! instrument extension point (`sim/instrument.rs`; the needle driver is `sim/instruments/needle_driver.rs`);
@@ -22,6 +24,7 @@
 
 mod hole;
 mod hole_point;
+mod hole_tear;
 mod needle;
 mod needle_arc;
 mod needle_hold;
@@ -39,6 +42,7 @@ mod volume_point;
 
 pub use crate::tissue::PunctureSpec;
 pub use hole::Hole;
+pub use hole_tear::{HoleTear, TEAR_PERIOD_S, plan_hole_tear, surface_point_near};
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
 pub use needle_hold::{NeedleHold, NeedleHolder};

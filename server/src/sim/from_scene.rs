@@ -222,6 +222,7 @@ impl Sim {
             last_energy_n_mm: None,
             tail_due: false,
             openings: 0,
+            hole_tear_scratch: crate::interaction::CutScratch::default(),
             wound: world.exercise.as_ref().and_then(|e| e.wound),
             collision_margin_mm: world.collision_margin_mm,
             time_s: 0.0,

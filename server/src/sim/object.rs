@@ -94,6 +94,11 @@ impl SimObject {
         self.region.as_ref()
     }
 
+    /// What its material does against a suture's needle and thread.
+    pub fn puncture_spec(&self) -> &crate::tissue::PunctureSpec {
+        &self.puncture
+    }
+
     /// The step lane of a multi-rate object (None: it steps every tick).
     pub fn step_lane(&self) -> Option<&StepLane> {
         self.lane.as_ref()

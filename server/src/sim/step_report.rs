@@ -34,6 +34,10 @@ pub struct StepReport {
     pub seams_torn: u32,
     /// Vertices split off by cuts and tears this tick.
     pub vertices_split: u32,
+    /// Steps a suture's holes tore through their tissue this tick (`hole_tearing.rs`).
+    pub hole_tears: u32,
+    /// Holes a suture cut all the way out of (its thread let go there) this tick.
+    pub holes_torn_out: u32,
     /// Surfaces a needle's tip punctured this tick.
     pub punctures: u32,
     /// Surface nodes of one object watched against a face of another this tick (tissue-tissue contact).

@@ -11,6 +11,9 @@ pub struct PunctureSpec {
     pub max_angle_rad: f32,
     /// Coulomb friction of the needle sliding through the tissue.
     pub needle_friction: f32,
+    /// A thread pulling on the tissue at one of its holes harder than this tears the tissue there: the suture
+    /// cuts through it toward the pull (`interaction::suture::hole_tear`), N. None: it never tears.
+    pub suture_tear_n: Option<f32>,
 }
 
 impl PunctureSpec {
@@ -20,5 +23,6 @@ impl PunctureSpec {
         force_n: 2.5,
         max_angle_rad: 37.0 * std::f32::consts::PI / 180.0,
         needle_friction: 0.2,
+        suture_tear_n: None,
     };
 }

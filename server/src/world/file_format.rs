@@ -307,6 +307,9 @@ pub(crate) struct MaterialSection {
     /// Coulomb friction of a needle sliding through this tissue.
     #[serde(default)]
     pub needle_friction: Option<Spanned<f32>>,
+    /// A suture's thread pulling on this tissue at a hole harder than this tears it there, N.
+    #[serde(default)]
+    pub suture_tear_n: Option<Spanned<f32>>,
 }
 
 #[derive(Debug, Clone, Deserialize)]

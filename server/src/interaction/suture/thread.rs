@@ -45,6 +45,8 @@
 
 use nalgebra::UnitQuaternion;
 
+mod tear;
+
 use super::thread_edge_contact::keep_segment_out;
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{HolePoint, ThreadHole, inside_by_holes, take_nodes};

@@ -86,6 +86,8 @@ pub struct ThreadHole {
     substeps: u32,
     /// The mean pull of the tick before, N: the tissue carries it (`anchor_mm`).
     carried_n: Vec3,
+    /// When the tissue last tore under it (`hole_tear.rs`), s of simulation time.
+    torn_at_s: Option<f64>,
 }
 
 impl ThreadHole {
@@ -114,7 +116,25 @@ impl ThreadHole {
             pull_sum_n: Vec3::zeros(),
             substeps: 0,
             carried_n: Vec3::zeros(),
+            torn_at_s: None,
         }
+    }
+
+    /// The tissue tore under it at `now_s` (`hole_tear.rs`): it holds the thread at `point` now, where the slit
+    /// reached, and that point carries no pull yet; it sticks until the thread slides again.
+    pub fn tear_to(&mut self, point: HolePoint, now_s: f64) {
+        self.point = point;
+        self.pull_sum_n = Vec3::zeros();
+        self.substeps = 0;
+        self.carried_n = Vec3::zeros();
+        self.slip = 0.0;
+        self.speed_mm_s = 0.0;
+        self.torn_at_s = Some(now_s);
+    }
+
+    /// When the tissue last tore under it, s of simulation time (None: never).
+    pub fn torn_at_s(&self) -> Option<f64> {
+        self.torn_at_s
     }
 
     /// Before the thread's substeps: read where the tissue holds the hole now. False when it cannot (its

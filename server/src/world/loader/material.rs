@@ -278,6 +278,19 @@ impl Context<'_> {
                     crate::tissue::PunctureSpec::DEFAULT.needle_friction,
                     "must be 0 to 2 (Coulomb's coefficient; published needle-tissue values are 0.12-0.34)",
                 )?,
+                suture_tear_n: match &m.suture_tear_n {
+                    None => None,
+                    Some(at) => {
+                        let force_n = *at.get_ref();
+                        self.check(
+                            at,
+                            &key("suture_tear_n"),
+                            force_n.is_finite() && (0.1..=50.0).contains(&force_n),
+                            "must be 0.1 to 50 N (skin-like tissue lets a 3-0 to 5-0 suture cut out at 3.3-4.1 N)",
+                        )?;
+                        Some(force_n)
+                    }
+                },
             },
         })
     }
