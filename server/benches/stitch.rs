@@ -1,5 +1,5 @@
 //! The server tick during a stitch, beside the probe-only pad tick in the same run (issue 32's measure), one
-//! core, no network, virtual time. The stitch is the wound of `worlds/suture_wound.toml` as its tests drive it
+//! core, no network, virtual time. The stitch is the wound of `worlds/suture.toml` as its tests drive it
 //! (`tests/common/wound.rs`): the needle turned through both edges and the grasper's take of the thread
 //! (untimed), then both ends drawn crossed by hands that stop drawing at 3 N, timed in two phases:
 //! - drawing (its first 3 s): the thread sliding through its four holes (the chain's 4x4 blocks), the edges

@@ -1,4 +1,4 @@
-//! What the suture thread costs the server tick, on worlds/suture.toml (the skin block, a needle driver with its
+//! What the suture thread costs the server tick, on worlds/suture_block.toml (the skin block, a needle driver with its
 //! thread, a grasper), one core, no network. Two sims of the same world run the same script tick by tick,
 //! interleaved, one as shipped and one whose needle carries no thread (`thread_length_mm = 0`): the difference
 //! is the thread's share of the tick. In both the grasper presses the skin 1.5 mm and strokes +-4 mm (the
@@ -33,11 +33,11 @@ const THREAD_SUBSTEPS: usize = 4;
 
 fn main() {
     let ticks = bench_args::count_arg("ticks", 10_000).expect("--ticks takes a count");
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
     let world = load_world(&path).unwrap();
     let mut bare = load_world(&path).unwrap();
     let InstrumentSpec::NeedleDriver(mut spec) = bare.tools[0].instrument else {
-        panic!("tool 0 of the suture world is not a needle driver");
+        panic!("tool 0 of the suture block is not a needle driver");
     };
     let segments = usize::from(spec.thread.segments);
     spec.thread = ThreadSpec::NONE;

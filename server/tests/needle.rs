@@ -1,4 +1,4 @@
-//! A needle driver's curved needle against the shipped suture world's skin, on virtual time: the tip tents the
+//! A needle driver's curved needle against the shipped suture block's skin, on virtual time: the tip tents the
 //! surface and punctures it past the material's force and within its angle, not below the force and not at a
 //! glancing angle; the pop drops the force at once; a needle driven on through the block tents its floor from
 //! inside and punctures it too (a through-bite's second peak), allocating nothing between; in the skin it slides
@@ -28,11 +28,11 @@ use sinew_server::world::{InstrumentSpec, load_world};
 const DT_S: f32 = 0.001;
 
 fn suture_world() -> sinew_server::scene::World {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
     load_world(&path).unwrap()
 }
 
-/// The suture world's needle driver (tool 0) held with its shaft along world +y and the needle's curve turned
+/// The suture block's needle driver (tool 0) held with its shaft along world +y and the needle's curve turned
 /// down, tilted `tilt_rad` about the world's x axis from that (0: the tip 14 degrees off straight down, in the
 /// x-z plane). Tool 1 (the grasper) stays away.
 struct Driver {
@@ -52,7 +52,7 @@ impl Driver {
 
     fn with(world: sinew_server::scene::World, tilt_about_y_rad: f32) -> Self {
         let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
-            panic!("tool 0 of the suture world is not a needle driver");
+            panic!("tool 0 of the suture block is not a needle driver");
         };
         let tool_from_needle = spec.tool_from_needle();
         let tip = spec.arc.tip();
@@ -261,7 +261,7 @@ fn a_tip_meeting_the_skin_at_a_glancing_angle_slides_instead_of_puncturing() {
     assert_eq!(driver.punctures(), 0, "punctured at a glancing angle");
 }
 
-/// The suture world with a half-circle needle held 10 degrees from its tail (170 degrees of it ahead of the
+/// The suture block with a half-circle needle held 10 degrees from its tail (170 degrees of it ahead of the
 /// jaws), and the pose of the driver turned `turn_rad` about the needle's own axis, its centre 3 mm over the
 /// skin at x = 0 (world y runs along the axis): the arc dips 7.7 mm into the skin, entering and leaving 10.3
 /// mm either side, its tangent 16 degrees off the normal there. Returns the driver, the pose at a turn, and

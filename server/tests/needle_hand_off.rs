@@ -1,4 +1,4 @@
-//! The needle's hand-off on the wound of worlds/suture_wound.toml, on virtual time: the driver drives the
+//! The needle's hand-off on the wound of worlds/suture.toml, on virtual time: the driver drives the
 //! needle through both edges until its tip stands out of the far edge, opens its ratchet and leaves; the
 //! needle stays where it is, held by its holes; the grasper comes down on its tip, takes it, and draws it on
 //! along its own curve until its tail has left all four holes and the thread runs through them.

@@ -79,11 +79,11 @@ fn the_sim_threads_whole_tick_allocates_nothing_once_warm() {
 }
 
 /// The frame hand-off copies a suture thread's polyline too (wire v14) without allocating once warm:
-/// `worlds/suture.toml`'s needle driver held above the skin, its thread laid out and hanging.
+/// `worlds/suture_block.toml`'s needle driver held above the skin, its thread laid out and hanging.
 #[test]
 fn handing_off_a_frame_with_a_thread_and_its_needle_allocates_nothing_once_warm() {
     assert_counting_works();
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
     let world = load_world(&path).unwrap();
     let mut tick = common::server_tick(&world);
     let frames = FrameExchange::new(tick.sim());

@@ -1,5 +1,5 @@
 //! A cut beside a stitch keeps the stitch (issue 32: "a cut beside an existing stitch keeps the stitch (stable
-//! ids)"). The wound of worlds/suture_wound.toml stitched as `suture_stitch.rs` draws it (the pass, the grasper
+//! ids)"). The wound of worlds/suture.toml stitched as `suture_stitch.rs` draws it (the pass, the grasper
 //! on the thread, both ends drawn crossed by hands that stop at 3 N), then a scalpel's sweep opens a slit in
 //! the right edge beside the stitch: 10 mm long across the edge, 4 mm deep, 7 mm along the wound from the
 //! stitch. The edge's topology changes (vertices split, springs and the collider rebuilt; elements keep their

@@ -1,4 +1,4 @@
-//! The wound of worlds/suture_wound.toml and a grasper on the thread, on virtual time.
+//! The wound of worlds/suture.toml and a grasper on the thread, on virtual time.
 //!
 //! - A needle driver turns a half-circle needle along its own curve down through the right edge, out of its
 //!   wound face, across the gap, into the left edge's face and up out of its top: four punctures, and the

@@ -1,6 +1,6 @@
 //! A suture cutting out of its tissue (issue 32: "past the material's tear limit (about 3.3-4.1 N for
 //! skin-like material with 3-0 to 5-0 suture), the existing tearing fires at the hole"). The wound of
-//! worlds/suture_wound.toml, whose skin lets a suture cut out at `suture_tear_n = 3.7` N, stitched as
+//! worlds/suture.toml, whose skin lets a suture cut out at `suture_tear_n = 3.7` N, stitched as
 //! `suture_stitch.rs` draws it, but by hands that draw on until they feel 8 N (a device renders 3.3 N at most:
 //! a hand can draw a thread far harder than it feels). The stitches drawn at 3 and 4 N there tear nothing
 //! (`suture_stitch.rs` checks).

@@ -1,4 +1,4 @@
-//! The thread on the suture world's needle, on virtual time: it hangs from the needle's tail at its length and
+//! The thread on the suture block's needle, on virtual time: it hangs from the needle's tail at its length and
 //! carries its own weight; it follows the needle; it falls onto the skin, lies on it, and over 10,000 ticks of
 //! a randomly driven needle and a grasper chasing the thread, on each of four seeds (`SINEW_SEED=<n>` runs one),
 //! no node ever ends a tick inside the skin or a tool, no segment cuts into the skin across its edges, no two
@@ -28,7 +28,7 @@ use sinew_server::world::{InstrumentSpec, load_world};
 
 const DT_S: f32 = 0.001;
 
-/// The suture world's needle driver (tool 0), its shaft level along world +y, the needle's curve down.
+/// The suture block's needle driver (tool 0), its shaft level along world +y, the needle's curve down.
 struct Driver {
     sim: Sim,
     device_origin_mm: Vector3<f32>,
@@ -40,10 +40,11 @@ struct Driver {
 
 impl Driver {
     fn new() -> Self {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
         let world = load_world(&path).unwrap();
         let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
-            panic!("tool 0 of the suture world is not a needle driver");
+            panic!("tool 0 of the suture block is not a needle driver");
         };
         Self {
             device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
@@ -100,7 +101,7 @@ impl Driver {
     }
 }
 
-/// How far inside the suture world's tools a point lies, mm (negative: outside): the needle driver's 1 mm
+/// How far inside the suture block's tools a point lies, mm (negative: outside): the needle driver's 1 mm
 /// sphere at its origin, the grasper's capsule (3 mm half length along its z, 1.5 mm radius), each where the
 /// sim has it now.
 fn depth_in_tools_mm(sim: &Sim, p: &Vector3<f32>) -> f32 {

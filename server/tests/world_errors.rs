@@ -423,7 +423,7 @@ fn the_shipped_exercises_and_a_test_exercise_load() {
         "exercise_coordination.toml",
         "exercise_accurate_touch.toml",
         "exercise_stiffness_ranking.toml",
-        "suture_wound.toml",
+        "suture.toml",
     ] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../worlds")

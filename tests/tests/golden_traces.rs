@@ -350,7 +350,7 @@ fn every_shipped_world_has_a_golden_trace() {
         "pad",
         "pad_stiff",
         "suture",
-        "suture_wound",
+        "suture_block",
         "tet_block",
         "tug_of_war",
     ];
@@ -402,8 +402,8 @@ golden_world!(tet_block, "tet_block.toml", DURATION_S);
 golden_world!(fem_block, "fem_block.toml", HEAVY_DURATION_S);
 golden_world!(liver, "liver.toml", DURATION_S);
 golden_world!(tug_of_war, "tug_of_war.toml", DURATION_S);
+golden_world!(suture_block, "suture_block.toml", DURATION_S);
 golden_world!(suture, "suture.toml", DURATION_S);
-golden_world!(suture_wound, "suture_wound.toml", DURATION_S);
 
 /// The grasp-pull with a tissue that tears at 25% strain and jaws that do not slip first: the pull tears it.
 #[test]

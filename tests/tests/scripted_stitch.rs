@@ -1,7 +1,7 @@
 //! One scripted stitch through the real device loops (issue 32's "one scripted stitch closes a 5 mm wound gap
 //! to 1 mm or less with no inverted element; the state machine records the expected sequence"), on virtual
 //! time: the server's tick and two simulated hands (compliant, as a surgeon's firm grip is) joined by a LAN-like
-//! link, running the scripts `sinew demo` runs on the wound of `worlds/suture_wound.toml`
+//! link, running the scripts `sinew demo` runs on the wound of `worlds/suture.toml`
 //! (`sinew::stitch_script`: the driver drives the needle through both edges and lets it go; the grasper takes
 //! its tip on the far side and draws it out along its curve; the driver takes the thread's free end; both
 //! draw the stitch crossed. Each stage is planned after a rehearsal of the ones before it has shown where
@@ -43,7 +43,7 @@ fn inverted(sim: &Sim) -> usize {
 
 #[test]
 fn one_scripted_stitch_through_the_device_loops_closes_the_wound_and_walks_the_suturing_states() {
-    let world = sinew_testkit::harness::load_shipped_world("suture_wound.toml").unwrap();
+    let world = sinew_testkit::harness::load_shipped_world("suture.toml").unwrap();
     // The plan, its pass rehearsed to find the thread, as `sinew demo` makes it.
     let scripts = stitch_scripts(&world).unwrap();
     println!(

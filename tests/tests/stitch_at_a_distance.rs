@@ -1,4 +1,4 @@
-//! One stitch felt at a distance (issue 32, "At a distance"): the scripted stitch of `worlds/suture_wound.toml`
+//! One stitch felt at a distance (issue 32, "At a distance"): the scripted stitch of `worlds/suture.toml`
 //! (`sinew::stitch_script`: the driver's pass through both edges, the grasper drawing the needle out, both
 //! drawing the stitch tight) run on virtual time in `--mode auto` at 50 and 100 ms round trips, against the
 //! same scripts at zero delay. Deterministic: no wall-clock assertion. `SINEW_RTTS=50,100,200` picks the round
@@ -68,7 +68,7 @@ fn peak_at_s(trace: &[TraceSample]) -> f64 {
 /// only the translation).
 #[test]
 fn a_stitch_is_felt_at_a_distance_as_at_zero_delay() {
-    let world = sinew_testkit::harness::load_shipped_world("suture_wound.toml").unwrap();
+    let world = sinew_testkit::harness::load_shipped_world("suture.toml").unwrap();
     let scripts = stitch_scripts(&world).unwrap();
     let reference = run(&world, &scripts, 0.0);
     println!(

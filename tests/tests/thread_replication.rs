@@ -1,4 +1,4 @@
-//! A suture thread reaches the viewers over real zenoh sessions on loopback (`worlds/suture.toml`): the needle
+//! A suture thread reaches the viewers over real zenoh sessions on loopback (`worlds/suture_block.toml`): the needle
 //! driver's device holds it above the skin, the server lays out and steps its thread, and every viewer (one
 //! watching from the start, one joining late, through the snapshot) holds its polyline: 65 nodes (64
 //! segments), the first at the needle's tail, the rest hanging from it; and where the needle lies (protocol 15's
@@ -91,10 +91,10 @@ fn distance_mm(a: [f32; 3], b: [f32; 3]) -> f32 {
 #[test]
 fn a_needle_drivers_thread_reaches_every_viewer_and_a_late_joiner() {
     let _serial = serial();
-    let world = load_shipped_world("suture.toml").unwrap();
+    let world = load_shipped_world("suture_block.toml").unwrap();
     let endpoint = free_loopback_endpoint().unwrap();
     let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
-    let viewer = start_viewer("suture", "instructor", &endpoint).unwrap();
+    let viewer = start_viewer("suture-block", "instructor", &endpoint).unwrap();
     assert!(viewer.wait_for_snapshot(Duration::from_secs(5)));
     assert!(
         viewer.with_replica(|r| r.tool_states().threads.is_empty()),
@@ -102,7 +102,7 @@ fn a_needle_drivers_thread_reaches_every_viewer_and_a_late_joiner() {
     );
     // The driver 20 mm above the skin (device frame; its origin is at x = -10 mm).
     let _left = start_sim_device(
-        "suture",
+        "suture-block",
         "left",
         HandScript::Hold {
             position_mm: [0.0, 0.0, 20.0],
@@ -122,7 +122,10 @@ fn a_needle_drivers_thread_reaches_every_viewer_and_a_late_joiner() {
         "the viewer never saw the thread hang: {:?}",
         thread_seen(&viewer)
     );
-    for watcher in [viewer, start_viewer("suture", "late", &endpoint).unwrap()] {
+    for watcher in [
+        viewer,
+        start_viewer("suture-block", "late", &endpoint).unwrap(),
+    ] {
         assert!(watcher.wait_for_snapshot(Duration::from_secs(5)));
         assert!(
             wait_until(Duration::from_secs(5), || hanging(&watcher)),

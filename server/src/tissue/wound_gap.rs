@@ -3,7 +3,7 @@
 //!
 //! Owns: [`wound_gap_between_mm`] (the training layer's `wound_gap_mm` reads it from two sim objects; the sim
 //! reports it for an exercise's wound, `sim/wound_watch.rs`). A wound here is two objects facing each other (each one edge, as in
-//! `worlds/suture_wound.toml`): the direction across it runs from the centre of one's rest bounding box to the
+//! `worlds/suture.toml`): the direction across it runs from the centre of one's rest bounding box to the
 //! other's (a cut's or a tear's split vertices, copies at their parents' rest places, do not turn it); each
 //! edge's face is its nodes that lie, at rest, at its extreme along that direction toward the other (to within
 //! 0.01 mm); the gap is the least that the second edge's face reaches back along the direction, less the most

@@ -1,4 +1,4 @@
-//! The wound of worlds/suture_wound.toml driven on virtual time, for the stitch's tests and its bench: a
+//! The wound of worlds/suture.toml driven on virtual time, for the stitch's tests and its bench: a
 //! needle driver (tool 0) holding a half-circle needle at its tail in small jaws (so it follows the needle
 //! through), turned along the needle's own curve through both edges ([`Wound::pass`]); a grasper (tool 1)
 //! that takes the thread ([`Wound::take_thread`]); both ends drawn crossed over the wound by hands that stop
@@ -54,8 +54,7 @@ pub struct Wound {
 
 impl Wound {
     pub fn new() -> Self {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_wound.toml");
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
         let world = load_world(&path).unwrap();
         // (The world's needle: a half circle held at its tail in small jaws, which follow it through.)
         let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {

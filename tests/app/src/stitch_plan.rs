@@ -27,7 +27,7 @@ pub struct StitchSite {
 }
 
 impl StitchSite {
-    /// The wound of `worlds/suture_wound.toml`: along y at x = 0, its skin's top on z = 0; the needle's
+    /// The wound of `worlds/suture.toml`: along y at x = 0, its skin's top on z = 0; the needle's
     /// centre 3 mm above it (a 10.7 mm needle then bites 7.4 mm deep through each edge's face).
     pub const WOUND: StitchSite = StitchSite {
         centre_mm: [0.0, 0.0, 3.0],
@@ -239,7 +239,7 @@ mod tests {
 
     fn wound() -> World {
         let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../worlds/suture_wound.toml");
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../worlds/suture.toml");
         load_world(&path).unwrap()
     }
 

@@ -48,7 +48,7 @@ pub struct StitchScripts {
 }
 
 /// Where `world`'s stitch goes: the needle's centre 3 mm above the middle of its objects' top (the wound of
-/// `worlds/suture_wound.toml` lies there, between its two blocks).
+/// `worlds/suture.toml` lies there, between its two blocks).
 pub fn stitch_site(world: &World) -> anyhow::Result<StitchSite> {
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     for object in &world.objects {
