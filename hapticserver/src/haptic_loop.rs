@@ -251,6 +251,7 @@ impl HapticLoop {
                 }
                 self.counters.last_position_mm = reading.position_mm;
                 self.last_velocity_mm_s = reading.linear_velocity_mm_s;
+                self.renderer.set_orientation(reading.orientation_xyzw);
             }
             // A failed or non-finite reading is not published; the force path below still runs.
             Ok(_) | Err(_) => self.counters.device_read_errors += 1,
@@ -457,6 +458,7 @@ impl HapticLoop {
         report.mode_switches = self.mode.switches();
         report.smoothed_rtt_ms = self.mode.smoothed_rtt_ms().unwrap_or(0.0);
         report.energy_allowance_mj = self.allowance_mj;
+        report.needle_pops = self.renderer.pops();
         report.last_second = self.stillness.last();
     }
 

@@ -62,6 +62,8 @@ fn command(k: u64, moderated: bool) -> Vec<u8> {
             f0_after_n: [0.0, 0.0, 0.1],
             stiffness_after_n_per_mm: [0.2, 0.2, 0.0, 0.0, 0.0, 0.0],
             drag_after_n: 0.1,
+            tip_lever_mm: [0.0, 0.0, -10.0],
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
         },
     };
     let command = ForceCommand {

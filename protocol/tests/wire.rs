@@ -88,6 +88,8 @@ fn local_model(rng: &mut fastrand::Rng) -> LocalModel {
                 f0_after_n: v3(rng).map(|c| c / 50.0),
                 stiffness_after_n_per_mm: psd(rng, 1.0),
                 drag_after_n: rng.f32() * 0.5,
+                tip_lever_mm: v3(rng),
+                orientation_xyzw: unit_quat(rng),
             }
         } else {
             PunctureTerm::default()
@@ -713,6 +715,7 @@ fn local_model_fields_out_of_domain_are_refused_by_name() {
         press: 2,
         pop_at_n: 2.5,
         tip_axis: [0.0, 0.0, 3.0],
+        orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
         ..PunctureTerm::default()
     };
     assert_eq!(refused(m), "local_model.puncture.tip_axis");

@@ -83,9 +83,18 @@ fn a_stitch_is_felt_at_a_distance_as_at_zero_delay() {
     for rtt_ms in rtts {
         let delayed = run(&world, &scripts, rtt_ms);
         println!(
-            "{rtt_ms} ms: punctures at {:.3?} s, the gap at the end {:.2} mm",
-            delayed.punctures_s, delayed.gap_mm
+            "{rtt_ms} ms: punctures at {:.3?} s, the gap at the end {:.2} mm; popped at the devices {:?}",
+            delayed.punctures_s, delayed.gap_mm, delayed.result.needle_pops
         );
+        // Each of the driver's punctures popped at its device, the tick its push passed the threshold, not a
+        // round trip later from the server's model.
+        if delayed.result.needle_pops[0] as usize != delayed.punctures_s.len() {
+            failures.push(format!(
+                "{rtt_ms} ms: the driver's device popped {} of {} punctures",
+                delayed.result.needle_pops[0],
+                delayed.punctures_s.len()
+            ));
+        }
         for (d, name) in ["driver", "grasper"].iter().enumerate() {
             let (reference_peak, reference_rms) = peak_and_rms(&reference.result.traces[d]);
             let (peak, rms) = peak_and_rms(&delayed.result.traces[d]);

@@ -79,6 +79,9 @@ pub struct HapticReport {
     pub smoothed_rtt_ms: f32,
     /// The energy allowance of the latest model, mJ.
     pub energy_allowance_mj: f64,
+    /// Needle punctures the local model popped at the device, the tick the hand's push passed the threshold
+    /// (`force/render/puncture_pop.rs`), not a round trip later.
+    pub needle_pops: u32,
     /// Multilink: how long the start waited for the UDP link, ms (`Some(None)`: it never came, the device runs
     /// on TCP alone; `None`: no UDP endpoint was asked for).
     pub udp_link_wait_ms: Option<Option<f32>>,
@@ -132,6 +135,7 @@ impl HapticReport {
             mode_switches: 0,
             smoothed_rtt_ms: 0.0,
             energy_allowance_mj: 0.0,
+            needle_pops: 0,
             last_second: Default::default(),
             udp_link_wait_ms: None,
             loop_failure: None,

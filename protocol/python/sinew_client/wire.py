@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 16
+PROTOCOL_VERSION = 17
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -223,6 +223,10 @@ class PunctureTerm:
     f0_after_n: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
     stiffness_after_n_per_mm: List[float] = wire_field(SYM3, default_factory=lambda: [0.0] * 6)
     drag_after_n: float = wire_field("f32", default=0.0)
+    # The tip less the tool's origin and the tool's orientation when the model was built: the device pops on
+    # its own turn too (v17).
+    tip_lever_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    orientation_xyzw: List[float] = wire_field(Q4, default_factory=lambda: [0.0, 0.0, 0.0, 0.0])
 
 
 @dataclass

@@ -381,6 +381,8 @@ fn puncture_term(pop: &NeedlePop, max_force_n: f32) -> PunctureTerm {
                 f0_after_n: clamp_to(pop.f0_after_n, max_force_n).into(),
                 stiffness_after_n_per_mm: sym3(&psd_part(&pop.stiffness_after_n_per_mm)),
                 drag_after_n: pop.drag_after_n.clamp(0.0, max_force_n),
+                tip_lever_mm: pop.tip_lever_mm.into(),
+                orientation_xyzw: pop.orientation.coords.into(),
             }
         }
         _ => PunctureTerm::default(),

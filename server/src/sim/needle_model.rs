@@ -9,7 +9,9 @@
 //!   the model's force (the needle's holes, the thread on its tail) pushes back along the tip;
 //! - the model after the pop: the tip's load gone from `f0`; `K` without its part along the tip (the needle
 //!   slides on through its new hole, held across it by the tissue); the new hole's friction as a drag against
-//!   the motion.
+//!   the motion;
+//! - the tip's lever from the tool's origin and the tool's orientation: a needle is driven by rolling its
+//!   driver, and the device adds the push its own turn gives the tip (`PunctureTerm::rolled_push_n`).
 //!
 //! Must not: change the simulation (it reads the tick's result), or allocate.
 
@@ -34,6 +36,10 @@ pub struct NeedlePop {
     pub stiffness_after_n_per_mm: Matrix3<f32>,
     /// The needle's drag through its new hole after the pop, N (>= 0).
     pub drag_after_n: f32,
+    /// The tip less the tool's origin, world, mm.
+    pub tip_lever_mm: Vec3,
+    /// The tool's orientation, world.
+    pub orientation: nalgebra::UnitQuaternion<f32>,
 }
 
 impl Sim {
@@ -69,6 +75,8 @@ impl Sim {
         let across = Matrix3::identity() - axis * axis.transpose();
         let stiffness = across * out.stiffness_n_per_mm * across;
         let stiffness = (stiffness + stiffness.transpose()) * 0.5;
+        let tool = &self.tools[t];
+        let tip_mm = hold.world_from_needle() * nalgebra::Point3::from(needle.arc().tip().point_mm);
         let pop = NeedlePop {
             press: preview.press,
             pop_at_n,
@@ -76,8 +84,11 @@ impl Sim {
             f0_after_n: rest_n,
             stiffness_after_n_per_mm: stiffness,
             drag_after_n: preview.drag_n,
+            tip_lever_mm: tip_mm.coords - tool.position_mm,
+            orientation: tool.rotation,
         };
         let finite = pop_at_n.is_finite()
+            && pop.tip_lever_mm.iter().all(|c| c.is_finite())
             && rest_n.iter().all(|c| c.is_finite())
             && stiffness.iter().all(|c| c.is_finite());
         if finite && pop_at_n > 0.0 && preview.press != 0 {

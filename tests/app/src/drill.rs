@@ -101,6 +101,8 @@ pub struct DrillResult {
     pub stale_events: Vec<u64>,
     /// Per device: the passivity controller's active ticks and withheld energy, mJ.
     pub passivity_withheld_mj: Vec<f64>,
+    /// Per device: needle punctures its local model popped at the device.
+    pub needle_pops: Vec<u32>,
     /// Per device: the largest force rendered, N.
     pub max_force_n: Vec<f32>,
     /// Per device: force payloads the device refused (a valid server sends none).
@@ -288,6 +290,7 @@ pub fn run_drill_observed(
         commands_per_second: Vec::new(),
         stale_events: Vec::new(),
         passivity_withheld_mj: Vec::new(),
+        needle_pops: Vec::new(),
         max_force_n: Vec::new(),
         rejected: Vec::new(),
         final_positions_mm: server
@@ -304,6 +307,7 @@ pub fn run_drill_observed(
         result
             .passivity_withheld_mj
             .push(report.passivity.withheld_mj);
+        result.needle_pops.push(report.needle_pops);
         result.max_force_n.push(report.max_rendered_force_n);
         result.rejected.push(rig.inbox.rejects().total());
         result

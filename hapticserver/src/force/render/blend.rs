@@ -148,6 +148,8 @@ pub struct ModelRenderer {
     blend: ForceBlend,
     /// A needle's puncture popped here ([`PopLatch`]).
     pop: PopLatch,
+    /// The device's orientation at the latest reading, `[x, y, z, w]` (a needle's tip moves with the turn).
+    orientation_xyzw: [f32; 4],
 }
 
 impl Default for ModelRenderer {
@@ -162,6 +164,7 @@ impl Default for ModelRenderer {
             },
             blend: ForceBlend::default(),
             pop: PopLatch::default(),
+            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
         }
     }
 }
@@ -211,6 +214,17 @@ impl ModelRenderer {
     /// The friction's stick point, mm, while the tool pushes on frictional tissue.
     pub fn stick_point_mm(&self) -> Option<[f32; 3]> {
         self.state.stick.anchor_mm()
+    }
+
+    /// The device's orientation now, a unit quaternion `[x, y, z, w]` (wire frame, as its pose reports it): a
+    /// needle's tip pressing a surface moves with the device's turn ([`PunctureTerm::rolled_push_n`]). A
+    /// non-finite one is ignored.
+    ///
+    /// [`PunctureTerm::rolled_push_n`]: sinew_protocol::PunctureTerm::rolled_push_n
+    pub fn set_orientation(&mut self, orientation_xyzw: [f32; 4]) {
+        if all_finite4(orientation_xyzw) {
+            self.orientation_xyzw = orientation_xyzw;
+        }
     }
 
     /// Needle punctures popped at this device ([`PopLatch`]).
@@ -297,9 +311,13 @@ impl ModelRenderer {
         // the threshold: the model is the punctured one from now on, the step not blended (module doc of
         // `puncture_pop`).
         if model.puncture.is_active()
-            && self
-                .pop
-                .watch(&model, linear_force_n(&model, position_mm, velocity_mm_s))
+            && self.pop.watch(
+                &model,
+                linear_force_n(&model, position_mm, velocity_mm_s),
+                model
+                    .puncture
+                    .rolled_push_n(&model.stiffness_n_per_mm, self.orientation_xyzw),
+            )
         {
             model = self.pop.view(&model);
             self.model = Some(model);
@@ -331,6 +349,11 @@ impl ModelRenderer {
         self.state.reset();
         self.blend = ForceBlend::default();
     }
+}
+
+/// Every component finite.
+fn all_finite4(v: [f32; 4]) -> bool {
+    v.iter().all(|c| c.is_finite())
 }
 
 #[cfg(test)]
@@ -547,6 +570,8 @@ mod tests {
                 f0_after_n: [0.0, 0.0, 0.0],
                 stiffness_after_n_per_mm: [0.3, 0.3, 0.0, 0.0, 0.0, 0.0],
                 drag_after_n: 0.2,
+                tip_lever_mm: [0.0, 0.0, -10.0],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
             },
             ..LocalModel::default()
         }
@@ -596,5 +621,41 @@ mod tests {
         // Across the path the needle is held: a 1 mm push sideways meets 0.3 N.
         let f = renderer.force_n(0.2, [1.0, 0.0, -3.0], [0.0; 3]);
         assert!((f[0] + 0.3).abs() < 1e-3, "{f:?}");
+    }
+    /// A needle is driven by rolling its driver: a hand that holds still and turns drives the tip with the turn
+    /// alone, and the device pops when that turn's push passes the threshold. The tip 10 mm along x from the
+    /// tool's origin, turned 0.01 rad a tick about y, goes down 10 sin(a) mm: against 1 N/mm it pushes back
+    /// 1 + 10 sin(a) N and passes 2.45 N between 0.14 and 0.15 rad. Without the turn's push it would never pop
+    /// (the device's position does not move).
+    #[test]
+    fn a_needle_pops_on_the_devices_turn_alone() {
+        let mut renderer = renderer();
+        let model = LocalModel {
+            puncture: sinew_protocol::PunctureTerm {
+                tip_lever_mm: [10.0, 0.0, 0.0],
+                ..needle_pressing(3, 0).puncture
+            },
+            ..needle_pressing(3, 0)
+        };
+        renderer.accept(&model, 0.0, [0.0; 3], [0.0; 3]);
+        let mut popped_at = None;
+        for tick in 0..30u32 {
+            let a = 0.01 * tick as f32;
+            renderer.set_orientation([0.0, (a / 2.0).sin(), 0.0, (a / 2.0).cos()]);
+            renderer.force_n(0.05 + f64::from(tick) * DT_S, [0.0; 3], [0.0; 3]);
+            if popped_at.is_none() && renderer.pops() == 1 {
+                popped_at = Some(tick);
+            }
+        }
+        assert_eq!(popped_at, Some(15));
+        // A turn the other way lifts the tip: no pop.
+        let mut renderer = self::renderer();
+        renderer.accept(&model, 0.0, [0.0; 3], [0.0; 3]);
+        for tick in 0..30u32 {
+            let a = -0.01 * tick as f32;
+            renderer.set_orientation([0.0, (a / 2.0).sin(), 0.0, (a / 2.0).cos()]);
+            renderer.force_n(0.05 + f64::from(tick) * DT_S, [0.0; 3], [0.0; 3]);
+        }
+        assert_eq!(renderer.pops(), 0);
     }
 }

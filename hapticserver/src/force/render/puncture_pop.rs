@@ -57,15 +57,17 @@ impl PopLatch {
         }
     }
 
-    /// With `model` rendered (not yet popped) and its linear part giving `linear_n` (N) at the device this
-    /// tick: whether the tip punctures now. If so the latch takes the press, and the caller renders
+    /// With `model` rendered (not yet popped), its linear part giving `linear_n` (N) at the device this tick,
+    /// and the device's turn since the model adding `rolled_n` (N, [`PunctureTerm::rolled_push_n`]) to the
+    /// tip's push: whether the tip punctures now. If so the latch takes the press, and the caller renders
     /// [`PopLatch::view`] of the model from now on.
-    pub fn watch(&mut self, model: &LocalModel, linear_n: [f32; 3]) -> bool {
+    pub fn watch(&mut self, model: &LocalModel, linear_n: [f32; 3], rolled_n: f32) -> bool {
         let term: &PunctureTerm = &model.puncture;
         if !term.is_active() || self.holds(model) {
             return false;
         }
-        let push_back_n = term.push_back_n(linear_n);
+        let rolled_n = if rolled_n.is_finite() { rolled_n } else { 0.0 };
+        let push_back_n = term.push_back_n(linear_n) + rolled_n;
         if push_back_n.is_finite() && push_back_n >= term.pop_at_n {
             self.press = term.press;
             self.server_time_ns = model.server_time_ns;
@@ -96,6 +98,8 @@ mod tests {
                 f0_after_n: [0.0, 0.0, 0.1],
                 stiffness_after_n_per_mm: [0.2, 0.2, 0.0, 0.0, 0.0, 0.0],
                 drag_after_n: 0.15,
+                tip_lever_mm: [0.0, 0.0, -10.0],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
             },
             ..LocalModel::default()
         }
@@ -105,22 +109,22 @@ mod tests {
     fn it_pops_at_the_threshold_and_not_below_it() {
         let mut latch = PopLatch::default();
         let model = pressing(1, 0);
-        assert!(!latch.watch(&model, [0.0, 0.0, 2.49]));
+        assert!(!latch.watch(&model, [0.0, 0.0, 2.49], 0.0));
         assert_eq!(latch.view(&model), model);
-        assert!(latch.watch(&model, [0.0, 0.0, 2.5]));
+        assert!(latch.watch(&model, [0.0, 0.0, 2.5], 0.0));
         assert_eq!(latch.pops(), 1);
         let after = latch.view(&model);
         assert_eq!(after.f0_n, [0.0, 0.0, 0.1]);
         assert!(!after.puncture.is_active());
         // The same press does not pop twice.
-        assert!(!latch.watch(&model, [0.0, 0.0, 9.0]));
+        assert!(!latch.watch(&model, [0.0, 0.0, 9.0], 0.0));
         assert_eq!(latch.pops(), 1);
     }
 
     #[test]
     fn late_models_of_a_popped_press_are_rendered_punctured_until_the_latch_lets_go() {
         let mut latch = PopLatch::default();
-        assert!(latch.watch(&pressing(4, 1_000_000_000), [0.0, 0.0, 3.0]));
+        assert!(latch.watch(&pressing(4, 1_000_000_000), [0.0, 0.0, 3.0], 0.0));
         // A round trip's worth of models the server built while its needle still pressed.
         let late = pressing(4, 1_200_000_000);
         assert!(!latch.view(&late).puncture.is_active());
@@ -130,7 +134,7 @@ mod tests {
         // The server never punctured: half a second on, its model is rendered as it is, and may pop again.
         let stale = pressing(4, 1_000_000_000 + (POP_LATCH_S * 1e9) as u64 + 1);
         assert_eq!(latch.view(&stale), stale);
-        assert!(latch.watch(&stale, [0.0, 0.0, 3.0]));
+        assert!(latch.watch(&stale, [0.0, 0.0, 3.0], 0.0));
         assert_eq!(latch.pops(), 2);
     }
 
@@ -138,9 +142,9 @@ mod tests {
     fn a_force_pulling_away_or_not_finite_never_pops() {
         let mut latch = PopLatch::default();
         let model = pressing(1, 0);
-        assert!(!latch.watch(&model, [0.0, 0.0, -5.0]));
-        assert!(!latch.watch(&model, [0.0, 0.0, f32::NAN]));
-        assert!(!latch.watch(&LocalModel::default(), [0.0, 0.0, 9.0]));
+        assert!(!latch.watch(&model, [0.0, 0.0, -5.0], 0.0));
+        assert!(!latch.watch(&model, [0.0, 0.0, f32::NAN], 0.0));
+        assert!(!latch.watch(&LocalModel::default(), [0.0, 0.0, 9.0], 0.0));
         assert_eq!(latch.pops(), 0);
     }
 }
