@@ -4,6 +4,7 @@
 //! Must not: decide when or where a hole tears (`interaction::suture::hole_tear` does) or open seams itself
 //! (`topology.rs` does, through [`Sim::cut`]).
 
+use crate::interaction::BladeSweep;
 use crate::interaction::suture::{HolePoint, plan_hole_tear, surface_point_near};
 
 use super::*;
@@ -27,10 +28,13 @@ impl Sim {
                     break;
                 };
                 let object = usize::from(hole.point.object());
-                let bite_mm = thread
-                    .bite_partner(i)
-                    .and_then(|j| thread.holes().get(j))
-                    .map(|h| h.place_mm());
+                // The bite's other hole is looked up only for a hole pulled past its limit.
+                let bite_mm = || {
+                    thread
+                        .bite_partner(i)
+                        .and_then(|j| thread.holes().get(j))
+                        .map(|h| h.place_mm())
+                };
                 let plan = self.objects.get(object).and_then(|o| {
                     let limit_n = o.puncture.suture_tear_n?;
                     plan_hole_tear(
@@ -47,11 +51,7 @@ impl Sim {
                     continue;
                 };
                 tears += 1;
-                let mut scratch = std::mem::take(&mut self.hole_tear_scratch);
-                let opening = self.cut(plan.object, &plan.sweep, &mut scratch);
-                report.seams_torn += scratch.seams.len() as u32;
-                report.vertices_split += opening.new_vertices() as u32;
-                self.hole_tear_scratch = scratch;
+                self.cut_slit(plan.object, &plan.sweep, report);
                 let o = &self.objects[plan.object];
                 let to = surface_point_near(
                     &o.collider,
@@ -78,14 +78,20 @@ impl Sim {
                         // The slit reached the edge: the bite is cut through (the holes after it move up).
                         report.holes_torn_out += thread.tear_out(i);
                         report.hole_tears += 1;
-                        let mut scratch = std::mem::take(&mut self.hole_tear_scratch);
-                        let opening = self.cut(plan.object, &plan.through, &mut scratch);
-                        report.seams_torn += scratch.seams.len() as u32;
-                        report.vertices_split += opening.new_vertices() as u32;
-                        self.hole_tear_scratch = scratch;
+                        self.cut_slit(plan.object, &plan.through, report);
                     }
                 }
             }
         }
+    }
+
+    /// Cut the slit `sweep` through object `object` ([`Sim::cut`]), counting the facets cut and the vertices
+    /// split.
+    fn cut_slit(&mut self, object: usize, sweep: &BladeSweep, report: &mut StepReport) {
+        let mut scratch = std::mem::take(&mut self.hole_tear_scratch);
+        let opening = self.cut(object, sweep, &mut scratch);
+        report.seams_torn += scratch.seams.len() as u32;
+        report.vertices_split += opening.new_vertices() as u32;
+        self.hole_tear_scratch = scratch;
     }
 }

@@ -72,12 +72,13 @@ pub struct HoleTear {
 }
 
 /// Whether `hole`, in a tissue of `model` at `positions_mm` whose material holds a suture to `limit_n`, tears
-/// at `now_s`, and how; `bite_mm` is where the other hole of its bite is (None: it has none). None for a ring
+/// at `now_s`, and how; `bite_mm` gives where the other hole of its bite is (None: it has none), asked only of
+/// a hole pulled past the limit. None for a ring
 /// of a track, a hole pulled within the limit or mostly along the surface's normal, one that tore less than
 /// [`TEAR_PERIOD_S`] ago, or one whose triangle is gone.
 pub fn plan_hole_tear(
     hole: &ThreadHole,
-    bite_mm: Option<Vec3>,
+    bite_mm: impl FnOnce() -> Option<Vec3>,
     model: &MassSpringModel,
     positions_mm: &[Vec3],
     limit_n: f32,
@@ -108,7 +109,7 @@ pub fn plan_hole_tear(
     }
     let dir = along.normalize();
     let top = at_mm + normal * ABOVE_MM;
-    let other = bite_mm.filter(|b| b.iter().all(|c| c.is_finite()));
+    let other = bite_mm().filter(|b| b.iter().all(|c| c.is_finite()));
     let slit = |length_mm: f32| match other {
         // Turned about the bite's other hole: a triangle of the bridge between the thread and the pull.
         Some(other) => BladeSweep {
