@@ -38,8 +38,8 @@ pub use error::HapticError;
 pub use force_inbox::DecodeRejects;
 pub use hand_model::{HandModel, HandParams, HandPreset, HandTarget};
 pub use hand_script::{
-    CUT_LINE_HEIGHT_MM, HandScript, SNIP_LINE_HEIGHT_MM, SNIP_STEP_MM, ScriptError, ScriptGrip,
-    ScriptKind, ScriptOptions, parse_vec3_mm,
+    CUT_LINE_HEIGHT_MM, HandScript, SNIP_LINE_HEIGHT_MM, SNIP_PERIOD_S, SNIP_STEP_MM, ScriptError,
+    ScriptGrip, ScriptKind, ScriptOptions, parse_vec3_mm,
 };
 pub use haptic_config::HapticConfig;
 pub use haptic_server::{HapticHandle, HapticServer};

@@ -160,6 +160,11 @@ pub const SNIP_LINE_HEIGHT_MM: f32 = 6.0;
 /// The move between two snips of `snip-line`, mm (a snip's bite overlaps the last).
 pub const SNIP_STEP_MM: f32 = 3.0;
 
+/// One snip of `snip-line`, s: the blades are held shut for the first half (0.4 s, four times their 90 ms
+/// slew, so they shut even while a server cutting the tissue runs at a quarter of real time), then open while
+/// the hand moves on.
+pub const SNIP_PERIOD_S: f32 = 0.8;
+
 /// Opening of a scripted gripper's open jaws, rad (40 degrees).
 pub const SCRIPT_JAW_OPEN_RAD: f32 = 0.698;
 

@@ -183,7 +183,7 @@ pub fn surgeon_scripts() -> (HandScript, HandScript) {
 /// 2 s, open): coordinated pulling with two graspers; a cautery tool burns a 12 mm line (0.5 mm in, current
 /// on for 2 s); and a scalpel draws its edge 40 mm along +y from 20 mm before its device origin (origin 1.5 mm
 /// above the surface, over 2 s); scissors snip a 30 mm line of 10 bites 3 mm apart along +y from 12 mm before the
-/// device origin (hinge 6 mm above the surface, 0.4 s a snip).
+/// device origin (hinge 6 mm above the surface, `SNIP_PERIOD_S`, 0.8 s, a snip).
 pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, HandScript) {
     let (left, right) = surgeon_scripts();
     let pull = |outward_mm: f32| HandScript::GraspPull {
@@ -220,7 +220,7 @@ pub fn surgeon_scripts_for(world: &sinew_server::world::World) -> (HandScript, H
         descend_s: 1.0,
         step_mm: [0.0, hapticserver::SNIP_STEP_MM, 0.0],
         snips: 10,
-        snip_s: 0.4,
+        snip_s: hapticserver::SNIP_PERIOD_S,
     };
     let pick = |device: &str, outward_mm: f32, otherwise: HandScript| {
         use sinew_server::world::InstrumentSpec;

@@ -12,7 +12,7 @@ use std::str::FromStr;
 
 use thiserror::Error;
 
-use super::{CUT_LINE_HEIGHT_MM, HandScript, SNIP_LINE_HEIGHT_MM, SNIP_STEP_MM};
+use super::{CUT_LINE_HEIGHT_MM, HandScript, SNIP_LINE_HEIGHT_MM, SNIP_PERIOD_S, SNIP_STEP_MM};
 
 /// A script or option given on the command line that cannot be used.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -54,7 +54,7 @@ pub enum ScriptKind {
     /// `stroke_mm` line along +y over 2 s).
     CutLine,
     /// `snip-line`: [`HandScript::SnipLine`] (hinge down to [`SNIP_LINE_HEIGHT_MM`] above the surface, then
-    /// `stroke_mm` / 3 mm snips 3 mm apart along +y, 0.4 s each).
+    /// `stroke_mm` / 3 mm snips 3 mm apart along +y, [`SNIP_PERIOD_S`] each).
     SnipLine,
 }
 
@@ -127,7 +127,7 @@ impl ScriptKind {
                 descend_s: o.descend_s,
                 step_mm: [0.0, SNIP_STEP_MM, 0.0],
                 snips: (o.stroke_mm / SNIP_STEP_MM).ceil().max(1.0) as u32,
-                snip_s: 0.4,
+                snip_s: SNIP_PERIOD_S,
             },
         })
     }

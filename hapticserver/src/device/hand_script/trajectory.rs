@@ -322,7 +322,9 @@ mod tests {
     use sinew_protocol::rt::LatestValue;
 
     use super::*;
-    use crate::hand_script::{SNIP_LINE_HEIGHT_MM, SNIP_STEP_MM, ScriptKind, ScriptOptions};
+    use crate::hand_script::{
+        SNIP_LINE_HEIGHT_MM, SNIP_PERIOD_S, SNIP_STEP_MM, ScriptKind, ScriptOptions,
+    };
 
     fn z(script: &HandScript, t_s: f64) -> f32 {
         script.target(t_s).unwrap().position_mm[2]
@@ -440,17 +442,19 @@ mod tests {
         // Descending: open, at the start.
         assert_eq!(script.grip(0.5).buttons, 0);
         assert!((z(&script, 1.0) - SNIP_LINE_HEIGHT_MM).abs() < 1e-4);
-        // First snip: closed and still for 0.2 s, then open while moving 3 mm.
+        // First snip: closed and still for half a period (0.4 s), then open while moving 3 mm.
+        assert_eq!(SNIP_PERIOD_S, 0.8);
         assert_eq!(script.grip(1.1).buttons, 1);
-        assert_eq!(y(1.1), 0.0);
-        assert_eq!(script.grip(1.3).buttons, 0);
-        assert!((y(1.3) - 1.5).abs() < 1e-4);
-        assert!((y(1.4) - SNIP_STEP_MM).abs() < 1e-4);
+        assert_eq!(script.grip(1.35).buttons, 1);
+        assert_eq!(y(1.35), 0.0);
+        assert_eq!(script.grip(1.6).buttons, 0);
+        assert!((y(1.6) - 1.5).abs() < 1e-4);
+        assert!((y(1.8) - SNIP_STEP_MM).abs() < 1e-4);
         // Three snips for 9 mm; then open and still at 9 mm.
-        assert_eq!(script.grip(1.9).buttons, 1);
-        assert!((y(1.9) - 2.0 * SNIP_STEP_MM).abs() < 1e-4);
-        assert_eq!(script.grip(2.5).buttons, 0);
-        assert!((y(3.0) - 9.0).abs() < 1e-4);
-        assert_eq!(script.target(3.0).unwrap().velocity_mm_s, [0.0; 3]);
+        assert_eq!(script.grip(2.7).buttons, 1);
+        assert!((y(2.7) - 2.0 * SNIP_STEP_MM).abs() < 1e-4);
+        assert_eq!(script.grip(3.5).buttons, 0);
+        assert!((y(4.0) - 9.0).abs() < 1e-4);
+        assert_eq!(script.target(4.0).unwrap().velocity_mm_s, [0.0; 3]);
     }
 }
