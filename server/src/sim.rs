@@ -32,6 +32,7 @@ mod guarded;
 mod hole_tearing;
 mod instrument;
 mod instruments;
+mod knot_watch;
 mod needle_model;
 mod object;
 mod step_report;
@@ -44,6 +45,7 @@ mod topology;
 mod wound_watch;
 
 use guarded::TickStepper;
+pub use knot_watch::KNOT_PERIOD_TICKS;
 pub use needle_model::NeedlePop;
 pub use object::SimObject;
 pub use step_report::StepReport;
@@ -128,6 +130,8 @@ pub struct Sim {
     wound: Option<[usize; 2]>,
     /// The slits a suture cuts through its tissue (`hole_tearing.rs`).
     hole_tear_scratch: crate::interaction::CutScratch,
+    /// The knots the threads tie (`knot_watch.rs`).
+    knots: knot_watch::KnotWatch,
 }
 
 impl Sim {
@@ -347,6 +351,8 @@ impl Sim {
         }
         // A suture pulled past its tissue's limit cuts through it at its holes, once the thread has stepped.
         self.tear_at_holes(&mut report);
+        // The knots the threads tie now, before the outputs carry them.
+        self.watch_knots();
         for t in 0..self.tools.len() {
             self.with_instrument(t, |i, sim| i.before_output(sim, t, dt_s, &mut report));
             let out = &mut self.tool_output(t);

@@ -453,3 +453,131 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
         assert!(resting > 3000, "the thread seldom touched the skin");
     }
 }
+
+/// The driver of a thread tool: warmed up (the tool come up to `origin`, the thread hanging from it), then
+/// stepped until the next tick is one the knot watch reads on.
+fn hanging_driver() -> (Driver, Vector3<f32>, UnitQuaternion<f32>) {
+    let mut d = Driver::new();
+    let level = Driver::level();
+    let origin = Vector3::new(-80.0, 0.0, 100.0);
+    for _ in 0..1500 {
+        d.step(&origin, &level);
+    }
+    while !d
+        .sim
+        .steps()
+        .is_multiple_of(sinew_server::sim::KNOT_PERIOD_TICKS)
+    {
+        d.step(&origin, &level);
+    }
+    (d, origin, level)
+}
+
+/// [`hanging_driver`] with an overhand knot laid in its thread ([`overhand_knot_path`] from the needle's
+/// tail, returned last).
+fn driver_with_a_laid_knot() -> (Driver, Vector3<f32>, UnitQuaternion<f32>, Vector3<f32>) {
+    let (mut d, origin, level) = hanging_driver();
+    let tail = d.tail_now();
+    let path = overhand_knot_path(tail);
+    assert!(d.sim.tools[0].thread_mut().unwrap().lay_along(&path));
+    (d, origin, level, tail)
+}
+
+/// An overhand knot (the trefoil `(sin t + 2 sin 2t, cos t - 2 cos 2t, -sin 3t)` scaled 3.5 mm: 100 mm of
+/// thread bent no tighter than a 4.5 mm radius), 25 mm to -x of `tail`, opened at its point nearest the tail:
+/// the path runs from the tail in there, round the knot, out beside where it came in, and off to +x and -y,
+/// below the tail.
+fn overhand_knot_path(tail: Vector3<f32>) -> Vec<Vector3<f32>> {
+    let centre = tail + Vector3::new(-25.0, 0.0, -5.0);
+    let knot: Vec<Vector3<f32>> = (0..80)
+        .map(|k| {
+            let t = std::f32::consts::TAU * k as f32 / 80.0;
+            centre
+                + 3.5
+                    * Vector3::new(
+                        t.sin() + 2.0 * (2.0 * t).sin(),
+                        t.cos() - 2.0 * (2.0 * t).cos(),
+                        -(3.0 * t).sin(),
+                    )
+        })
+        .collect();
+    let nearest = (0..knot.len())
+        .max_by(|&i, &j| knot[i].x.total_cmp(&knot[j].x))
+        .unwrap();
+    let mut path = vec![tail];
+    path.extend((1..=knot.len()).map(|k| knot[(nearest + k) % knot.len()]));
+    path.push(tail + Vector3::new(10.0, -15.0, -10.0));
+    path.push(tail + Vector3::new(60.0, -40.0, -10.0));
+    path
+}
+
+/// A knot laid in the thread (`SutureThread::lay_along`) reaches the driver's output as a half knot at the
+/// watch's next reading, with its hand; a thread laid in a loop that crosses itself reads as no knot; a path
+/// that is no path is refused and changes nothing.
+#[test]
+fn a_knot_laid_in_the_thread_reaches_the_drivers_output() {
+    use sinew_server::interaction::suture::KnotKind;
+    let (mut d, origin, level, tail) = driver_with_a_laid_knot();
+    let out = d.step(&origin, &level);
+    let KnotKind::Throws(throws) = out.suture.knot else {
+        panic!("the laid knot was not read: {:?}", out.suture.knot);
+    };
+    assert_eq!(throws.name(), "half knot");
+    assert_eq!(
+        (throws.single_right, throws.single_left),
+        (0, 1),
+        "{throws:?}"
+    );
+    // The reading holds between readings.
+    let out = d.step(&origin, &level);
+    assert_eq!(out.suture.knot, KnotKind::Throws(throws));
+    // A loop that crosses itself ties nothing.
+    let mut looped = vec![tail];
+    for k in 0..=40 {
+        let a = std::f32::consts::TAU * k as f32 / 40.0;
+        looped.push(
+            tail + Vector3::new(
+                -20.0 + 12.0 * a.cos(),
+                12.0 * a.sin(),
+                -5.0 - 0.1 * k as f32,
+            ),
+        );
+    }
+    looped.push(tail + Vector3::new(-40.0, 0.0, -8.0));
+    assert!(d.sim.tools[0].thread_mut().unwrap().lay_along(&looped));
+    let mut out = ToolOutput::default();
+    for _ in 0..sinew_server::sim::KNOT_PERIOD_TICKS {
+        out = d.step(&origin, &level);
+    }
+    assert_eq!(out.suture.knot, KnotKind::None);
+    // A path that is no path changes nothing.
+    let before = d.nodes().to_vec();
+    let thread = d.sim.tools[0].thread_mut().unwrap();
+    assert!(!thread.lay_along(&[tail]));
+    assert!(!thread.lay_along(&[tail, Vector3::new(f32::NAN, 0.0, 0.0)]));
+    assert_eq!(d.nodes(), before.as_slice());
+}
+
+/// The same knot, left to hang for a second: it should stay tied (its free end is 40 mm from it and the tail
+/// is held). It does not yet: the bent thread springs open within a few milliseconds (nodes move 3-8 mm a
+/// tick) and its strands pass through each other by the 7th tick, faster than the self contact, which tests
+/// segments at the substep's end only, can keep them apart. A knot needs a continuous segment-segment test.
+#[test]
+#[ignore = "known gap (issue 32): the thread's self contact is not continuous; a laid knot's strands pass through each other as it springs open"]
+fn a_knot_laid_in_the_thread_stays_tied_as_it_hangs() {
+    use sinew_server::interaction::suture::KnotKind;
+    let (mut d, origin, level, tail) = driver_with_a_laid_knot();
+    let mut readings = Vec::new();
+    for tick in 0..1000 {
+        let out = d.step(&origin, &level);
+        if tick % 100 == 0 {
+            readings.push(out.suture.knot);
+        }
+    }
+    assert!(
+        readings
+            .iter()
+            .all(|k| matches!(k, KnotKind::Throws(t) if t.count() == 1)),
+        "the knot came undone as the thread hung: {readings:?}"
+    );
+}

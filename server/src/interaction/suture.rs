@@ -25,6 +25,7 @@
 mod hole;
 mod hole_point;
 mod hole_tear;
+mod knot;
 mod needle;
 mod needle_arc;
 mod needle_hold;
@@ -43,6 +44,7 @@ mod volume_point;
 pub use crate::tissue::PunctureSpec;
 pub use hole::Hole;
 pub use hole_tear::{HoleTear, TEAR_PERIOD_S, plan_hole_tear, surface_point_near};
+pub use knot::{KnotKind, KnotReader, Throws};
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
 pub use needle_hold::{NeedleHold, NeedleHolder};

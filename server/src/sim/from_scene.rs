@@ -215,6 +215,7 @@ impl Sim {
         }
         Ok(Self {
             budget: EnergyBudget::new(tools.len()),
+            knots: super::knot_watch::KnotWatch::new(tools.len()),
             objects,
             tools,
             ties: world.ties.clone(),

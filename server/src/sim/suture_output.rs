@@ -7,7 +7,7 @@
 //! the tissue, and a grasper's grip on any tool's thread. Must not: change anything (it reads the tick's
 //! result).
 
-use crate::interaction::suture::{NeedleHold, NeedleHolder, NeedleTissue, TipPhase};
+use crate::interaction::suture::{KnotKind, NeedleHold, NeedleHolder, NeedleTissue, TipPhase};
 
 use super::instrument::Instrument;
 
@@ -39,6 +39,9 @@ pub struct SutureActivity {
     /// The thread's pull on the tool, N: on the needle's tail for a needle driver, in the jaws for a tool
     /// holding a thread (the larger, if both).
     pub thread_pull_n: f32,
+    /// The knot the thread this tool draws ties, at its last reading (`knot_watch.rs`; a knot of throws
+    /// wins over none when the tool draws two threads).
+    pub knot: KnotKind,
 }
 
 impl Sim {
@@ -92,7 +95,24 @@ impl Sim {
                 activity.thread_pull_n = finite_or_zero(thread.pull_on_tail_n().norm());
             }
         }
-        for thread in self.tools.iter().filter_map(|other| other.thread()) {
+        for (owner, other) in self.tools.iter().enumerate() {
+            let Some(thread) = other.thread() else {
+                continue;
+            };
+            let needle_held = other
+                .instrument_state
+                .as_deref()
+                .and_then(|i| i.needle_hold())
+                .is_some_and(|hold| {
+                    if owner == t {
+                        hold.in_drivers_jaws()
+                    } else {
+                        hold.held_by(me)
+                    }
+                });
+            if (needle_held || thread.grip_of(me).is_some()) && activity.knot == KnotKind::None {
+                activity.knot = self.knots.kind(owner);
+            }
             if let Some(grip) = thread.grip_of(me) {
                 activity.thread_held = true;
                 activity.thread_holes = activity

@@ -182,6 +182,13 @@ impl SimTool {
         self.instrument_state.as_ref().and_then(|i| i.thread())
     }
 
+    /// A needle driver's thread, to lay it out as a scenario starts ([`SutureThread::lay_along`]).
+    ///
+    /// [`SutureThread::lay_along`]: crate::interaction::suture::SutureThread::lay_along
+    pub fn thread_mut(&mut self) -> Option<&mut crate::interaction::suture::SutureThread> {
+        self.instrument_state.as_mut().and_then(|i| i.thread_mut())
+    }
+
     /// The nodes of object `object` the tool's instrument holds (sorted; none for most instruments).
     pub(super) fn attached_nodes(&self, object: usize) -> &[u32] {
         self.instrument_state

@@ -63,6 +63,8 @@ pub struct ToolActivity {
     pub thread_through: bool,
     /// The thread's pull on the tool, N.
     pub thread_pull_n: f32,
+    /// The thread the tool draws ties a knot of throws (a half knot, a square knot, ...), as last read.
+    pub knot_tied: bool,
 }
 
 impl ToolActivity {
@@ -104,6 +106,11 @@ impl ToolActivity {
             } else {
                 0.0
             },
+            knot_tied: active
+                && matches!(
+                    out.suture.knot,
+                    crate::interaction::suture::KnotKind::Throws(_)
+                ),
         }
     }
 }
@@ -171,11 +178,16 @@ pub enum EventKind {
     HarmEnd,
     /// The anti-divergence guard reset an object this tick (scene-wide; reported on every tool).
     TissueFault,
+    /// The thread the tool draws came to tie a knot of throws (declared last: recordings keep the older
+    /// kinds' numbers).
+    KnotTied,
+    /// It ties none any more (undone, or the tool let go of it).
+    KnotUndone,
 }
 
 impl EventKind {
     /// Every kind, in declaration order (reports list counts in this order).
-    pub const ALL: [EventKind; 30] = [
+    pub const ALL: [EventKind; 32] = [
         EventKind::Joined,
         EventKind::Left,
         EventKind::ApproachBegin,
@@ -206,6 +218,8 @@ impl EventKind {
         EventKind::HarmBegin,
         EventKind::HarmEnd,
         EventKind::TissueFault,
+        EventKind::KnotTied,
+        EventKind::KnotUndone,
     ];
 
     /// Its index in [`EventKind::ALL`].
@@ -246,6 +260,8 @@ impl EventKind {
             EventKind::HarmBegin => "harm_begin",
             EventKind::HarmEnd => "harm_end",
             EventKind::TissueFault => "tissue_fault",
+            EventKind::KnotTied => "knot_tied",
+            EventKind::KnotUndone => "knot_undone",
         }
     }
 }
@@ -407,6 +423,12 @@ impl EventDetector {
                 now.thread_held,
                 EventKind::ThreadGraspBegin,
                 EventKind::ThreadGraspEnd,
+            ),
+            (
+                last.knot_tied,
+                now.knot_tied,
+                EventKind::KnotTied,
+                EventKind::KnotUndone,
             ),
             (
                 self.harmful,
@@ -583,6 +605,14 @@ mod tests {
             kinds(&mut g, 1, drawing),
             [EventKind::ThreadThroughBegin, EventKind::ThreadGraspBegin]
         );
+        // The thread it draws comes to tie a knot, then comes undone.
+        let tied = ToolActivity {
+            knot_tied: true,
+            ..drawing
+        };
+        assert_eq!(kinds(&mut g, 2, tied), [EventKind::KnotTied]);
+        assert_eq!(kinds(&mut g, 3, tied), []);
+        assert_eq!(kinds(&mut g, 4, drawing), [EventKind::KnotUndone]);
     }
 
     #[test]

@@ -269,7 +269,10 @@ impl SkillMachine {
             EventKind::Puncture
             | EventKind::HarmBegin
             | EventKind::HarmEnd
-            | EventKind::TissueFault => {}
+            | EventKind::TissueFault
+            // The knot is scored, not a state of the hand (yet).
+            | EventKind::KnotTied
+            | EventKind::KnotUndone => {}
         }
         self.settle(event.tick, sink);
     }

@@ -89,6 +89,13 @@ impl SelfContact {
         }
     }
 
+    /// Forget every pair's side: the thread was placed anew (laid out), and where its segments lay before
+    /// says nothing of where they lie now. No allocation.
+    pub fn forget(&mut self) {
+        // Every memory is then from a pass that did not find its pair close (see `keep_apart`).
+        self.pass += 2;
+    }
+
     /// One pass keeping the segments of the polyline `now` (which was `before` at the substep's start) the
     /// `diameter_mm` apart (module doc). `w` are the nodes' inverse masses (0: held), `floor` the unit normal
     /// of the surface each rests on (zero: none); a polyline of other than `segments + 1` nodes is left alone.
