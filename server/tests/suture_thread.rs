@@ -566,7 +566,7 @@ fn a_knot_laid_in_the_thread_reaches_the_drivers_output() {
 #[ignore = "known gap (issue 32): the thread's self contact is not continuous; a laid knot's strands pass through each other as it springs open"]
 fn a_knot_laid_in_the_thread_stays_tied_as_it_hangs() {
     use sinew_server::interaction::suture::KnotKind;
-    let (mut d, origin, level, tail) = driver_with_a_laid_knot();
+    let (mut d, origin, level, _) = driver_with_a_laid_knot();
     let mut readings = Vec::new();
     for tick in 0..1000 {
         let out = d.step(&origin, &level);
