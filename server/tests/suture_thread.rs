@@ -483,17 +483,17 @@ fn driver_with_a_laid_knot() -> (Driver, Vector3<f32>, UnitQuaternion<f32>, Vect
     (d, origin, level, tail)
 }
 
-/// An overhand knot (the trefoil `(sin t + 2 sin 2t, cos t - 2 cos 2t, -sin 3t)` scaled 3.5 mm: 100 mm of
-/// thread bent no tighter than a 4.5 mm radius), 25 mm to -x of `tail`, opened at its point nearest the tail:
-/// the path runs from the tail in there, round the knot, out beside where it came in, and off to +x and -y,
-/// below the tail.
+/// An overhand knot (the trefoil `(sin t + 2 sin 2t, cos t - 2 cos 2t, -sin 3t)` scaled 3 mm: 86 mm of
+/// thread bent no tighter than a 3.9 mm radius), 40 mm to -x of `tail`, opened at its point nearest the tail:
+/// the path runs from the tail in there (30 mm), round the knot, out beside where it came in, and off to +x
+/// and -y, below the tail.
 fn overhand_knot_path(tail: Vector3<f32>) -> Vec<Vector3<f32>> {
-    let centre = tail + Vector3::new(-25.0, 0.0, -5.0);
+    let centre = tail + Vector3::new(-40.0, 0.0, -5.0);
     let knot: Vec<Vector3<f32>> = (0..80)
         .map(|k| {
             let t = std::f32::consts::TAU * k as f32 / 80.0;
             centre
-                + 3.5
+                + 3.0
                     * Vector3::new(
                         t.sin() + 2.0 * (2.0 * t).sin(),
                         t.cos() - 2.0 * (2.0 * t).cos(),
@@ -558,12 +558,55 @@ fn a_knot_laid_in_the_thread_reaches_the_drivers_output() {
     assert_eq!(d.nodes(), before.as_slice());
 }
 
-/// The same knot, left to hang for a second: it should stay tied (its free end is 40 mm from it and the tail
-/// is held). It does not yet: the bent thread springs open within a few milliseconds (nodes move 3-8 mm a
-/// tick) and its strands pass through each other by the 7th tick, faster than the self contact, which tests
-/// segments at the substep's end only, can keep them apart. A knot needs a continuous segment-segment test.
+/// The same knot, springing open as it hangs (nodes 4-12 mm a tick): no two segments that do not share a node
+/// ever end a tick closer than 90% of the thread's diameter. Not yet: at four substeps a tick two strands
+/// sliding over each other at 1-2 mm a substep close to 0.11 mm (and, in other layings, pass through each
+/// other). Tried: substeps chosen from the fastest node's speed (no node more than half a diameter a
+/// substep, up to 32) keep them 0.250 mm apart here, but move the thread elsewhere (docs/suturing.md,
+/// "Reading the knot"): not landed.
 #[test]
-#[ignore = "known gap (issue 32): the thread's self contact is not continuous; a laid knot's strands pass through each other as it springs open"]
+#[ignore = "known gap (issue 32): at 4 substeps a tick a fast-springing thread's strands come within 0.11 mm of each other"]
+fn a_laid_knot_springing_open_never_passes_through_itself() {
+    let (mut d, origin, level, _) = driver_with_a_laid_knot();
+    let (mut closest_mm, mut fastest_mm) = (f32::INFINITY, 0.0f32);
+    for _ in 0..300 {
+        let before = d.nodes().to_vec();
+        d.step(&origin, &level);
+        let n = d.nodes();
+        fastest_mm = n
+            .iter()
+            .zip(&before)
+            .map(|(a, b)| (a - b).norm())
+            .fold(fastest_mm, f32::max);
+        for i in 0..n.len() - 1 {
+            for j in i + 2..n.len() - 1 {
+                if let Some((s, t)) = closest_params(&n[i], &n[i + 1], &n[j], &n[j + 1]) {
+                    let gap =
+                        ((n[i] + (n[i + 1] - n[i]) * s) - (n[j] + (n[j + 1] - n[j]) * t)).norm();
+                    closest_mm = closest_mm.min(gap);
+                }
+            }
+        }
+    }
+    println!(
+        "a laid knot springing open: fastest node {fastest_mm:.2} mm a tick, closest segments {closest_mm:.3} mm"
+    );
+    assert!(
+        fastest_mm > 3.0,
+        "the knot did not spring open fast: {fastest_mm} mm a tick"
+    );
+    assert!(
+        closest_mm >= 0.9 * THREAD_DIAMETER_MM,
+        "two segments came {closest_mm} mm apart"
+    );
+}
+
+/// The same knot, left to hang for a second: it should stay tied. It does not: its strands pass through each
+/// other as it springs open (above), and with that mended (more substeps), its loop runs 30 mm up the thread
+/// and slips off over the needle's tail by the 20th tick, for the thread is kept off the tools' bodies and
+/// shafts but not off its own needle.
+#[test]
+#[ignore = "known gap (issue 32): strands pass through each other at 4 substeps, and the thread does not meet its own needle, so a loop slips off over its tail"]
 fn a_knot_laid_in_the_thread_stays_tied_as_it_hangs() {
     use sinew_server::interaction::suture::KnotKind;
     let (mut d, origin, level, _) = driver_with_a_laid_knot();
