@@ -35,6 +35,7 @@ mod thread_chain;
 mod thread_edge_contact;
 mod thread_grip;
 mod thread_hole;
+mod thread_needle;
 pub mod thread_self_contact;
 mod thread_solve;
 mod thread_track;
@@ -56,6 +57,7 @@ pub use thread::{
 pub use thread_chain::{NodeHold, ThreadChain};
 pub use thread_grip::{GRIP_SLIP_N, MAX_GRIPS, ThreadGrip};
 pub use thread_hole::{HolePoint, ThreadHole, inside_by_holes};
+pub use thread_needle::{NeedleWire, WireSegment};
 pub use thread_solve::NodeSlide;
 pub use tip_contact::{SurfacePoint, TipContact};
 pub use volume_point::VolumePoint;

@@ -22,6 +22,8 @@
 //!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction (not a node a hole holds);
 //!   one the tissue then puts back into the tool (pinched between the two) is moved along the tissue's
 //!   surface, out from under the tool;
+//! - **its needle**: a segment within the thread's radius of the needle's wire goes out across it to that
+//!   clearance (`thread_needle.rs`), before the tools and the tissue and after them;
 //! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
 //!   skin stays out of the skin, but for the self pass after them):
 //!   - continuous: a node whose path this substep entered a surface (`collision::crossing_nearest`, the
@@ -51,6 +53,7 @@ mod tear;
 use super::thread_edge_contact::keep_segment_out;
 use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{ThreadHole, inside_by_holes, take_nodes};
+use super::thread_needle::{NeedleWire, WireSegment};
 use super::thread_self_contact::SelfContact;
 use super::thread_track::{MAX_TRACK_RINGS, refresh_tracks};
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
@@ -328,8 +331,8 @@ impl SutureThread {
     }
 
     /// One tick of `dt_s` with the tail at `tail_mm` (from last tick's, on a straight line), against the
-    /// tool parts `tool(0..tools)` at their poses this tick and then the surfaces of `objects` objects
-    /// (`object(o)`). A thread not laid out, or a non-finite tail, does nothing. No allocation.
+    /// tool parts `tool(0..tools)` and its own `needle`'s wire at their poses this tick, and then the surfaces
+    /// of `objects` objects (`object(o)`). A thread not laid out, or a non-finite tail, does nothing. No allocation.
     #[allow(clippy::too_many_arguments)] // the tail, and what the thread meets: tools and objects
     pub fn step<'a, 'b>(
         &mut self,
@@ -337,6 +340,7 @@ impl SutureThread {
         tail_mm: &Vec3,
         tools: usize,
         tool: impl Fn(usize) -> Option<ThreadTool<'b>>,
+        needle: Option<&NeedleWire>,
         objects: usize,
         object: impl Fn(usize) -> Option<ThreadObject<'a>>,
     ) {
@@ -449,8 +453,37 @@ impl SutureThread {
                             }
                         }
                     };
+                    // Each segment against its own needle's wire (`thread_needle.rs`), the first swaged to it;
+                    // a node a hole holds is the hole's.
+                    let needle_pass = |now: &mut [Vec3], floor: &[Vec3]| {
+                        let Some(needle) = needle else {
+                            return;
+                        };
+                        let weight = |i: usize| {
+                            if holes.iter().chain(tracks.iter()).any(|h| h.holds_node(i)) {
+                                0.0
+                            } else {
+                                w[i]
+                            }
+                        };
+                        for i in 0..now.len().saturating_sub(1) {
+                            let segment = WireSegment {
+                                now: [now[i], now[i + 1]],
+                                before: [before[i], before[i + 1]],
+                                weights: [weight(i), weight(i + 1)],
+                                floors: [floor[i], floor[i + 1]],
+                                swaged: i == 0,
+                            };
+                            if let Some([a, b]) =
+                                needle.clear_segment(&segment, 0.5 * THREAD_DIAMETER_MM)
+                            {
+                                (now[i], now[i + 1]) = (a, b);
+                            }
+                        }
+                    };
                     let mut contact_pass = |now: &mut [Vec3], floor: &mut [Vec3]| {
                         edge_pass(now);
+                        needle_pass(now, floor);
                         for i in 0..now.len() {
                             if w[i] > 0.0 {
                                 // A node a hole holds is the hole's: a tool in the same hole (the needle, the
@@ -508,6 +541,7 @@ impl SutureThread {
                                 }
                             }
                         }
+                        needle_pass(now, floor);
                         edge_pass(now);
                     };
                     // Itself, then the tools and the tissue, then itself once more: a contact may have pushed a

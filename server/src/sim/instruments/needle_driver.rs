@@ -22,8 +22,8 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 
 use crate::interaction::suture::{
-    NeedleDriverSpec, NeedleHold, NeedleHolder, NeedleTissue, SutureThread, THREAD_DIAMETER_MM,
-    TipPhase,
+    NeedleDriverSpec, NeedleHold, NeedleHolder, NeedleTissue, NeedleWire, SutureThread,
+    THREAD_DIAMETER_MM, TipPhase,
 };
 use crate::interaction::{JawActivation, JawInput, Jaws};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -264,11 +264,13 @@ impl Instrument for NeedleDriver {
         let (tail_mm, away) = self.tail(&pose);
         if let Some(thread) = &mut self.thread {
             if thread.is_laid_out() {
+                let wire = NeedleWire::new(pose, *self.needle.arc(), 0.5 * self.diameter_mm);
                 thread.step(
                     dt_s,
                     &tail_mm,
                     2 * sim.tools.len(),
                     tool_parts(sim),
+                    Some(&wire),
                     sim.objects.len(),
                     needle_objects(sim),
                 );
