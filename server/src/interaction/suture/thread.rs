@@ -4,7 +4,7 @@
 //! Owns: [`ThreadSpec`] (length and segments, the world's keys), the thread's material constants and
 //! [`SutureThread`] (the [`ThreadChain`] with its first node on the needle's tail, and each node's contact with
 //! a surface). The needle driver steps it once a tick, after the tissue's substeps, in substeps of its own
-//! (`sim/instruments/needle_driver.rs`).
+//! (`sim/instruments/needle_driver.rs`). Placing it (laid out, laid along a path) is `thread/lay.rs`.
 //!
 //! A step:
 //! - the tail node moves on a straight line from last tick's tail to this tick's, a substep at a time (it is
@@ -48,6 +48,7 @@
 use nalgebra::UnitQuaternion;
 
 mod holds;
+mod lay;
 mod tear;
 
 use super::thread_edge_contact::keep_segment_out;
@@ -231,103 +232,12 @@ impl SutureThread {
         LINEAR_DENSITY_KG_PER_MM * self.segment_mm
     }
 
-    /// Lay the thread out straight and level from `tail_mm`, toward `away` (the way out of the tail) turned
-    /// square to gravity, at rest: when it is first placed, and when its needle comes back after a gap (a
-    /// thread laid along a tail pointing down would start inside whatever lies below). A non-finite input is
-    /// ignored.
-    pub fn lay_out(&mut self, tail_mm: &Vec3, away: &Vec3) {
-        let Some(down) = self.gravity_mm_per_s2.try_normalize(1e-6) else {
-            return;
-        };
-        let level = away - down * down.dot(away);
-        let Some(away) = level
-            .try_normalize(1e-3)
-            .or_else(|| down.cross(&Vec3::x()).try_normalize(1e-3))
-            .or_else(|| down.cross(&Vec3::y()).try_normalize(1e-3))
-        else {
-            return;
-        };
-        if !tail_mm.iter().all(|c| c.is_finite()) {
-            return;
-        }
-        self.node_u_mm.copy_from_slice(self.chain.node_u_mm());
-        for (p, u_mm) in self.chain.positions_mm.iter_mut().zip(&self.node_u_mm) {
-            *p = tail_mm + away * *u_mm;
-        }
-        self.chain.velocities_mm_s.fill(Vec3::zeros());
-        self.contacts.fill(None);
-        self.floor.fill(Vec3::zeros());
-        let node_mass_kg = self.node_mass_kg();
-        for grip in self.grips.drain(..) {
-            self.chain.set_held(grip.node as usize, false, node_mass_kg);
-        }
-        self.last_tail_mm = Some(*tail_mm);
-    }
-
-    /// Lay the thread along the polyline `path_mm` from its tail (the path's first point, which must be where
-    /// the needle's tail is), each node at its material coordinate along the path (past the path's end, on
-    /// along its last segment), at rest: a thread placed by a scenario, tied or looped as it starts. Refused
-    /// (false, nothing changed) for a path of fewer than two points, a point that is not finite, a first
-    /// segment of no length, or a thread that runs through holes. Lets go of every grip, as
-    /// [`SutureThread::lay_out`] does.
-    pub fn lay_along(&mut self, path_mm: &[Vec3]) -> bool {
-        if path_mm.len() < 2
-            || !path_mm.iter().all(|p| p.iter().all(|c| c.is_finite()))
-            || (path_mm[1] - path_mm[0]).norm() <= 0.0
-            || !self.holes.is_empty()
-            || !self.tracks.is_empty()
-        {
-            return false;
-        }
-        self.node_u_mm.copy_from_slice(self.chain.node_u_mm());
-        let mut leg = 0usize;
-        let mut leg_start_mm = 0.0f32;
-        for (p, u_mm) in self.chain.positions_mm.iter_mut().zip(&self.node_u_mm) {
-            let u_mm = u_mm - self.node_u_mm[0];
-            loop {
-                let length = (path_mm[leg + 1] - path_mm[leg]).norm();
-                if u_mm <= leg_start_mm + length || leg + 2 >= path_mm.len() {
-                    let along = path_mm[leg + 1] - path_mm[leg];
-                    let share = if length > 0.0 {
-                        (u_mm - leg_start_mm) / length
-                    } else {
-                        0.0
-                    };
-                    *p = path_mm[leg] + along * share;
-                    break;
-                }
-                leg_start_mm += length;
-                leg += 1;
-            }
-        }
-        self.chain.velocities_mm_s.fill(Vec3::zeros());
-        self.contacts.fill(None);
-        self.floor.fill(Vec3::zeros());
-        self.self_contact.forget();
-        let node_mass_kg = self.node_mass_kg();
-        for grip in self.grips.drain(..) {
-            self.chain.set_held(grip.node as usize, false, node_mass_kg);
-        }
-        self.last_tail_mm = Some(path_mm[0]);
-        true
-    }
-
-    /// Forget where the tail was: the next [`SutureThread::step`] lays the thread out again.
-    pub fn lift(&mut self) {
-        self.last_tail_mm = None;
-    }
-
     /// Up, for the thread: against its gravity (unit).
     pub fn up_unit(&self) -> Vec3 {
         -self
             .gravity_mm_per_s2
             .try_normalize(1e-6)
             .unwrap_or(Vec3::new(0.0, 0.0, -1.0))
-    }
-
-    /// Whether it has been laid out.
-    pub fn is_laid_out(&self) -> bool {
-        self.last_tail_mm.is_some()
     }
 
     /// One tick of `dt_s` with the tail at `tail_mm` (from last tick's, on a straight line), against the
