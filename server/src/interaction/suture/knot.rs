@@ -1,8 +1,8 @@
 //! The knot in a suture thread: what the thread's crossings tie, read from its shape alone.
 //!
 //! A stitch's thread is an open curve: its two ends (the needle's and the free one) leave the tissue and a
-//! surgeon ties them around each other. Joined above the surgical field (each end straight up, then across,
-//! [`KnotReader::read_thread`]), the thread closes into a knot whose type is the knot the throws tied: one
+//! surgeon ties them around each other. Joined above the surgical field (each end straight up, then across;
+//! and four ways tilted from up, the knot most of them read kept: [`KnotReader::read_thread`]), the thread closes into a knot whose type is the knot the throws tied: one
 //! throw (a half knot) closes into a trefoil, a square knot into a trefoil and its mirror image, a granny into
 //! two alike, a surgeon's double throw into the (2, 5) torus knot. The reader projects the closed curve
 //! (`knot/diagram.rs`), simplifies away kinks and strands merely lying on one another, computes the Jones
@@ -124,8 +124,10 @@ fn cinquefoil_right() -> Laurent {
     Laurent::from_terms(&[(1, 2), (1, 4), (-1, 5), (1, 6), (-1, 7)])
 }
 
-/// How high above the thread's highest point its closure runs, mm.
+/// How far past the thread's furthest point a closure runs, mm.
 const CLOSURE_CLEARANCE_MM: f64 = 20.0;
+/// The ways an open thread is closed to be read ([`KnotReader::read_thread`]).
+pub const CLOSURES: usize = 5;
 
 impl KnotReader {
     /// A reader whose crossing buffers are sized for the most crossings a diagram keeps; its curve buffers
@@ -143,8 +145,14 @@ impl KnotReader {
     }
 
     /// The knot tied by the open thread `nodes_mm` (needle end first, free end last, or the other way: the
-    /// knot is the same), closed above the field: each end straight up along `up_unit` to 20 mm above the
-    /// thread's highest point, and the two joined there.
+    /// knot is the same), closed above the field in [`CLOSURES`] ways and judged by their vote.
+    ///
+    /// A closure takes each end along one direction to 20 mm past the thread's furthest point that way and
+    /// joins the two there: straight up along `up_unit` (where the hands hold the ends), and tilted 60 degrees
+    /// from it toward four sides. One closure alone reads a knot wrongly when a strand of it lies across the
+    /// way out of an end (a loop flung up over the jaws holding the thread reads, closed straight up, as no
+    /// knot); the others go out clear of it. The knot most closures read is the thread's (a tie goes to
+    /// straight up, then to the first tilted).
     pub fn read_thread(
         &mut self,
         nodes_mm: &[Vec3],
@@ -157,19 +165,43 @@ impl KnotReader {
         if !up.iter().all(|c| c.is_finite()) {
             return Err(DiagramError::BadCurve);
         }
-        self.closed.clear();
-        self.closed.extend(nodes_mm.iter().map(|p| p.cast::<f64>()));
-        let top = self
-            .closed
-            .iter()
-            .map(|p| p.dot(&up))
-            .fold(f64::NEG_INFINITY, f64::max)
-            + CLOSURE_CLEARANCE_MM;
-        let first = self.closed[0];
-        let last = self.closed[self.closed.len() - 1];
-        self.closed.push(last + up * (top - last.dot(&up)));
-        self.closed.push(first + up * (top - first.dot(&up)));
-        self.judge_closed(view_from(up))
+        let (a, b) = across(up);
+        let (cos, sin) = (0.5, 0.75f64.sqrt());
+        let ways = [
+            up,
+            up * cos + a * sin,
+            up * cos - a * sin,
+            up * cos + b * sin,
+            up * cos - b * sin,
+        ];
+        let mut votes = [(KnotKind::None, 0u8); CLOSURES];
+        for (k, way) in ways.into_iter().enumerate() {
+            self.closed.clear();
+            self.closed.extend(nodes_mm.iter().map(|p| p.cast::<f64>()));
+            let top = self
+                .closed
+                .iter()
+                .map(|p| p.dot(&way))
+                .fold(f64::NEG_INFINITY, f64::max)
+                + CLOSURE_CLEARANCE_MM;
+            let first = self.closed[0];
+            let last = self.closed[self.closed.len() - 1];
+            self.closed.push(last + way * (top - last.dot(&way)));
+            self.closed.push(first + way * (top - first.dot(&way)));
+            let kind = self.judge_closed(view_from(way))?;
+            votes[k] = (kind, 0);
+            if let Some(v) = votes[..=k].iter_mut().find(|(seen, _)| *seen == kind) {
+                v.1 += 1;
+            }
+        }
+        // The first kind with the most votes (a kind's votes sit at its first reading).
+        let mut chosen = votes[0];
+        for v in &votes[1..] {
+            if v.1 > chosen.1 {
+                chosen = *v;
+            }
+        }
+        Ok(chosen.0)
     }
 
     /// The knot of the closed polyline `points_mm` (the last point joins the first), seen along `up_unit`

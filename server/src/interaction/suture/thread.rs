@@ -78,6 +78,9 @@ const DRAG_PER_S: f32 = 5.0;
 /// converged: `thread_solve.rs`).
 const SUBSTEPS: usize = 4;
 const NEWTON: usize = 8;
+/// Most self passes after the contacts in a substep (each is Gauss-Seidel: a pair put apart may press its
+/// neighbour; they stop once none is pushed).
+const SELF_PASSES_AFTER: usize = 3;
 /// Thread-tissue Coulomb coefficient (wet suture on skin).
 const SURFACE_FRICTION: f32 = 0.3;
 /// A resting node this far off its contact's plane beyond the radius has lifted off it, mm.
@@ -460,8 +463,14 @@ impl SutureThread {
                     pairs_apart +=
                         self_contact.keep_apart(before, now, w, floor, THREAD_DIAMETER_MM);
                     contact_pass(now, floor);
-                    pairs_apart +=
-                        self_contact.keep_apart(before, now, w, floor, THREAD_DIAMETER_MM);
+                    for _ in 0..SELF_PASSES_AFTER {
+                        let pushed =
+                            self_contact.keep_apart(before, now, w, floor, THREAD_DIAMETER_MM);
+                        pairs_apart += pushed;
+                        if pushed == 0 {
+                            break;
+                        }
+                    }
                 });
             // Then the thread slides through them.
             for hole in holes.iter_mut().chain(tracks.iter_mut()) {

@@ -176,11 +176,27 @@ impl SelfContact {
             // The side the pair lay on when last apart; else at the substep's start, at the same parameters.
             let was = (before[i] + (before[i + 1] - before[i]) * s)
                 - (before[j] + (before[j + 1] - before[j]) * t);
-            let remembered = self.sides[pair];
-            let side = if remembered == Vec3::zeros() {
-                was.try_normalize(1e-9).or_else(|| gap.try_normalize(1e-9))
-            } else {
-                Some(remembered)
+            let mut remembered = self.sides[pair];
+            if remembered == Vec3::zeros() {
+                // A pair just come close beside one that is (strands sliding along each other carry their
+                // crossing from segment to segment): its neighbour's side.
+                remembered = self.neighbour_side(i, j);
+            }
+            // Strands crossing (closest points inside both, not near parallel): the side is across both, the
+            // common normal, and only its sign is remembered or taken from the substep's start. Two strands
+            // sliding along each other cross with their points at the same parameters a millimetre along
+            // them, so the start's direction at those parameters lies mostly along the strands.
+            let side = match crossing_normal(&(a1 - a0), &(b1 - b0), s, t) {
+                Some(normal) => {
+                    let sign = [remembered, was, gap]
+                        .iter()
+                        .map(|v| v.dot(&normal))
+                        .find(|d| d.abs() > 1e-3 * (1.0 + gap.norm()))
+                        .map(f32::signum);
+                    sign.map(|sign| normal * sign)
+                }
+                None if remembered != Vec3::zeros() => Some(remembered),
+                None => was.try_normalize(1e-9).or_else(|| gap.try_normalize(1e-9)),
             };
             let Some(side) = side else {
                 continue;
@@ -219,6 +235,37 @@ impl SelfContact {
         }
         pushed
     }
+
+    /// The side remembered for a pair beside `(i, j)` (a segment along on either strand) this pass or the
+    /// last, or zero.
+    fn neighbour_side(&self, i: usize, j: usize) -> Vec3 {
+        let segments = self.segments;
+        let beside = [
+            (i.wrapping_sub(1), j),
+            (i + 1, j),
+            (i, j.wrapping_sub(1)),
+            (i, j + 1),
+        ];
+        beside
+            .iter()
+            .filter(|&&(a, b)| a < segments && b < segments && b >= a + 2)
+            .map(|&(a, b)| a * segments + b)
+            .find(|&p| self.seen[p] + 1 >= self.pass && self.sides[p] != Vec3::zeros())
+            .map_or_else(Vec3::zeros, |p| self.sides[p])
+    }
+}
+
+/// The unit common normal of segments `da` and `db` (their directions) when they cross: their closest points
+/// `(s, t)` inside both (not at an end) and the two more than 10 degrees from parallel. Else None.
+fn crossing_normal(da: &Vec3, db: &Vec3, s: f32, t: f32) -> Option<Vec3> {
+    const SIN_MIN: f32 = 0.17;
+    let inside = |u: f32| u > 1e-4 && u < 1.0 - 1e-4;
+    if !(inside(s) && inside(t)) {
+        return None;
+    }
+    let normal = da.cross(db);
+    let floor = SIN_MIN * SIN_MIN * da.norm_squared() * db.norm_squared();
+    (normal.norm_squared() > floor).then(|| normal.normalize())
 }
 
 #[cfg(test)]
@@ -227,6 +274,17 @@ mod tests {
 
     /// No node resting on a surface.
     const FREE: [Vec3; 4] = [Vec3::new(0.0, 0.0, 0.0); 4];
+
+    /// One pass over the three-segment polyline `now` (from `before`), 0.25 mm thick: it pushes one pair, and
+    /// leaves segment 2-3 0.25 mm above z = 0 (where segment 0-1 lies).
+    fn put_back_above(before: &[Vec3; 4], now: &mut [Vec3; 4], w: &[f32; 4]) {
+        let mut contact = SelfContact::new(3);
+        assert_eq!(contact.keep_apart(before, now, w, &FREE, 0.25), 1);
+        assert!(
+            (now[2].z - 0.25).abs() < 1e-5 && (now[3].z - 0.25).abs() < 1e-5,
+            "{now:?}"
+        );
+    }
 
     #[test]
     fn closest_points_of_crossing_and_parallel_segments() {
@@ -264,12 +322,7 @@ mod tests {
         now[3].z = -1.0;
         let w = [0.0, 0.0, 1.0, 1.0];
         // 1-2 are neighbours; 0-1 and 2-3 are not.
-        let mut contact = SelfContact::new(3);
-        assert_eq!(contact.keep_apart(&before, &mut now, &w, &FREE, 0.25), 1);
-        assert!(
-            (now[2].z - 0.25).abs() < 1e-5 && (now[3].z - 0.25).abs() < 1e-5,
-            "{now:?}"
-        );
+        put_back_above(&before, &mut now, &w);
         // Apart by more than the diameter: nothing moves.
         let mut far = before;
         let mut contact = SelfContact::new(3);
@@ -288,6 +341,29 @@ mod tests {
         let start = crossed;
         assert_eq!(contact.keep_apart(&start, &mut crossed, &w, &FREE, 0.25), 1);
         assert!((crossed[2].z - 0.25).abs() < 1e-5, "{crossed:?}");
+    }
+
+    #[test]
+    fn a_strand_sliding_along_itself_as_it_crosses_another_goes_back_across_not_along() {
+        // Segment 0-1 held along x at z = 0; segment 2-3 along y 0.3 mm above it, centred 1.5 mm along y, moved
+        // in one step 1.5 mm along itself and 0.4 mm down, through 0-1 to 0.1 mm below it. The points at the
+        // closest parameters now lay 1.5 mm apart along y at the start: that direction would push 2-3 along
+        // itself, leaving it below. The side across both (z, signed as at the start) puts it back above.
+        let before = [
+            Vec3::new(-1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.3),
+            Vec3::new(0.0, 2.5, 0.3),
+        ];
+        let mut now = before;
+        now[2] = Vec3::new(0.0, -1.0, -0.1);
+        now[3] = Vec3::new(0.0, 1.0, -0.1);
+        let w = [0.0, 0.0, 1.0, 1.0];
+        put_back_above(&before, &mut now, &w);
+        assert!(
+            (now[2].y + 1.0).abs() < 1e-5,
+            "pushed along itself: {now:?}"
+        );
     }
 
     #[test]

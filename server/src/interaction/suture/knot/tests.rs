@@ -293,3 +293,40 @@ fn a_thread_that_is_not_finite_is_refused() {
         Err(DiagramError::BadCurve)
     );
 }
+
+/// The free end of a tied stitch hanging down under the throw, so that the way straight up from it runs through
+/// the throw: closed that way alone the thread reads as no knot (or another), but the closures' vote
+/// (`read_thread`) reads the throw, as with the end held up.
+#[test]
+fn a_free_end_hanging_under_the_throw_does_not_undo_its_reading() {
+    let mut reader = KnotReader::new();
+    let up = Vec3::z();
+    let held_up = reader.read_thread(&tied_stitch(1.0, 3.0), up).unwrap();
+    assert!(matches!(held_up, KnotKind::Throws(t) if t.name() == "half knot"));
+    for end in [
+        Vec3::new(0.0, 0.0, -8.0),
+        Vec3::new(2.0, 1.0, -8.0),
+        Vec3::new(-2.0, -1.0, -8.0),
+        Vec3::new(4.0, 0.5, -8.0),
+    ] {
+        let mut nodes = tied_stitch(1.0, 3.0);
+        nodes.push(Vec3::new(-20.0, 15.0, -10.0));
+        nodes.push(end);
+        // Closed straight up alone.
+        let mut closed: Vec<Vector3<f64>> = nodes.iter().map(|p| p.cast::<f64>()).collect();
+        let top = closed.iter().map(|p| p.z).fold(f64::MIN, f64::max) + CLOSURE_CLEARANCE_MM;
+        let (first, last) = (closed[0], closed[closed.len() - 1]);
+        closed.push(Vector3::new(last.x, last.y, top));
+        closed.push(Vector3::new(first.x, first.y, top));
+        let straight_up = reader.read_closed(&closed, Vector3::z()).unwrap();
+        assert_ne!(
+            straight_up, held_up,
+            "end at {end:?}: one closure read it right"
+        );
+        assert_eq!(
+            reader.read_thread(&nodes, up).unwrap(),
+            held_up,
+            "end at {end:?}: the vote missed the throw"
+        );
+    }
+}

@@ -33,6 +33,10 @@ impl SutureThread {
         for (p, u_mm) in self.chain.positions_mm.iter_mut().zip(&self.node_u_mm) {
             *p = tail_mm + away * *u_mm;
         }
+        let node_mass_kg = self.node_mass_kg();
+        for grip in self.grips.drain(..) {
+            self.chain.set_held(grip.node as usize, false, node_mass_kg);
+        }
         self.come_to_rest();
         self.last_tail_mm = Some(*tail_mm);
     }
@@ -41,8 +45,9 @@ impl SutureThread {
     /// the needle's tail is), each node at its material coordinate along the path (past the path's end, on
     /// along its last segment), at rest: a thread placed by a scenario, tied or looped as it starts. Refused
     /// (false, nothing changed) for a path of fewer than two points, a point that is not finite, a first
-    /// segment of no length, or a thread that runs through holes. Lets go of every grip, as
-    /// [`SutureThread::lay_out`] does.
+    /// segment of no length, or a thread that runs through holes. A grip whose node the path lays within
+    /// [`KEEP_GRIP_MM`] of where the jaws hold it keeps it, there (a scenario laying a knot between two
+    /// instruments that hold the strands); it lets go of every other grip, as [`SutureThread::lay_out`] does.
     pub fn lay_along(&mut self, path_mm: &[Vec3]) -> bool {
         if path_mm.len() < 2
             || !path_mm.iter().all(|p| p.iter().all(|c| c.is_finite()))
@@ -73,6 +78,18 @@ impl SutureThread {
                 leg += 1;
             }
         }
+        let node_mass_kg = self.node_mass_kg();
+        let chain = &mut self.chain;
+        self.grips.retain(|grip| {
+            let node = grip.node as usize;
+            let kept = (chain.positions_mm[node] - grip.place_mm()).norm() <= KEEP_GRIP_MM;
+            if kept {
+                chain.positions_mm[node] = grip.place_mm();
+            } else {
+                chain.set_held(node, false, node_mass_kg);
+            }
+            kept
+        });
         self.come_to_rest();
         self.self_contact.forget();
         self.last_tail_mm = Some(path_mm[0]);
@@ -89,14 +106,14 @@ impl SutureThread {
         self.last_tail_mm.is_some()
     }
 
-    /// At rest where it was put: no speed, no contacts or floors, no grips.
+    /// At rest where it was put: no speed, no contacts or floors.
     fn come_to_rest(&mut self) {
         self.chain.velocities_mm_s.fill(Vec3::zeros());
         self.contacts.fill(None);
         self.floor.fill(Vec3::zeros());
-        let node_mass_kg = self.node_mass_kg();
-        for grip in self.grips.drain(..) {
-            self.chain.set_held(grip.node as usize, false, node_mass_kg);
-        }
     }
 }
+
+/// A grip keeps its node through [`SutureThread::lay_along`] when the path lays the node this close to the
+/// jaws, mm.
+pub const KEEP_GRIP_MM: f32 = 1.0;
