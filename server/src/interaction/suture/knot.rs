@@ -10,8 +10,8 @@
 //! the throws' own polynomials (the Jones polynomial of a connected sum is the product of its parts'). A
 //! thread lying in loops ties nothing, however many times it crosses itself.
 //!
-//! Owns: [`KnotReader`] (its buffers, and the last diagram it judged, so an unchanged diagram is not summed
-//! again), [`KnotKind`], [`Throws`]. Must not: allocate once its buffers have grown to the thread's size.
+//! Owns: [`KnotReader`] (its buffers, and the last diagram it judged per closure, so an unchanged diagram is
+//! not summed again), [`KnotKind`], [`Throws`]. Must not: allocate once its buffers have grown to the thread's size.
 //!
 //! Not (yet): the throws' order (the polynomial of a sum does not carry it: right-left-right and
 //! right-right-left read alike), a slip knot (the same topology as a square knot with one strand kept
@@ -96,14 +96,22 @@ pub enum KnotKind {
     },
 }
 
-/// Reads the knot in a thread. One per thread; keeps its buffers and its last judgement.
+/// A diagram judged: its signed Gauss code and the knot it was judged to be.
+#[derive(Debug)]
+struct Judged {
+    code: Vec<Passage>,
+    signs: Vec<i8>,
+    kind: KnotKind,
+}
+
+/// Reads the knot in a thread. One per thread; keeps its buffers and its last judgement per closure.
 #[derive(Debug)]
 pub struct KnotReader {
     diagram: Diagram,
     closed: Vec<Vector3<f64>>,
-    last_code: Vec<Passage>,
-    last_signs: Vec<i8>,
-    last_kind: KnotKind,
+    /// The last diagram judged and its judgement, one per closure ([`CLOSURES`], then one for
+    /// [`KnotReader::read_closed`]).
+    judged: [Judged; CLOSURES + 1],
     trefoil: Laurent,
     cinquefoil: Laurent,
 }
@@ -136,9 +144,11 @@ impl KnotReader {
         Self {
             diagram: Diagram::new(),
             closed: Vec::new(),
-            last_code: Vec::with_capacity(2 * diagram::MAX_RAW_CROSSINGS),
-            last_signs: Vec::with_capacity(diagram::MAX_RAW_CROSSINGS),
-            last_kind: KnotKind::None,
+            judged: std::array::from_fn(|_| Judged {
+                code: Vec::with_capacity(2 * diagram::MAX_RAW_CROSSINGS),
+                signs: Vec::with_capacity(diagram::MAX_RAW_CROSSINGS),
+                kind: KnotKind::None,
+            }),
             trefoil: trefoil_right(),
             cinquefoil: cinquefoil_right(),
         }
@@ -188,7 +198,7 @@ impl KnotReader {
             let last = self.closed[self.closed.len() - 1];
             self.closed.push(last + way * (top - last.dot(&way)));
             self.closed.push(first + way * (top - first.dot(&way)));
-            let kind = self.judge_closed(view_from(way))?;
+            let kind = self.judge_closed(view_from(way), k)?;
             votes[k] = (kind, 0);
             if let Some(v) = votes[..=k].iter_mut().find(|(seen, _)| *seen == kind) {
                 v.1 += 1;
@@ -213,7 +223,7 @@ impl KnotReader {
     ) -> Result<KnotKind, DiagramError> {
         self.closed.clear();
         self.closed.extend_from_slice(points_mm);
-        self.judge_closed(view_from(up_unit.normalize()))
+        self.judge_closed(view_from(up_unit.normalize()), CLOSURES)
     }
 
     /// The diagram of the last reading, simplified: its crossings.
@@ -223,8 +233,12 @@ impl KnotReader {
 
     /// Projects the closed curve along `toward_viewer`, and along the [`VIEWS`] round it while the diagram
     /// keeps more crossings than the bracket sums, keeping the simplest; then judges that diagram (or returns
-    /// the last judgement, if the diagram is the last one judged).
-    fn judge_closed(&mut self, toward_viewer: Vector3<f64>) -> Result<KnotKind, DiagramError> {
+    /// the last judgement, if the diagram is the last one judged in `slot`: a closure's own).
+    fn judge_closed(
+        &mut self,
+        toward_viewer: Vector3<f64>,
+        slot: usize,
+    ) -> Result<KnotKind, DiagramError> {
         self.diagram.project(&self.closed, toward_viewer)?;
         self.diagram.simplify();
         let (mut best_view, mut best) = (None, self.diagram.crossings());
@@ -247,10 +261,11 @@ impl KnotReader {
         });
         self.diagram.project(&self.closed, view)?;
         self.diagram.simplify();
-        if self.diagram.code() == self.last_code.as_slice()
-            && self.diagram.signs() == self.last_signs.as_slice()
+        let last = &mut self.judged[slot];
+        if self.diagram.code() == last.code.as_slice()
+            && self.diagram.signs() == last.signs.as_slice()
         {
-            return Ok(self.last_kind);
+            return Ok(last.kind);
         }
         let crossings = self.diagram.crossings() as u16;
         let kind = match bracket::jones(&self.diagram) {
@@ -260,11 +275,12 @@ impl KnotReader {
                 .match_throws(&v, crossings)
                 .map_or(KnotKind::Other { crossings }, KnotKind::Throws),
         };
-        self.last_code.clear();
-        self.last_code.extend_from_slice(self.diagram.code());
-        self.last_signs.clear();
-        self.last_signs.extend_from_slice(self.diagram.signs());
-        self.last_kind = kind;
+        let last = &mut self.judged[slot];
+        last.code.clear();
+        last.code.extend_from_slice(self.diagram.code());
+        last.signs.clear();
+        last.signs.extend_from_slice(self.diagram.signs());
+        last.kind = kind;
         Ok(kind)
     }
 
