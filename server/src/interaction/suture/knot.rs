@@ -2,16 +2,18 @@
 //!
 //! A stitch's thread is an open curve: its two ends (the needle's and the free one) leave the tissue and a
 //! surgeon ties them around each other. Joined above the surgical field (each end straight up, then across;
-//! and four ways tilted from up, the knot most of them read kept: [`KnotReader::read_thread`]), the thread closes into a knot whose type is the knot the throws tied: one
-//! throw (a half knot) closes into a trefoil, a square knot into a trefoil and its mirror image, a granny into
-//! two alike, a surgeon's double throw into the (2, 5) torus knot. The reader projects the closed curve
+//! and four ways tilted from up, the knot most of them read kept: [`KnotReader::read_thread`]), the thread
+//! closes into a knot whose type is the knot the throws tied: one throw (a half knot) closes into a trefoil,
+//! a square knot into a trefoil and its mirror image, a granny into two alike, a surgeon's double throw into
+//! the (2, 5) torus knot. The reader projects the closed curve
 //! (`knot/diagram.rs`), simplifies away kinks and strands merely lying on one another, computes the Jones
 //! polynomial (`knot/bracket.rs`), which tells a knot from its mirror, and matches it against the products of
 //! the throws' own polynomials (the Jones polynomial of a connected sum is the product of its parts'). A
 //! thread lying in loops ties nothing, however many times it crosses itself.
 //!
 //! Owns: [`KnotReader`] (its buffers, and the last diagram it judged per closure, so an unchanged diagram is
-//! not summed again), [`KnotKind`], [`Throws`]. Must not: allocate once its buffers have grown to the thread's size.
+//! not summed again), [`KnotKind`], [`Throws`]. Must not: allocate once its buffers have grown to the thread's
+//! size.
 //!
 //! Not (yet): the throws' order (the polynomial of a sum does not carry it: right-left-right and
 //! right-right-left read alike), a slip knot (the same topology as a square knot with one strand kept
@@ -185,19 +187,10 @@ impl KnotReader {
             up * cos - b * sin,
         ];
         let mut votes = [(KnotKind::None, 0u8); CLOSURES];
+        self.closed.clear();
+        self.closed.extend(nodes_mm.iter().map(|p| p.cast::<f64>()));
         for (k, way) in ways.into_iter().enumerate() {
-            self.closed.clear();
-            self.closed.extend(nodes_mm.iter().map(|p| p.cast::<f64>()));
-            let top = self
-                .closed
-                .iter()
-                .map(|p| p.dot(&way))
-                .fold(f64::NEG_INFINITY, f64::max)
-                + CLOSURE_CLEARANCE_MM;
-            let first = self.closed[0];
-            let last = self.closed[self.closed.len() - 1];
-            self.closed.push(last + way * (top - last.dot(&way)));
-            self.closed.push(first + way * (top - first.dot(&way)));
+            self.close_along(nodes_mm.len(), way);
             let kind = self.judge_closed(view_from(way), k)?;
             votes[k] = (kind, 0);
             if let Some(v) = votes[..=k].iter_mut().find(|(seen, _)| *seen == kind) {
@@ -212,6 +205,23 @@ impl KnotReader {
             }
         }
         Ok(chosen.0)
+    }
+
+    /// Close the open curve held in the first `n` points of the closed buffer along `way` (unit): each end
+    /// taken along it to [`CLOSURE_CLEARANCE_MM`] past the curve's furthest point that way (what a last
+    /// closure added is dropped first).
+    fn close_along(&mut self, n: usize, way: Vector3<f64>) {
+        self.closed.truncate(n);
+        let top = self
+            .closed
+            .iter()
+            .map(|p| p.dot(&way))
+            .fold(f64::NEG_INFINITY, f64::max)
+            + CLOSURE_CLEARANCE_MM;
+        let first = self.closed[0];
+        let last = self.closed[n - 1];
+        self.closed.push(last + way * (top - last.dot(&way)));
+        self.closed.push(first + way * (top - first.dot(&way)));
     }
 
     /// The knot of the closed polyline `points_mm` (the last point joins the first), seen along `up_unit`

@@ -312,12 +312,11 @@ fn a_free_end_hanging_under_the_throw_does_not_undo_its_reading() {
         let mut nodes = tied_stitch(1.0, 3.0);
         nodes.push(Vec3::new(-20.0, 15.0, -10.0));
         nodes.push(end);
-        // Closed straight up alone.
-        let mut closed: Vec<Vector3<f64>> = nodes.iter().map(|p| p.cast::<f64>()).collect();
-        let top = closed.iter().map(|p| p.z).fold(f64::MIN, f64::max) + CLOSURE_CLEARANCE_MM;
-        let (first, last) = (closed[0], closed[closed.len() - 1]);
-        closed.push(Vector3::new(last.x, last.y, top));
-        closed.push(Vector3::new(first.x, first.y, top));
+        // Closed straight up alone (the reader's own closure, read as `read_closed` reads).
+        reader.closed.clear();
+        reader.closed.extend(nodes.iter().map(|p| p.cast::<f64>()));
+        reader.close_along(nodes.len(), Vector3::z());
+        let closed = reader.closed.clone();
         let straight_up = reader.read_closed(&closed, Vector3::z()).unwrap();
         assert_ne!(
             straight_up, held_up,
