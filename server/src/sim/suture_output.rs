@@ -45,23 +45,36 @@ pub struct SutureActivity {
 }
 
 impl Sim {
-    /// The needle tool `t`'s jaws hold, with the instrument that carries it and its hold: its own in a needle
-    /// driver's jaws, or another tool's needle its jaws took.
+    /// The needle tool `t`'s jaws hold, with the instrument that carries it and its hold (see
+    /// [`Sim::jaws_hold_needle_of`]).
     pub(super) fn needle_in_jaws(
         &self,
         t: usize,
     ) -> Option<(&dyn Instrument, &NeedleTissue, &NeedleHold)> {
-        let me = u16::try_from(t).ok()?;
-        self.tools.iter().enumerate().find_map(|(k, other)| {
+        self.tools.iter().enumerate().find_map(|(owner, other)| {
             let instrument = other.instrument_state.as_deref()?;
             let (needle, hold) = (instrument.needle()?, instrument.needle_hold()?);
-            let held = if k == t {
-                hold.in_drivers_jaws()
-            } else {
-                hold.held_by(me)
-            };
-            held.then_some((instrument, needle, hold))
+            self.jaws_hold_needle_of(t, owner)
+                .then_some((instrument, needle, hold))
         })
+    }
+
+    /// Whether tool `t`'s jaws hold the needle tool `owner` carries: its own in a needle driver's jaws, or
+    /// another tool's needle its jaws took.
+    fn jaws_hold_needle_of(&self, t: usize, owner: usize) -> bool {
+        let Some(hold) = self
+            .tools
+            .get(owner)
+            .and_then(|tool| tool.instrument_state.as_deref())
+            .and_then(|instrument| instrument.needle_hold())
+        else {
+            return false;
+        };
+        if owner == t {
+            hold.in_drivers_jaws()
+        } else {
+            u16::try_from(t).is_ok_and(|me| hold.held_by(me))
+        }
     }
 
     /// Tool `t`'s suturing now.
@@ -99,18 +112,9 @@ impl Sim {
             let Some(thread) = other.thread() else {
                 continue;
             };
-            let needle_held = other
-                .instrument_state
-                .as_deref()
-                .and_then(|i| i.needle_hold())
-                .is_some_and(|hold| {
-                    if owner == t {
-                        hold.in_drivers_jaws()
-                    } else {
-                        hold.held_by(me)
-                    }
-                });
-            if (needle_held || thread.grip_of(me).is_some()) && activity.knot == KnotKind::None {
+            if (self.jaws_hold_needle_of(t, owner) || thread.grip_of(me).is_some())
+                && activity.knot == KnotKind::None
+            {
                 activity.knot = self.knots.kind(owner);
             }
             if let Some(grip) = thread.grip_of(me) {

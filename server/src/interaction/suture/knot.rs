@@ -251,7 +251,8 @@ impl KnotReader {
     ) -> Result<KnotKind, DiagramError> {
         self.diagram.project(&self.closed, toward_viewer)?;
         self.diagram.simplify();
-        let (mut best_view, mut best) = (None, self.diagram.crossings());
+        // The view the diagram holds, and the simplest so far (None: along `toward_viewer`).
+        let (mut held, mut best_view, mut best) = (None, None, self.diagram.crossings());
         let (a, b) = across(toward_viewer);
         for (k, [x, y]) in VIEWS.iter().enumerate() {
             if best <= MAX_BRACKET_CROSSINGS / 2 {
@@ -261,16 +262,20 @@ impl KnotReader {
             self.diagram
                 .project(&self.closed, toward_viewer * z + a * *x + b * *y)?;
             self.diagram.simplify();
+            held = Some(k);
             if self.diagram.crossings() < best {
                 (best_view, best) = (Some(k), self.diagram.crossings());
             }
         }
-        let view = best_view.map_or(toward_viewer, |k| {
-            let [x, y] = VIEWS[k];
-            toward_viewer * (1.0 - x * x - y * y).max(0.0).sqrt() + a * x + b * y
-        });
-        self.diagram.project(&self.closed, view)?;
-        self.diagram.simplify();
+        // Projected again only when another view was tried after the simplest.
+        if held != best_view {
+            let view = best_view.map_or(toward_viewer, |k| {
+                let [x, y] = VIEWS[k];
+                toward_viewer * (1.0 - x * x - y * y).max(0.0).sqrt() + a * x + b * y
+            });
+            self.diagram.project(&self.closed, view)?;
+            self.diagram.simplify();
+        }
         let last = &mut self.judged[slot];
         if self.diagram.code() == last.code.as_slice()
             && self.diagram.signs() == last.signs.as_slice()

@@ -280,15 +280,9 @@ impl SutureThread {
             &mut self.claimed,
         );
         // Where the jaws hold it this tick; a released tool lets go.
-        let node_mass_kg = self.node_mass_kg();
-        let chain = &mut self.chain;
-        self.grips.retain_mut(|grip| {
-            let kept = tool(2 * usize::from(grip.tool))
-                .is_some_and(|(_, position_mm, rotation)| grip.aim(&position_mm, &rotation));
-            if !kept {
-                chain.set_held(grip.node as usize, false, node_mass_kg);
-            }
-            kept
+        self.keep_grips(|grip, _| {
+            tool(2 * usize::from(grip.tool))
+                .is_some_and(|(_, position_mm, rotation)| grip.aim(&position_mm, &rotation))
         });
         let contacts = &mut self.contacts;
         let contact_inside = &mut self.contact_inside;
@@ -314,6 +308,9 @@ impl SutureThread {
                 }
             }
             node_u_mm.copy_from_slice(self.chain.node_u_mm());
+            // The nodes a hole or a ring holds (kept up by `take_nodes` and each hand-across): each is the
+            // hole's, and the contacts leave it alone.
+            let by_hole: &[bool] = claimed;
             // The jaws carry theirs.
             for grip in grips {
                 if let Some(p) = self.chain.positions_mm.get_mut(grip.node as usize) {
@@ -328,12 +325,7 @@ impl SutureThread {
                     // across an edge, and one pushed off an edge may meet a tool.
                     let edge_pass = |now: &mut [Vec3]| {
                         for i in 0..now.len().saturating_sub(1) {
-                            if w[i] + w[i + 1] <= 0.0
-                                || holes
-                                    .iter()
-                                    .chain(tracks.iter())
-                                    .any(|h| h.holds_node(i) || h.holds_node(i + 1))
-                            {
+                            if w[i] + w[i + 1] <= 0.0 || by_hole[i] || by_hole[i + 1] {
                                 continue;
                             }
                             let (u0, u1) = (node_u_mm[i], node_u_mm[i + 1]);
@@ -373,11 +365,7 @@ impl SutureThread {
                             return;
                         };
                         let weight = |i: usize| {
-                            if holes.iter().chain(tracks.iter()).any(|h| h.holds_node(i)) {
-                                0.0
-                            } else {
-                                w[i]
-                            }
+                            if by_hole[i] { 0.0 } else { w[i] }
                         };
                         for i in 0..now.len().saturating_sub(1) {
                             let segment = WireSegment {
@@ -401,7 +389,7 @@ impl SutureThread {
                             if w[i] > 0.0 {
                                 // A node a hole holds is the hole's: a tool in the same hole (the needle, the
                                 // jaws following it through) does not push it out of it.
-                                if !holes.iter().chain(tracks.iter()).any(|h| h.holds_node(i)) {
+                                if !by_hole[i] {
                                     // The thread runs out between the jaws holding it: their
                                     // body does not push the nodes beside the one they hold.
                                     let jaws = grips
@@ -438,7 +426,7 @@ impl SutureThread {
                                 // into the tool, so the tool now pushes it along the surface, out from under.
                                 floor[i] = side.resting_on.unwrap_or_else(Vec3::zeros);
                                 if let Some(normal) = side.resting_on.filter(|_| side.pushed)
-                                    && !holes.iter().chain(tracks.iter()).any(|h| h.holds_node(i))
+                                    && !by_hole[i]
                                 {
                                     let jaws = grips
                                         .iter()
@@ -478,14 +466,7 @@ impl SutureThread {
             }
         }
         // The pull on each jaw; a thread pulled harder than the jaws hold slips out of them.
-        let chain = &mut self.chain;
-        self.grips.retain_mut(|grip| {
-            let kept = grip.after_step(pull_on_node_n(chain, grip.node as usize));
-            if !kept {
-                chain.set_held(grip.node as usize, false, node_mass_kg);
-            }
-            kept
-        });
+        self.keep_grips(|grip, chain| grip.after_step(pull_on_node_n(chain, grip.node as usize)));
         self.last_tail_mm = Some(*tail_mm);
         self.pairs_apart = pairs_apart;
     }

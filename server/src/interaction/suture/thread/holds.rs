@@ -62,15 +62,25 @@ impl SutureThread {
     /// Tool `tool`'s jaws let go of the thread. Returns whether they held it.
     pub fn release_grip(&mut self, tool: u16) -> bool {
         let before = self.grips.len();
+        self.keep_grips(|g, _| g.tool != tool);
+        self.grips.len() != before
+    }
+
+    /// Keep the grips `keep` says to (it may move the chain's nodes); each other lets go of its node, which
+    /// gets its mass back. The one way a grip is let go. No allocation.
+    pub(super) fn keep_grips(
+        &mut self,
+        mut keep: impl FnMut(&mut ThreadGrip, &mut crate::interaction::suture::ThreadChain) -> bool,
+    ) {
         let node_mass_kg = self.node_mass_kg();
         let chain = &mut self.chain;
-        self.grips.retain(|g| {
-            if g.tool == tool {
-                chain.set_held(g.node as usize, false, node_mass_kg);
+        self.grips.retain_mut(|grip| {
+            let kept = keep(grip, chain);
+            if !kept {
+                chain.set_held(grip.node as usize, false, node_mass_kg);
             }
-            g.tool != tool
+            kept
         });
-        self.grips.len() != before
     }
 
     /// The jaws holding it.

@@ -33,10 +33,7 @@ impl SutureThread {
         for (p, u_mm) in self.chain.positions_mm.iter_mut().zip(&self.node_u_mm) {
             *p = tail_mm + away * *u_mm;
         }
-        let node_mass_kg = self.node_mass_kg();
-        for grip in self.grips.drain(..) {
-            self.chain.set_held(grip.node as usize, false, node_mass_kg);
-        }
+        self.keep_grips(|_, _| false);
         self.come_to_rest();
         self.last_tail_mm = Some(*tail_mm);
     }
@@ -78,15 +75,11 @@ impl SutureThread {
                 leg += 1;
             }
         }
-        let node_mass_kg = self.node_mass_kg();
-        let chain = &mut self.chain;
-        self.grips.retain(|grip| {
+        self.keep_grips(|grip, chain| {
             let node = grip.node as usize;
             let kept = (chain.positions_mm[node] - grip.place_mm()).norm() <= KEEP_GRIP_MM;
             if kept {
                 chain.positions_mm[node] = grip.place_mm();
-            } else {
-                chain.set_held(node, false, node_mass_kg);
             }
             kept
         });
