@@ -28,6 +28,7 @@ mod hole_tear;
 mod knot;
 mod needle;
 mod needle_arc;
+mod needle_fall;
 mod needle_hold;
 mod puncture;
 mod thread;
@@ -48,6 +49,7 @@ pub use hole_tear::{HoleTear, TEAR_PERIOD_S, plan_hole_tear, surface_point_near}
 pub use knot::{KnotKind, KnotReader, Throws};
 pub use needle::NeedleDriverSpec;
 pub use needle_arc::{ArcPoint, NeedleArc, NeedleArcError, PathOffset};
+pub use needle_fall::NeedleFall;
 pub use needle_hold::{NeedleHold, NeedleHolder};
 pub use puncture::{MAX_HOLES, NeedleEvents, NeedleTissue, PopPreview, TipPhase};
 pub use thread::{

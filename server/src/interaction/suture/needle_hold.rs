@@ -7,9 +7,9 @@
 //! ([`NeedleHold::let_go`]), as a surgeon hands a needle from driver to grasper on the far side of a bite.
 //!
 //! A needle is held at the pose it had when the jaws closed on it (the jaws clamp it where it lies, and it
-//! stays fixed in them while they stay closed). A loose needle does not move: in tissue its holes hold it,
-//! rigid, and the tissue settles around it; in free space it stays where it was let go (it does not fall yet:
-//! a rigid body for a dropped needle is not built).
+//! stays fixed in them while they stay closed). A loose needle in tissue is held by its holes, rigid, and the
+//! tissue settles around it; out of tissue it falls and comes to rest on the tissue as a rigid body
+//! (`needle_fall.rs`, moved by the needle's instrument: [`NeedleHold::lie_at`]).
 //!
 //! Pure and allocation-free.
 
@@ -119,6 +119,14 @@ impl NeedleHold {
             self.world_from_needle = pose;
         }
         false
+    }
+
+    /// A loose needle lies at `world_from_needle` now (it fell: `needle_fall.rs`). Held, or a non-finite pose:
+    /// nothing changes.
+    pub fn lie_at(&mut self, world_from_needle: Isometry3<f32>) {
+        if self.holder == NeedleHolder::Loose && finite(&world_from_needle) {
+            self.world_from_needle = world_from_needle;
+        }
     }
 
     /// The jaws of tool `tool` (None: its driver's) opened: if they hold the needle it is let go where it is.

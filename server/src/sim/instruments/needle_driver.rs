@@ -22,8 +22,8 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 
 use crate::interaction::suture::{
-    NeedleDriverSpec, NeedleHold, NeedleHolder, NeedleTissue, NeedleWire, SutureThread,
-    THREAD_DIAMETER_MM, TipPhase,
+    NeedleDriverSpec, NeedleFall, NeedleHold, NeedleHolder, NeedleTissue, NeedleWire,
+    STANDARD_GRAVITY_MM_PER_S2, SutureThread, THREAD_DIAMETER_MM, TipPhase,
 };
 use crate::interaction::{JawActivation, JawInput, Jaws};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
@@ -56,6 +56,9 @@ pub(in crate::sim) struct NeedleDriver {
     /// The work the turn of the jaws that hold the needle did on the tissue this tick through the needle and
     /// the thread on its tail, mJ, and the tool whose jaws they are ([`Instrument::turn_work_mj`]).
     turn_work_mj: (u16, f64),
+    /// The needle as a rigid body while it lies loose out of tissue, and the world's gravity, mm/s^2.
+    fall: NeedleFall,
+    gravity_mm_per_s2: Vec3,
 }
 
 impl NeedleDriver {
@@ -79,6 +82,12 @@ impl NeedleDriver {
             let_go_share: 0.0,
             last_pose: None,
             turn_work_mj: (0, 0.0),
+            fall: NeedleFall::new(&spec.arc, spec.diameter_mm),
+            gravity_mm_per_s2: if gravity_mm_per_s2 == Vec3::zeros() {
+                Vec3::new(0.0, 0.0, -STANDARD_GRAVITY_MM_PER_S2)
+            } else {
+                gravity_mm_per_s2
+            },
         }
     }
 
@@ -150,6 +159,19 @@ impl NeedleDriver {
                 .filter(|tool| tool.active)
                 .map(pose_of)
         });
+        // A needle loose out of tissue falls and comes to rest on it (`needle_fall.rs`).
+        if *self.hold.holder() == NeedleHolder::Loose && self.needle.holes().is_empty() {
+            let pose = self.fall.step(
+                self.hold.world_from_needle(),
+                dt_s,
+                &self.gravity_mm_per_s2,
+                sim.objects.len(),
+                needle_objects(sim),
+            );
+            self.hold.lie_at(pose);
+        } else {
+            self.fall.stop();
+        }
         let_go + u32::from(gone)
     }
 

@@ -1,0 +1,228 @@
+//! A needle let go in free space falls and comes to rest on the tissue (`interaction/suture/needle_fall.rs`),
+//! on the suture block, on virtual time: let go over the skin it lands on it and lies still, never inside it;
+//! let go beside the block it falls past it; a needle lying on the skin is taken again by the driver's jaws
+//! and lifted with them.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+#[path = "common/skin_block.rs"]
+mod skin_block;
+#[path = "common/tool_pose.rs"]
+mod tool_pose;
+
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use sinew_server::interaction::JawInput;
+use sinew_server::interaction::suture::NeedleHolder;
+use sinew_server::sim::{Sim, ToolOutput};
+use sinew_server::world::{InstrumentSpec, load_world};
+use skin_block::depth_in_block_mm;
+use tool_pose::pose_command;
+
+const DT_S: f32 = 0.001;
+/// The wire's radius, mm (the suture block's needle is 0.5 mm thick).
+const RADIUS_MM: f32 = 0.25;
+
+/// The suture block's needle driver (tool 0), its shaft level, the needle's curve down.
+struct Dropper {
+    sim: Sim,
+    device_origin_mm: Vector3<f32>,
+    tool_from_needle: Isometry3<f32>,
+}
+
+impl Dropper {
+    fn new() -> Self {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
+        let world = load_world(&path).unwrap();
+        let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
+            panic!("tool 0 of the suture block is not a needle driver");
+        };
+        Self {
+            device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
+            tool_from_needle: spec.tool_from_needle(),
+            sim: Sim::new(&world).unwrap(),
+        }
+    }
+
+    fn level() -> UnitQuaternion<f32> {
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f32::consts::FRAC_PI_2)
+    }
+
+    /// One tick with the driver at `origin_mm`, `rotation`, its ratchet's release button `open` (held: the
+    /// jaws open), the grasper away.
+    fn step(&mut self, origin_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>, open: bool) {
+        let mut command = pose_command(origin_mm, &self.device_origin_mm, rotation);
+        command.jaws = JawInput {
+            buttons: u32::from(open),
+            jaw_angle_rad: 0.0,
+        };
+        let mut out = [ToolOutput::default(); 2];
+        let report = self
+            .sim
+            .step(DT_S, &[command, Default::default()], &mut out);
+        assert_eq!(report.faults, 0, "the guard reset the tissue");
+        assert!(out[0].force_world_n.iter().all(|c| c.is_finite()));
+    }
+
+    fn world_from_needle(&self) -> Isometry3<f32> {
+        *self.sim.tools[0].needle_hold().unwrap().world_from_needle()
+    }
+
+    fn holder(&self) -> NeedleHolder {
+        *self.sim.tools[0].needle_hold().unwrap().holder()
+    }
+
+    /// 49 points along the needle's arc, world.
+    fn arc_points(&self) -> Vec<Vector3<f32>> {
+        let arc = *self.sim.tools[0].needle().unwrap().arc();
+        let pose = self.world_from_needle();
+        (0..=48)
+            .map(|k| {
+                (pose * Point3::from(arc.at(arc.sweep_rad() * k as f32 / 48.0).point_mm)).coords
+            })
+            .collect()
+    }
+
+    /// Let the needle go with the driver at `origin_mm` (brought there closed, the jaws opened there, the
+    /// driver then drawn 40 mm up out of the way), and run `ticks` ticks.
+    fn drop_at(&mut self, origin_mm: &Vector3<f32>, ticks: usize) {
+        let level = Self::level();
+        for _ in 0..20_000 {
+            self.step(origin_mm, &level, false);
+            if (self.sim.tools[0].position_mm - origin_mm).norm() < 0.01 {
+                break;
+            }
+        }
+        assert!(
+            (self.sim.tools[0].position_mm - origin_mm).norm() < 0.01,
+            "the driver did not reach {origin_mm:?}"
+        );
+        for _ in 0..50 {
+            self.step(origin_mm, &level, true);
+        }
+        assert_eq!(
+            self.holder(),
+            NeedleHolder::Loose,
+            "the jaws did not let go"
+        );
+        let away = origin_mm + Vector3::new(0.0, 0.0, 40.0);
+        for k in 0..ticks {
+            let to = origin_mm + (away - origin_mm) * (k as f32 / 200.0).min(1.0);
+            self.step(&to, &level, true);
+        }
+    }
+}
+
+/// Let go 20 mm over the middle of the skin block, the needle falls onto the skin and lies still on it: after
+/// 3 s no point of its arc lies closer to the skin than its radius (less 0.05 mm), its lowest lies within
+/// 0.5 mm past the radius of the skin's top (it rests on it, not above it), and over the last half second no
+/// point moved more than 0.05 mm.
+#[test]
+fn a_needle_let_go_over_the_skin_falls_onto_it_and_lies_still() {
+    let mut d = Dropper::new();
+    let origin = Vector3::new(0.0, 0.0, 20.0);
+    d.drop_at(&origin, 2500);
+    let before = d.arc_points();
+    let mut deepest = f32::NEG_INFINITY;
+    for _ in 0..500 {
+        d.step(
+            &(origin + Vector3::new(0.0, 0.0, 40.0)),
+            &Dropper::level(),
+            true,
+        );
+        deepest = d
+            .arc_points()
+            .iter()
+            .map(depth_in_block_mm)
+            .fold(deepest, f32::max);
+    }
+    let after = d.arc_points();
+    let moved = before
+        .iter()
+        .zip(&after)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0f32, f32::max);
+    let lowest = after.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
+    println!(
+        "a needle dropped on the skin: lowest point {lowest:.3} mm over its top, deepest {deepest:.3} mm \
+         into it, moved {moved:.4} mm over the last 0.5 s"
+    );
+    assert!(
+        deepest <= -(RADIUS_MM - 0.05),
+        "the needle lay {deepest} mm into the skin"
+    );
+    assert!(
+        lowest <= RADIUS_MM + 0.5,
+        "the needle hovers {lowest} mm over the skin"
+    );
+    assert!(moved < 0.05, "the needle still moves: {moved} mm in 0.5 s");
+}
+
+/// Let go beside the skin block (30 mm past its side), the needle falls past it: 0.3 s on from the jaws'
+/// opening it is more than 200 mm lower (free fall from rest takes it 441 mm in 0.3 s; it was falling as the
+/// jaws opened), its shape (its ends' distance) unchanged.
+#[test]
+fn a_needle_let_go_beside_the_skin_falls_past_it() {
+    let mut d = Dropper::new();
+    let origin = Vector3::new(50.0, 0.0, 20.0);
+    d.drop_at(&origin, 0);
+    let before = d.arc_points();
+    for _ in 0..300 {
+        d.step(
+            &(origin + Vector3::new(0.0, 0.0, 40.0)),
+            &Dropper::level(),
+            true,
+        );
+    }
+    let after = d.arc_points();
+    let fell_mm = before[24].z - after[24].z;
+    let chord = |p: &[Vector3<f32>]| (p[0] - p[48]).norm();
+    println!("a needle dropped beside the skin fell {fell_mm:.1} mm in 0.3 s");
+    assert!(fell_mm > 200.0, "it fell only {fell_mm} mm");
+    assert!((chord(&before) - chord(&after)).abs() < 1e-3);
+}
+
+/// A needle lying on the skin is taken again: the driver comes to where it held the needle, open, closes its
+/// jaws, and the needle is in them again; drawn 20 mm up, the needle rises with them.
+#[test]
+fn a_needle_lying_on_the_skin_is_taken_again_by_the_drivers_jaws() {
+    let mut d = Dropper::new();
+    let origin = Vector3::new(0.0, 0.0, 20.0);
+    d.drop_at(&origin, 1500);
+    let target = d.world_from_needle() * d.tool_from_needle.inverse();
+    let (to, rotation) = (target.translation.vector, target.rotation);
+    let mut at = origin + Vector3::new(0.0, 0.0, 40.0);
+    for _ in 0..20_000 {
+        let step = to - at;
+        at += step * (0.1 / step.norm().max(0.1));
+        d.step(&at, &rotation, true);
+        if (d.sim.tools[0].position_mm - to).norm() < 0.05 {
+            break;
+        }
+    }
+    assert!(
+        (d.sim.tools[0].position_mm - to).norm() < 0.05,
+        "the driver did not reach the needle"
+    );
+    for _ in 0..100 {
+        d.step(&at, &rotation, false);
+    }
+    assert!(
+        matches!(d.holder(), NeedleHolder::Driver { .. }),
+        "the jaws did not take the needle: {:?}",
+        d.holder()
+    );
+    let lying = d.arc_points();
+    for k in 1..=200 {
+        d.step(
+            &(at + Vector3::new(0.0, 0.0, 0.1 * k as f32)),
+            &rotation,
+            false,
+        );
+    }
+    let lifted = d.arc_points();
+    let rose = lifted[24].z - lying[24].z;
+    assert!(
+        (rose - 20.0).abs() < 0.5,
+        "the needle rose {rose} mm with jaws drawn 20 mm up"
+    );
+}
