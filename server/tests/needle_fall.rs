@@ -1,7 +1,7 @@
 //! A needle let go in free space falls and comes to rest on the tissue (`interaction/suture/needle_fall.rs`),
 //! on the suture block, on virtual time: let go over the skin it lands on it and lies still, never inside it;
-//! let go beside the block it falls past it; a needle lying on the skin is taken again by the driver's jaws
-//! and lifted with them.
+//! let go beside the block it falls past it; the viewers are sent where it lies; a needle lying on the skin
+//! is taken again by the driver's jaws and lifted with them, and pushed along by a grasper swept across it.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 #[path = "common/skin_block.rs"]
@@ -10,8 +10,10 @@ mod skin_block;
 mod tool_pose;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use sinew_protocol::needle_point_in_tool_mm;
 use sinew_server::interaction::JawInput;
 use sinew_server::interaction::suture::NeedleHolder;
+use sinew_server::replication::FrameExchange;
 use sinew_server::sim::{Sim, ToolOutput};
 use sinew_server::world::{InstrumentSpec, load_world};
 use skin_block::depth_in_block_mm;
@@ -25,6 +27,7 @@ const RADIUS_MM: f32 = 0.25;
 struct Dropper {
     sim: Sim,
     device_origin_mm: Vector3<f32>,
+    grasper_origin_mm: Vector3<f32>,
     tool_from_needle: Isometry3<f32>,
 }
 
@@ -38,6 +41,7 @@ impl Dropper {
         };
         Self {
             device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
+            grasper_origin_mm: Vector3::from(world.tools[1].device_origin_in_world_mm),
             tool_from_needle: spec.tool_from_needle(),
             sim: Sim::new(&world).unwrap(),
         }
@@ -50,15 +54,33 @@ impl Dropper {
     /// One tick with the driver at `origin_mm`, `rotation`, its ratchet's release button `open` (held: the
     /// jaws open), the grasper away.
     fn step(&mut self, origin_mm: &Vector3<f32>, rotation: &UnitQuaternion<f32>, open: bool) {
+        self.step_with_grasper(origin_mm, rotation, open, None);
+    }
+
+    /// [`Self::step`] with the grasper (upright, its jaws closed) at `grasper_mm`, or away.
+    fn step_with_grasper(
+        &mut self,
+        origin_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        open: bool,
+        grasper_mm: Option<&Vector3<f32>>,
+    ) {
         let mut command = pose_command(origin_mm, &self.device_origin_mm, rotation);
         command.jaws = JawInput {
             buttons: u32::from(open),
             jaw_angle_rad: 0.0,
         };
+        let grasper = grasper_mm.map_or(Default::default(), |at| {
+            let mut command =
+                pose_command(at, &self.grasper_origin_mm, &UnitQuaternion::identity());
+            command.jaws = JawInput {
+                buttons: 1,
+                jaw_angle_rad: 0.0,
+            };
+            command
+        });
         let mut out = [ToolOutput::default(); 2];
-        let report = self
-            .sim
-            .step(DT_S, &[command, Default::default()], &mut out);
+        let report = self.sim.step(DT_S, &[command, grasper], &mut out);
         assert_eq!(report.faults, 0, "the guard reset the tissue");
         assert!(out[0].force_world_n.iter().all(|c| c.is_finite()));
     }
@@ -155,6 +177,28 @@ fn a_needle_let_go_over_the_skin_falls_onto_it_and_lies_still() {
         "the needle hovers {lowest} mm over the skin"
     );
     assert!(moved < 0.05, "the needle still moves: {moved} mm in 0.5 s");
+
+    // What the viewers are sent of it (protocol 15): drawn by the protocol's map in the pose sent, the needle's
+    // tip is where it lies.
+    let frames = FrameExchange::new(&d.sim);
+    assert!(frames.try_offer(&d.sim, &[ToolOutput::default(); 2]));
+    let sent = frames.with_frame(|f| f.needles.clone()).unwrap();
+    let InstrumentSpec::NeedleDriver(spec) = d.sim.tools[0].instrument else {
+        panic!("tool 0 is not a needle driver");
+    };
+    let [x, y, z, w] = sent[0].orientation_xyzw;
+    let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+    let in_tool = needle_point_in_tool_mm(
+        spec.arc.radius_mm(),
+        spec.grasp_at_rad,
+        spec.arc.sweep_rad(),
+    );
+    let drawn_tip = Vector3::from(sent[0].position_mm) + q * Vector3::from(in_tool);
+    let tip = *after.last().unwrap();
+    assert!(
+        (drawn_tip - tip).norm() < 0.01,
+        "viewers would draw the tip at {drawn_tip:?}, it lies at {tip:?}"
+    );
 }
 
 /// Let go beside the skin block (30 mm past its side), the needle falls past it: 0.3 s on from the jaws'
@@ -224,5 +268,70 @@ fn a_needle_lying_on_the_skin_is_taken_again_by_the_drivers_jaws() {
     assert!(
         (rose - 20.0).abs() < 0.5,
         "the needle rose {rose} mm with jaws drawn 20 mm up"
+    );
+}
+
+/// A grasper (upright, its jaws closed far off, its capsule's bottom 0.1 mm over the skin) swept 30 mm across a needle lying
+/// on the skin, at 20 mm/s, pushes it along: the needle ends more than 5 mm further along the sweep, no point
+/// of its arc ever lies deeper than 0.2 mm inside the grasper's capsule (1.5 mm radius, 3 mm half length) or
+/// closer to the skin than its radius (less 0.05 mm).
+#[test]
+fn a_grasper_swept_across_a_needle_lying_on_the_skin_pushes_it_along() {
+    let mut d = Dropper::new();
+    let origin = Vector3::new(0.0, 0.0, 20.0);
+    let away = origin + Vector3::new(0.0, 0.0, 40.0);
+    d.drop_at(&origin, 1500);
+    let lying = d.arc_points();
+    let middle = lying.iter().sum::<Vector3<f32>>() / lying.len() as f32;
+    let start = Vector3::new(middle.x - 15.0, middle.y, 4.6);
+    // The grasper to 20 mm over its start, then down to it.
+    let mut at = d.sim.tools[1].position_mm;
+    for waypoint in [start + Vector3::new(0.0, 0.0, 20.0), start] {
+        for _ in 0..20_000 {
+            let to = waypoint - at;
+            at += to * (0.1 / to.norm().max(0.1));
+            d.step_with_grasper(&away, &Dropper::level(), true, Some(&at));
+            if (d.sim.tools[1].position_mm - waypoint).norm() < 0.02 {
+                break;
+            }
+        }
+    }
+    let depth_in_grasper = |d: &Dropper, p: &Vector3<f32>| {
+        let tool = &d.sim.tools[1];
+        let axis = tool.rotation * Vector3::z();
+        let along = (p - tool.position_mm).dot(&axis).clamp(-3.0, 3.0);
+        1.5 - (p - (tool.position_mm + axis * along)).norm()
+    };
+    let (mut in_grasper, mut in_skin) = (f32::NEG_INFINITY, f32::NEG_INFINITY);
+    for _ in 0..1500 {
+        at += Vector3::new(0.02, 0.0, 0.0);
+        d.step_with_grasper(&away, &Dropper::level(), true, Some(&at));
+        for p in d.arc_points() {
+            in_grasper = in_grasper.max(depth_in_grasper(&d, &p));
+            in_skin = in_skin.max(depth_in_block_mm(&p));
+        }
+    }
+    let pushed = d.arc_points().iter().sum::<Vector3<f32>>() / lying.len() as f32 - middle;
+    println!(
+        "a grasper swept across the needle: pushed {pushed:?} mm, deepest in the grasper {in_grasper:.3} mm, \
+         in the skin {in_skin:.3} mm"
+    );
+    assert_eq!(
+        d.holder(),
+        NeedleHolder::Loose,
+        "the grasper took the needle"
+    );
+    assert!(
+        pushed.x > 5.0,
+        "the needle was pushed {} mm along",
+        pushed.x
+    );
+    assert!(
+        in_grasper <= 0.2,
+        "the needle lay {in_grasper} mm inside the grasper"
+    );
+    assert!(
+        in_skin <= -(RADIUS_MM - 0.05),
+        "the needle was pressed {in_skin} mm into the skin"
     );
 }

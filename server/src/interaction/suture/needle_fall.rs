@@ -13,15 +13,20 @@
 //!   generalised inverse mass `1/m + (r x n)^T I^-1 (r x n)`, Gauss-Seidel over [`ITERATIONS`] passes.
 //!   Static friction then holds a contact that slid less than [`FRICTION`] times its push where it was. The
 //!   velocities are read from the pose's change.
+//! - **Tools push it**: a sample that comes within the wire's radius of a tool part it was clear of at the
+//!   last tick is put the radius clear of it, the tool moving as it is driven (it does not feel the needle). A
+//!   sample inside a part at the last tick is left alone until clear of it: the jaws that just let the needle
+//!   go hold it inside their body. Which parts push is the caller's (open jaws part round the wire: the
+//!   driver's instrument leaves them out).
 //! - **Not modelled.** The tissue does not feel the needle's weight (a 30 mg needle weighs 0.3 mN, far under
-//!   any force a device renders), and the tools do not push a loose needle (closing jaws take it).
+//!   any force a device renders), nor the needle the thread's pull on its tail.
 //!
 //! Must not: allocate or panic; a non-finite input or result leaves the needle where it was, at rest.
 
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion};
 
 use super::NeedleArc;
-use super::thread::ThreadObject;
+use super::thread::{ThreadObject, ThreadTool};
 use crate::collision::{crossing_nearest, nearest_face, project_on_face};
 use crate::tissue::Vec3;
 
@@ -37,6 +42,8 @@ const FACE_REACH_MM: f32 = 0.5;
 const CROSSING_MARGIN_MM: f32 = 0.5;
 /// Air and wetness drag, 1/s.
 const DRAG_PER_S: f32 = 2.0;
+/// Tool parts met (the first this many: 16 tools, each a tip and a shaft).
+const MAX_TOOL_PARTS: usize = 32;
 
 /// One sample's meeting with a surface this tick: the sample, the face's plane (a point on it and its unit
 /// outward normal), and the push along the normal so far (mass-weighted, for friction).
@@ -64,7 +71,13 @@ pub struct NeedleFall {
     velocity_mm_s: Vec3,
     /// The spin, world, rad/s.
     spin_rad_s: Vec3,
-    contacts: [Option<Contact>; SAMPLES],
+    /// This tick's meetings: per sample its tissue's (first `SAMPLES`), then its tool's.
+    contacts: [Option<Contact>; 2 * SAMPLES],
+    /// Per sample, the tool parts it lay within half the radius of at the end of the last tick (bit `k`: part
+    /// `k`).
+    in_tools: [u32; SAMPLES],
+    /// It fell at the last tick (else `in_tools` is taken where it lies before it moves).
+    falling: bool,
 }
 
 impl NeedleFall {
@@ -91,7 +104,9 @@ impl NeedleFall {
             radius_mm,
             velocity_mm_s: Vec3::zeros(),
             spin_rad_s: Vec3::zeros(),
-            contacts: [None; SAMPLES],
+            contacts: [None; 2 * SAMPLES],
+            in_tools: [0; SAMPLES],
+            falling: false,
         }
     }
 
@@ -99,6 +114,7 @@ impl NeedleFall {
     pub fn stop(&mut self) {
         self.velocity_mm_s = Vec3::zeros();
         self.spin_rad_s = Vec3::zeros();
+        self.falling = false;
     }
 
     /// The centre's speed, mm/s.
@@ -107,15 +123,19 @@ impl NeedleFall {
     }
 
     /// One tick of `dt_s` from `world_from_needle` under `gravity_mm_per_s2`, against the surfaces of
-    /// `objects` objects (`object(o)`): the needle's pose after it. A bad input or a non-finite result
-    /// returns the pose given, and stops the needle. No allocation.
-    pub fn step<'a>(
+    /// `objects` objects (`object(o)`) and the tool parts `tool(0..tools)` at their poses this tick: the
+    /// needle's pose after it. A bad input or a non-finite result returns the pose given, and stops the needle.
+    /// No allocation.
+    #[allow(clippy::too_many_arguments)] // the pose and tick, and what the needle meets: objects and tools
+    pub fn step<'a, 'b>(
         &mut self,
         world_from_needle: &Isometry3<f32>,
         dt_s: f32,
         gravity_mm_per_s2: &Vec3,
         objects: usize,
         object: impl Fn(usize) -> Option<ThreadObject<'a>>,
+        tools: usize,
+        tool: impl Fn(usize) -> Option<ThreadTool<'b>>,
     ) -> Isometry3<f32> {
         let finite_in = dt_s > 0.0
             && dt_s.is_finite()
@@ -127,6 +147,12 @@ impl NeedleFall {
         }
         let rotation = world_from_needle.rotation;
         let centre = world_from_needle * Point3::from(self.centre_mm);
+        let tools = tools.min(MAX_TOOL_PARTS);
+        if !self.falling {
+            // Just let go: inside the jaws that held it, and to be left there until clear of them.
+            self.mark_tools(&centre.coords, &rotation, tools, &tool);
+            self.falling = true;
+        }
         let drag = 1.0 / (1.0 + DRAG_PER_S * dt_s);
         self.velocity_mm_s = (self.velocity_mm_s + gravity_mm_per_s2 * dt_s) * drag;
         self.spin_rad_s *= drag;
@@ -138,8 +164,9 @@ impl NeedleFall {
             .try_normalize(1e-6)
             .unwrap_or(Vec3::new(0.0, 0.0, -1.0));
         self.find_contacts(&before, &x, &q, &down, objects, &object);
+        self.meet_tools(&x, &q, tools, &tool);
         for _ in 0..ITERATIONS {
-            for k in 0..SAMPLES {
+            for k in 0..2 * SAMPLES {
                 let Some(mut contact) = self.contacts[k] else {
                     continue;
                 };
@@ -155,7 +182,7 @@ impl NeedleFall {
         }
         // Static friction: a contact that slid less than FRICTION times its push is put back where it was
         // along its face.
-        for k in 0..SAMPLES {
+        for k in 0..2 * SAMPLES {
             let Some(contact) = self.contacts[k] else {
                 continue;
             };
@@ -167,6 +194,10 @@ impl NeedleFall {
                 self.correct(&mut x, &mut q, &r, &-along);
             }
         }
+        self.mark_tools(&x, &q, tools, &tool);
+        // Renormalised: a tick composes a few hundred small turns, and a rotation that drifts off unit length
+        // scales the needle.
+        let q = UnitQuaternion::new_normalize(q.into_inner());
         let velocity = (x - centre.coords) / dt_s;
         let spin = (q * rotation.inverse()).scaled_axis() / dt_s;
         let pose = Isometry3::from_parts(Translation3::from(x - q * self.centre_mm), q);
@@ -191,7 +222,7 @@ impl NeedleFall {
         objects: usize,
         object: &impl Fn(usize) -> Option<ThreadObject<'a>>,
     ) {
-        self.contacts = [None; SAMPLES];
+        self.contacts = [None; 2 * SAMPLES];
         for (k, from) in before.iter().enumerate() {
             let to = x + q * self.samples_mm[k];
             let mut best: Option<(f32, Contact)> = None;
@@ -250,6 +281,63 @@ impl NeedleFall {
         }
     }
 
+    /// Each sample within the radius of a tool part it was clear of at the last tick meets that part: a
+    /// contact on the part's surface, its normal outward (beside its tissue's: squeezed between the two, the
+    /// passes share the overlap).
+    fn meet_tools<'b>(
+        &mut self,
+        x: &Vec3,
+        q: &UnitQuaternion<f32>,
+        tools: usize,
+        tool: &impl Fn(usize) -> Option<ThreadTool<'b>>,
+    ) {
+        for k in 0..SAMPLES {
+            let at = x + q * self.samples_mm[k];
+            for part in 0..tools {
+                let Some((collider, position_mm, rotation)) = tool(part) else {
+                    continue;
+                };
+                if self.in_tools[k] & (1 << part) != 0 {
+                    continue;
+                }
+                let Some(to) = collider.keep_clear(&position_mm, &rotation, &at, self.radius_mm)
+                else {
+                    continue;
+                };
+                let Some(normal) = (to - at).try_normalize(1e-9) else {
+                    continue;
+                };
+                self.contacts[SAMPLES + k] = Some(Contact {
+                    sample: k,
+                    on_plane_mm: to - normal * self.radius_mm,
+                    normal,
+                    push: 0.0,
+                });
+            }
+        }
+    }
+
+    /// Mark the tool parts each sample lies within half the radius of now (centre `x`, rotation `q`): inside
+    /// them, to be left alone until clear.
+    fn mark_tools<'b>(
+        &mut self,
+        x: &Vec3,
+        q: &UnitQuaternion<f32>,
+        tools: usize,
+        tool: &impl Fn(usize) -> Option<ThreadTool<'b>>,
+    ) {
+        for k in 0..SAMPLES {
+            let at = x + q * self.samples_mm[k];
+            self.in_tools[k] = (0..tools)
+                .filter(|&part| {
+                    tool(part).is_some_and(|(collider, position_mm, rotation)| {
+                        collider.distance_mm(&position_mm, &rotation, &at) < 0.5 * self.radius_mm
+                    })
+                })
+                .fold(0, |bits, part| bits | (1 << part));
+        }
+    }
+
     /// The inverse mass the body shows at arm `r` (world) along `direction` (any length; 0 for none), per
     /// unit sample mass.
     fn inverse_mass_along(&self, q: &UnitQuaternion<f32>, r: &Vec3, direction: &Vec3) -> f32 {
@@ -288,6 +376,10 @@ mod tests {
         None
     }
 
+    fn no_tools(_: usize) -> Option<ThreadTool<'static>> {
+        None
+    }
+
     /// In free space the needle falls as a body under gravity and its drag: after 200 ticks of 1 ms its centre
     /// is where `v' = g - c v` takes it (to 0.1%), it has not turned, and its shape is the same.
     #[test]
@@ -302,7 +394,7 @@ mod tests {
         let (mut pose, mut v, mut z) = (start, 0.0f64, 0.0f64);
         let (dt, c) = (0.001f64, f64::from(DRAG_PER_S));
         for _ in 0..200 {
-            pose = fall.step(&pose, 0.001, &g, 0, no_objects);
+            pose = fall.step(&pose, 0.001, &g, 0, no_objects, 0, no_tools);
             v = (v - 9810.0 * dt) / (1.0 + c * dt);
             z += v * dt;
         }
@@ -322,14 +414,20 @@ mod tests {
         let mut fall = NeedleFall::new(&arc, 0.5);
         let pose = Isometry3::translation(0.0, 0.0, 10.0);
         let g = Vec3::new(0.0, 0.0, -9810.0);
-        let moving = fall.step(&pose, 0.001, &g, 0, no_objects);
+        let moving = fall.step(&pose, 0.001, &g, 0, no_objects, 0, no_tools);
         assert!(fall.speed_mm_s() > 0.0);
         let nan = Vec3::new(f32::NAN, 0.0, 0.0);
-        assert_eq!(fall.step(&moving, 0.001, &nan, 0, no_objects), moving);
+        assert_eq!(
+            fall.step(&moving, 0.001, &nan, 0, no_objects, 0, no_tools),
+            moving
+        );
         assert_eq!(fall.speed_mm_s(), 0.0);
-        assert_eq!(fall.step(&moving, f32::NAN, &g, 0, no_objects), moving);
+        assert_eq!(
+            fall.step(&moving, f32::NAN, &g, 0, no_objects, 0, no_tools),
+            moving
+        );
         let bad = Isometry3::translation(f32::INFINITY, 0.0, 0.0);
-        assert_eq!(fall.step(&bad, 0.001, &g, 0, no_objects), bad);
+        assert_eq!(fall.step(&bad, 0.001, &g, 0, no_objects, 0, no_tools), bad);
         assert_eq!(fall.speed_mm_s(), 0.0);
     }
 }

@@ -167,6 +167,8 @@ impl NeedleDriver {
                 &self.gravity_mm_per_s2,
                 sim.objects.len(),
                 needle_objects(sim),
+                2 * sim.tools.len(),
+                pushing_parts(sim, t, self.jaws.closed()),
             );
             self.hold.lie_at(pose);
         } else {
@@ -230,6 +232,30 @@ fn tool_parts<'a>(
             tool.body.shaft.as_ref()?
         };
         Some((collider, tool.position_mm, tool.rotation))
+    }
+}
+
+/// The tool parts that push a loose needle: [`tool_parts`] but those of a tool whose jaws are open (they part
+/// round the wire, as they must to take it; `own_closed`: the jaws of tool `own`, this driver, whose state is
+/// its own while its hook runs).
+fn pushing_parts<'a>(
+    sim: &'a Sim,
+    own: usize,
+    own_closed: bool,
+) -> impl Fn(usize) -> Option<crate::interaction::suture::ThreadTool<'a>> + 'a {
+    let parts = tool_parts(sim);
+    move |k| {
+        let tool = k / 2;
+        let closed = if tool == own {
+            own_closed
+        } else {
+            sim.tools
+                .get(tool)
+                .and_then(|t| t.instrument_state.as_deref())
+                .and_then(|i| i.jaws())
+                .is_none_or(|jaws| jaws.closed())
+        };
+        parts(k).filter(|_| closed)
     }
 }
 
