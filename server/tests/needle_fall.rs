@@ -274,7 +274,7 @@ fn a_needle_lying_on_the_skin_is_taken_again_by_the_drivers_jaws() {
 /// A grasper (upright, its jaws closed far off, its capsule's bottom 0.1 mm over the skin) swept 30 mm across a needle lying
 /// on the skin, at 20 mm/s, pushes it along: the needle ends more than 5 mm further along the sweep, no point
 /// of its arc ever lies deeper than 0.2 mm inside the grasper's capsule (1.5 mm radius, 3 mm half length) or
-/// closer to the skin than its radius (less 0.05 mm).
+/// closer to the skin than its radius (less 0.05 mm); the grasper lifted off, it stops (friction).
 #[test]
 fn a_grasper_swept_across_a_needle_lying_on_the_skin_pushes_it_along() {
     let mut d = Dropper::new();
@@ -316,6 +316,23 @@ fn a_grasper_swept_across_a_needle_lying_on_the_skin_pushes_it_along() {
         "a grasper swept across the needle: pushed {pushed:?} mm, deepest in the grasper {in_grasper:.3} mm, \
          in the skin {in_skin:.3} mm"
     );
+    // The grasper lifted off, the needle stops where it was pushed (it slides on the skin with friction):
+    // after 0.8 s it moves less than 0.05 mm in 0.5 s.
+    for k in 0..800 {
+        let lifted = at + Vector3::new(0.0, 0.0, 0.1 * k.min(200) as f32);
+        d.step_with_grasper(&away, &Dropper::level(), true, Some(&lifted));
+    }
+    let settled = d.arc_points();
+    for _ in 0..500 {
+        let lifted = at + Vector3::new(0.0, 0.0, 20.0);
+        d.step_with_grasper(&away, &Dropper::level(), true, Some(&lifted));
+    }
+    let drift = settled
+        .iter()
+        .zip(d.arc_points())
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0f32, f32::max);
+    println!("  then it moved {drift:.4} mm in 0.5 s");
     assert_eq!(
         d.holder(),
         NeedleHolder::Loose,
@@ -325,6 +342,10 @@ fn a_grasper_swept_across_a_needle_lying_on_the_skin_pushes_it_along() {
         pushed.x > 5.0,
         "the needle was pushed {} mm along",
         pushed.x
+    );
+    assert!(
+        drift < 0.05,
+        "the pushed needle slides on: {drift} mm in 0.5 s"
     );
     assert!(
         in_grasper <= 0.2,

@@ -11,8 +11,9 @@
 //!   the wire's radius above a face under it. Each meeting is a one-sided constraint (the sample's axis the
 //!   radius above the face's plane), solved on the body's position and rotation together through its
 //!   generalised inverse mass `1/m + (r x n)^T I^-1 (r x n)`, Gauss-Seidel over [`ITERATIONS`] passes.
-//!   Static friction then holds a contact that slid less than [`FRICTION`] times its push where it was. The
-//!   velocities are read from the pose's change.
+//!   Coulomb friction then takes back each contact's slide along its face as far as [`FRICTION`] times its
+//!   push allows (a contact that slid less sticks; one that slid more slides on, slowed). The velocities are
+//!   read from the pose's change.
 //! - **Tools push it**: a sample that comes within the wire's radius of a tool part it was clear of at the
 //!   last tick is put the radius clear of it, the tool moving as it is driven (it does not feel the needle). A
 //!   sample inside a part at the last tick is left alone until clear of it: the jaws that just let the needle
@@ -180,8 +181,8 @@ impl NeedleFall {
                 self.contacts[k] = Some(contact);
             }
         }
-        // Static friction: a contact that slid less than FRICTION times its push is put back where it was
-        // along its face.
+        // Coulomb friction: a contact's slide along its face is taken back as far as FRICTION times its push
+        // allows (all of it: it sticks; part: it slides, slowed).
         for k in 0..2 * SAMPLES {
             let Some(contact) = self.contacts[k] else {
                 continue;
@@ -190,9 +191,12 @@ impl NeedleFall {
             let slid = x + r - before[contact.sample];
             let along = slid - contact.normal * contact.normal.dot(&slid);
             let w = self.inverse_mass_along(&q, &r, &along);
-            if w > 0.0 && along.norm() / w < FRICTION * contact.push {
-                self.correct(&mut x, &mut q, &r, &-along);
+            let slide_mm = along.norm();
+            if !(w > 0.0 && slide_mm > 0.0) {
+                continue;
             }
+            let share = (FRICTION * contact.push * w / slide_mm).min(1.0);
+            self.correct(&mut x, &mut q, &r, &(-along * share));
         }
         self.mark_tools(&x, &q, tools, &tool);
         // Renormalised: a tick composes a few hundred small turns, and a rotation that drifts off unit length
