@@ -136,8 +136,8 @@ impl Dropper {
 
 /// Let go 20 mm over the middle of the skin block, the needle falls onto the skin and lies still on it: after
 /// 3 s no point of its arc lies closer to the skin than its radius (less 0.05 mm), its lowest lies within
-/// 0.5 mm past the radius of the skin's top (it rests on it, not above it), and over the last half second no
-/// point moved more than 0.05 mm.
+/// 0.5 mm past the radius of the skin's top (it rests on it, not above it), over the last half second no
+/// point moved more than 0.05 mm, and it punctured nothing.
 #[test]
 fn a_needle_let_go_over_the_skin_falls_onto_it_and_lies_still() {
     let mut d = Dropper::new();
@@ -177,6 +177,12 @@ fn a_needle_let_go_over_the_skin_falls_onto_it_and_lies_still() {
         "the needle hovers {lowest} mm over the skin"
     );
     assert!(moved < 0.05, "the needle still moves: {moved} mm in 0.5 s");
+    let needle = d.sim.tools[0].needle().unwrap();
+    assert_eq!(
+        (needle.punctures(), needle.holes().len()),
+        (0, 0),
+        "the dropped needle punctured the skin"
+    );
 
     // What the viewers are sent of it (protocol 15): drawn by the protocol's map in the pose sent, the needle's
     // tip is where it lies.
