@@ -17,7 +17,7 @@ use crate::loopback::{
     Pacing, SimDeviceSetup, replica_error, start_server_recording, start_sim_device_emulated,
     start_viewer, surgeon_scripts_for,
 };
-use crate::stitch_script::{STITCH_HAND, stitch_scripts};
+use crate::stitch_script::{STITCH_HAND, StitchLink, stitch_scripts_over};
 use sinew_server::tissue::Vec3;
 use sinew_server::training::wound_gap_between_mm;
 
@@ -98,7 +98,12 @@ pub fn run_demo(options: &DemoOptions) -> anyhow::Result<DemoSummary> {
             "scripted stitch: rehearsing the pass, the hand-off and the draw on virtual time (about a minute of \
              one core) before the live run"
         );
-        match stitch_scripts(&world) {
+        // Planned over the demo's own link: each stage reaches for where the last left things under its delay.
+        let link = StitchLink {
+            link: crate::drill::Link::rtt(options.rtt_ms),
+            mode: options.mode,
+        };
+        match stitch_scripts_over(&world, &link) {
             Ok(stitch) => {
                 println!(
                     "scripted stitch: rehearsed stage by stage on virtual time in {:.1} s; the grasper takes the \

@@ -94,19 +94,53 @@ struct Seen {
     free_end_mm: Option<Vector3<f32>>,
 }
 
-/// Run the plan so far (`driver`, `grasper`) to its end on virtual time; what it left.
+/// The network the stitch runs over: both hands on the same link and mode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StitchLink {
+    /// The emulated path between each device and the server.
+    pub link: Link,
+    /// Direct, moderated or auto.
+    pub mode: ModePolicy,
+}
+
+impl StitchLink {
+    /// A LAN-like link with direct rendering (`sinew demo`'s).
+    pub fn local() -> Self {
+        Self {
+            link: Link::rtt(0.0),
+            mode: ModePolicy::Direct,
+        }
+    }
+
+    /// Both hands of a stitch on this link.
+    pub fn devices(
+        &self,
+        driver: (String, HandScript),
+        grasper: (String, HandScript),
+    ) -> [DrillDevice; 2] {
+        stitch_devices(driver, grasper).map(|mut d| {
+            d.link = self.link;
+            d.mode = self.mode;
+            d
+        })
+    }
+}
+
+/// Run the plan so far (`driver`, `grasper`) on virtual time over `link`, until the server has had the
+/// plan's last pose and a round trip more to settle (the hands see what they did a round trip late, as a
+/// surgeon at a distance does); what it left.
 fn rehearse(
     world: &World,
     ids: (&str, &str),
-    driver: &HandKeys,
-    grasper: &HandKeys,
+    (driver, grasper): (&HandKeys, &HandKeys),
     driver_tool: usize,
+    link: &StitchLink,
 ) -> anyhow::Result<Seen> {
-    let end_s = driver.end_s().max(grasper.end_s());
+    let end_s = driver.end_s().max(grasper.end_s()) + 1.5e-3 * link.link.rtt_ms;
     let mut seen = Seen::default();
     run_drill_observed(
         world,
-        &stitch_devices(
+        &link.devices(
             (ids.0.to_owned(), HandScript::Path(Arc::new(driver.path()?))),
             (
                 ids.1.to_owned(),
@@ -142,10 +176,17 @@ fn rehearse(
     Ok(seen)
 }
 
-/// Plan `world`'s stitch, rehearsing each stage before planning the next. Fails when the world has no needle
-/// driver or grasper, or a rehearsal did not leave what the next stage needs (a needle let go through both
-/// edges; a needle drawn out with the thread through all four holes).
+/// Plan `world`'s stitch on a LAN-like link ([`StitchLink::local`]); see [`stitch_scripts_over`].
 pub fn stitch_scripts(world: &World) -> anyhow::Result<StitchScripts> {
+    stitch_scripts_over(world, &StitchLink::local())
+}
+
+/// Plan `world`'s stitch for hands on `link`, rehearsing each stage over that link before planning the next:
+/// the next stage reaches for where the last one left things under this delay, as a surgeon at a distance
+/// reaches for what the screen shows once it has settled. Fails when the world has no needle driver or
+/// grasper, or a rehearsal did not leave what the next stage needs (a needle let go through both edges; a
+/// needle drawn out with the thread through all four holes).
+pub fn stitch_scripts_over(world: &World, link: &StitchLink) -> anyhow::Result<StitchScripts> {
     let device_of = |pick: fn(&InstrumentSpec) -> bool| {
         world
             .tools
@@ -175,8 +216,8 @@ pub fn stitch_scripts(world: &World) -> anyhow::Result<StitchScripts> {
     // Stage 1: the pass and the driver letting go, the grasper parked.
     let aside_s = release(&mut driver, pass.done_s);
     grasper.hold(aside_s, 0);
-    let seen =
-        rehearse(world, ids, &driver, &grasper, driver_tool).context("rehearsing the pass")?;
+    let seen = rehearse(world, ids, (&driver, &grasper), driver_tool, link)
+        .context("rehearsing the pass")?;
     anyhow::ensure!(
         seen.holder == Some(NeedleHolder::Loose)
             && seen.holes.0 + seen.holes.1 == 4
@@ -192,8 +233,8 @@ pub fn stitch_scripts(world: &World) -> anyhow::Result<StitchScripts> {
     // Stage 2: the grasper takes the tip and draws the needle out along its curve.
     let times = regrasp_and_draw(&mut grasper, aside_s, &world_from_needle, &spec.arc);
     driver.hold(times.drawn_s, crate::stitch_hand_off_plan::DRIVER_OPEN);
-    let seen =
-        rehearse(world, ids, &driver, &grasper, driver_tool).context("rehearsing the hand-off")?;
+    let seen = rehearse(world, ids, (&driver, &grasper), driver_tool, link)
+        .context("rehearsing the hand-off")?;
     anyhow::ensure!(
         seen.holder.is_some_and(
             |h| matches!(h, NeedleHolder::Tool { tool, .. } if usize::from(tool) == grasper_tool)
