@@ -12,7 +12,7 @@ mod skin_block;
 #[path = "common/tool_pose.rs"]
 mod tool_pose;
 
-use skin_block::depth_in_block_mm;
+use skin_block::{depth_in_block_mm, suture_block};
 use tool_pose::pose_command;
 
 use counting_allocator::{Counting, assert_counting_works, count_this_thread};
@@ -23,13 +23,12 @@ static GLOBAL: Counting = Counting;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use sinew_server::interaction::suture::{HolePoint, NeedleArc, TipPhase};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
-use sinew_server::world::{InstrumentSpec, load_world};
+use sinew_server::world::InstrumentSpec;
 
 const DT_S: f32 = 0.001;
 
 fn suture_world() -> sinew_server::scene::World {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
-    load_world(&path).unwrap()
+    suture_block().0
 }
 
 /// The suture block's needle driver (tool 0) held with its shaft along world +y and the needle's curve turned

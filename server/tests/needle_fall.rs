@@ -15,8 +15,8 @@ use sinew_server::interaction::JawInput;
 use sinew_server::interaction::suture::NeedleHolder;
 use sinew_server::replication::FrameExchange;
 use sinew_server::sim::{Sim, ToolOutput};
-use sinew_server::world::{InstrumentSpec, load_world};
-use skin_block::depth_in_block_mm;
+use sinew_server::world::InstrumentSpec;
+use skin_block::{depth_in_block_mm, suture_block};
 use tool_pose::pose_command;
 
 const DT_S: f32 = 0.001;
@@ -33,12 +33,7 @@ struct Dropper {
 
 impl Dropper {
     fn new() -> Self {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
-        let world = load_world(&path).unwrap();
-        let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
-            panic!("tool 0 of the suture block is not a needle driver");
-        };
+        let (world, spec) = suture_block();
         Self {
             device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
             grasper_origin_mm: Vector3::from(world.tools[1].device_origin_in_world_mm),

@@ -14,7 +14,7 @@ mod skin_block;
 #[path = "common/tool_pose.rs"]
 mod tool_pose;
 
-use skin_block::depth_in_block_mm;
+use skin_block::{depth_in_block_mm, suture_block};
 use tool_pose::pose_command;
 
 use counting_allocator::{Counting, assert_counting_works, count_this_thread};
@@ -27,7 +27,6 @@ use sinew_server::interaction::JawInput;
 use sinew_server::interaction::suture::thread_self_contact::closest_params;
 use sinew_server::interaction::suture::{STANDARD_GRAVITY_MM_PER_S2, THREAD_DIAMETER_MM};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
-use sinew_server::world::{InstrumentSpec, load_world};
 
 const DT_S: f32 = 0.001;
 
@@ -43,12 +42,7 @@ struct Driver {
 
 impl Driver {
     fn new() -> Self {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
-        let world = load_world(&path).unwrap();
-        let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
-            panic!("tool 0 of the suture block is not a needle driver");
-        };
+        let (world, spec) = suture_block();
         Self {
             device_origin_mm: Vector3::from(world.tools[0].device_origin_in_world_mm),
             grasper_origin_mm: Vector3::from(world.tools[1].device_origin_in_world_mm),
@@ -829,10 +823,7 @@ fn drape_over_the_needle(at_deg: f32, ticks: usize) -> (f32, u32) {
     let tool = &d.sim.tools[0];
     let pose = *tool.needle_hold().unwrap().world_from_needle();
     let arc = *tool.needle().unwrap().arc();
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture_block.toml");
-    let InstrumentSpec::NeedleDriver(spec) = load_world(&path).unwrap().tools[0].instrument else {
-        panic!("tool 0 of the suture block is not a needle driver");
-    };
+    let (_, spec) = suture_block();
     let reach_mm = 0.5 * spec.diameter_mm + 0.5 * THREAD_DIAMETER_MM;
     let over = arc.at(at_deg.to_radians()).point_mm;
     let over_mm = (pose * Point3::from(over * (1.0 + (reach_mm + 0.6) / arc.radius_mm()))).coords;

@@ -196,7 +196,7 @@ impl NeedleFall {
                 continue;
             }
             let share = (FRICTION * contact.push * w / slide_mm).min(1.0);
-            self.correct(&mut x, &mut q, &r, &(-along * share));
+            self.correct_by(&mut x, &mut q, &r, &(-along * share), w);
         }
         self.mark_tools(&x, &q, tools, &tool);
         // Renormalised: a tick composes a few hundred small turns, and a rotation that drifts off unit length
@@ -356,6 +356,18 @@ impl NeedleFall {
     /// rotation shared by their inverse masses. Returns the push, `|by| / w` (mass-weighted).
     fn correct(&self, x: &mut Vec3, q: &mut UnitQuaternion<f32>, r: &Vec3, by_mm: &Vec3) -> f32 {
         let w = self.inverse_mass_along(q, r, by_mm);
+        self.correct_by(x, q, r, by_mm, w)
+    }
+
+    /// [`Self::correct`] with the inverse mass `w` along `by_mm` already known.
+    fn correct_by(
+        &self,
+        x: &mut Vec3,
+        q: &mut UnitQuaternion<f32>,
+        r: &Vec3,
+        by_mm: &Vec3,
+        w: f32,
+    ) -> f32 {
         if !(w > 0.0 && w.is_finite()) {
             return 0.0;
         }
