@@ -573,6 +573,32 @@ fn a_bad_exercise_names_the_key_and_line_and_lists_what_would_do() {
     let world = with_wound("suture", "[\"sheet\", \"sheet\"]");
     let (_, message, _) = refused(&world, None);
     assert!(message.contains("names one object twice"), "{message}");
+    // Tied off with a knot: a suture exercise only.
+    let world = format!(
+        "{}{}",
+        good_world(),
+        EXERCISE.replace(
+            "kind = \"coordination\"",
+            "kind = \"coordination\"\nknot = true"
+        )
+    );
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error),
+        ("exercise.knot", line_of(&world, "knot = true")),
+        "{message}"
+    );
+    assert!(message.contains("only a suture exercise"), "{message}");
+    let tied_off = load_world(&write_world(
+        &format!(
+            "{}{}",
+            good_world(),
+            suture.replace("time_limit_s = 30.0", "time_limit_s = 30.0\nknot = true")
+        ),
+        None,
+    ))
+    .unwrap();
+    assert!(tied_off.exercise.unwrap().knot);
 
     // No targets at all.
     let world = format!(

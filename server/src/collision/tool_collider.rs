@@ -280,6 +280,26 @@ impl ToolCollider {
         to.iter().all(|c| c.is_finite()).then_some(to)
     }
 
+    /// The tool's core where it is a swept sphere, world: the segment (its two ends; one point for a ball)
+    /// and the radius swept round it. None for a mesh tool.
+    pub fn swept_core(
+        &self,
+        position_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+    ) -> Option<([Vector3<f32>; 2], f32)> {
+        match self {
+            ToolCollider::Ball(b) => Some(([*position_mm; 2], b.radius)),
+            ToolCollider::Capsule(c) => Some((
+                [
+                    position_mm + rotation * from_parry(c.segment.a),
+                    position_mm + rotation * from_parry(c.segment.b),
+                ],
+                c.radius,
+            )),
+            ToolCollider::Mesh(_) => None,
+        }
+    }
+
     fn core_point(
         &self,
         position_mm: &Vector3<f32>,

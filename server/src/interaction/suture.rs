@@ -39,6 +39,7 @@ mod thread_hole;
 mod thread_needle;
 pub mod thread_self_contact;
 mod thread_solve;
+mod thread_tool_contact;
 mod thread_track;
 mod tip_contact;
 mod volume_point;

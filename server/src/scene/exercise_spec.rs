@@ -105,4 +105,8 @@ pub struct ExerciseSpec {
     /// The wound a suture exercise closes: its two edges, by object index (None: its gap is not scored).
     #[serde(default)]
     pub wound: Option<[usize; 2]>,
+    /// A suture exercise tied off: it passes only with a secure knot read at the end (two throws or more,
+    /// alternating hands: a square knot, a surgeon's knot), and a knot that came undone is an error.
+    #[serde(default)]
+    pub knot: bool,
 }

@@ -65,6 +65,8 @@ pub struct ToolActivity {
     pub thread_pull_n: f32,
     /// The thread the tool draws ties a knot of throws (a half knot, a square knot, ...), as last read.
     pub knot_tied: bool,
+    /// Those throws (None: no knot).
+    pub knot: Option<crate::interaction::suture::Throws>,
 }
 
 impl ToolActivity {
@@ -111,6 +113,10 @@ impl ToolActivity {
                     out.suture.knot,
                     crate::interaction::suture::KnotKind::Throws(_)
                 ),
+            knot: match out.suture.knot {
+                crate::interaction::suture::KnotKind::Throws(throws) if active => Some(throws),
+                _ => None,
+            },
         }
     }
 }

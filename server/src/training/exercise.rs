@@ -17,7 +17,12 @@
 //! off its mark) is not judged, and touches are not judged at all. `mean_distance_mm` is then the mm off the
 //! marks. A suture exercise that names its wound also keeps the wound's latest gap (each tick's
 //! [`crate::sim::StepReport::wound_gap_mm`], through [`ExerciseRun::on_wound_gap`]); it passes only closed to
-//! [`SUTURE_GAP_LIMIT_MM`] or less.
+//! [`SUTURE_GAP_LIMIT_MM`] or less. Every suture exercise reads the knot its thread ties (each tick's
+//! [`ToolActivity::knot`], any tool's: one thread, read by the tools that draw it) and counts each knot that came
+//! undone (read, then no knot); one tied off ([`ExerciseSpec::knot`]) passes only with a secure knot read at the
+//! end (two throws or more that can alternate hands: a square knot, a surgeon's knot; a half knot or a granny
+//! is not), and each knot that came undone is a **knot-undone** error (FLS fails a knot that comes apart; its
+//! slipping, which needs the knot to lock, is not read yet).
 //!
 //! A stiffness-ranking exercise has samples instead of targets: every touch over a sample (inside its rest
 //! extent across the surface) is that sample's latest, and a touch over none is off target. The answer is the
@@ -63,13 +68,35 @@ pub struct ExerciseErrors {
     pub off_target: u32,
     /// A hit pressed deeper than the limit.
     pub too_deep: u32,
+    /// A knot read in the thread came undone (an exercise tied off).
+    #[serde(default)]
+    pub knot_undone: u32,
 }
 
 impl ExerciseErrors {
     /// All errors.
     pub fn total(&self) -> u32 {
-        self.wrong_tool + self.off_target + self.too_deep
+        self.wrong_tool + self.off_target + self.too_deep + self.knot_undone
     }
+}
+
+/// The knot a suture exercise read.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct KnotScore {
+    /// What a surgeon calls the knot read at the end (`square knot`, `half knot`, ...; None: no knot).
+    pub name: Option<String>,
+    /// Its throws: single and double, right- and left-handed.
+    pub throws: [u8; 4],
+    /// Secure: two throws or more that can alternate hands.
+    pub secure: bool,
+    /// Knots read that came undone.
+    pub undone: u32,
+}
+
+/// Whether `throws` make a secure knot: two or more, alternating hands where they can (a square knot, a
+/// surgeon's knot, three throws right-left-right; not a half knot, a surgeon's throw alone or a granny).
+pub fn secure_knot(throws: &crate::interaction::suture::Throws) -> bool {
+    throws.count() >= 2 && throws.can_alternate()
 }
 
 /// One pair of samples in a ranking: did the trainee put the softer first?
@@ -132,6 +159,9 @@ pub struct ExerciseScore {
     /// A suture exercise's wound: its gap when last told, mm (None: it names no wound).
     #[serde(default)]
     pub wound_gap_mm: Option<f64>,
+    /// A suture exercise's knot (None: another kind).
+    #[serde(default)]
+    pub knot: Option<KnotScore>,
 }
 
 /// The running score, without the lists (no allocation: read on the sim thread).
@@ -178,6 +208,9 @@ pub struct ExerciseRun {
     touches: Vec<u32>,
     /// The wound's gap when last told, mm (a suture exercise that names its wound).
     wound_gap_mm: Option<f32>,
+    /// The knot read on the last tick (a suture exercise), and the knots that came undone.
+    knot: Option<crate::interaction::suture::Throws>,
+    knots_undone: u32,
 }
 
 impl ExerciseRun {
@@ -198,6 +231,8 @@ impl ExerciseRun {
             errors: ExerciseErrors::default(),
             open: vec![None; tools],
             wound_gap_mm: None,
+            knot: None,
+            knots_undone: 0,
         }
     }
 
@@ -384,6 +419,16 @@ impl ExerciseRun {
     /// The end of tick `tick`, with every tool's activity: depths of open touches, and the clock.
     pub fn on_tick(&mut self, tick: u64, activities: &[ToolActivity]) {
         self.last_tick = tick;
+        if self.spec.kind == ExerciseKind::Suture {
+            let knot = activities.iter().find_map(|a| a.knot);
+            if self.knot.is_some() && knot.is_none() {
+                self.knots_undone += 1;
+                if self.spec.knot {
+                    self.errors.knot_undone += 1;
+                }
+            }
+            self.knot = knot;
+        }
         let limit = self.spec.depth_limit_mm;
         for (slot, activity) in self.open.iter_mut().zip(activities) {
             let Some(open) = slot else { continue };
@@ -488,14 +533,24 @@ impl ExerciseRun {
         let score = (100.0 * hit as f64 / total.max(1) as f64
             - POINTS_PER_ERROR * f64::from(errors.total()))
         .max(0.0);
-        // A suture exercise's wound must be closed (a wound named but never told of is not).
+        // A suture exercise's wound must be closed (a wound named but never told of is not), and one tied off
+        // must end with a secure knot.
         let closed = self.spec.wound.is_none()
             || self.wound_gap_mm.is_some_and(|g| g <= SUTURE_GAP_LIMIT_MM);
+        let knot = (self.spec.kind == ExerciseKind::Suture).then(|| KnotScore {
+            name: self.knot.map(|t| t.name()),
+            throws: self.knot.map_or([0; 4], |t| {
+                [t.single_right, t.single_left, t.double_right, t.double_left]
+            }),
+            secure: self.knot.as_ref().is_some_and(secure_knot),
+            undone: self.knots_undone,
+        });
+        let tied = !self.spec.knot || knot.as_ref().is_some_and(|k| k.secure);
         ExerciseScore {
             name: self.spec.name.clone(),
             kind: self.spec.kind,
             completed,
-            passed: completed && errors.total() == 0 && hit == total && closed,
+            passed: completed && errors.total() == 0 && hit == total && closed && tied,
             score,
             time_s,
             timed_out: self.timed_out_tick.is_some() && (!completed || ranking.is_some()),
@@ -511,6 +566,7 @@ impl ExerciseRun {
             hits: self.hits.clone(),
             ranking,
             wound_gap_mm: self.wound_gap_mm.map(f64::from),
+            knot,
         }
     }
 }
@@ -536,6 +592,7 @@ mod tests {
             targets: vec![target(0.0), target(10.0)],
             samples: Vec::new(),
             wound: None,
+            knot: false,
         }
     }
 
@@ -675,5 +732,83 @@ mod tests {
         let mut run = ExerciseRun::new(suture(), 1, 0.001);
         run.on_wound_gap(Some(0.6));
         assert_eq!(run.score().wound_gap_mm, None);
+    }
+
+    /// A suture exercise tied off passes only with a secure knot read at the end: a half knot, then a granny, do
+    /// not pass; a square knot does. A knot that comes undone is an error. Untied, the knot is reported and
+    /// asks nothing.
+    #[test]
+    fn a_stitch_tied_off_passes_only_with_a_secure_knot_and_a_knot_undone_is_an_error() {
+        use crate::interaction::suture::Throws;
+        let tied_off = |knot: bool| ExerciseSpec {
+            kind: ExerciseKind::Suture,
+            knot,
+            ..spec(60.0)
+        };
+        let puncture = |hole_mm: [f32; 3]| ToolActivity {
+            newest_hole_rest_mm: Some(hole_mm),
+            ..at(0.0)
+        };
+        let knotted = |throws: Option<Throws>| ToolActivity {
+            knot_tied: throws.is_some(),
+            knot: throws,
+            ..at(0.0)
+        };
+        let half = Throws {
+            single_right: 1,
+            ..Throws::default()
+        };
+        let granny = Throws {
+            single_right: 2,
+            ..Throws::default()
+        };
+        let square = Throws {
+            single_right: 1,
+            single_left: 1,
+            ..Throws::default()
+        };
+        let run_with = |knot: bool, readings: &[Option<Throws>]| {
+            let mut run = ExerciseRun::new(tied_off(knot), 2, 0.001);
+            run.on_event(&event(0, EventKind::Joined), &at(0.0));
+            run.on_event(&event(10, EventKind::Puncture), &puncture([0.0, 0.0, 0.0]));
+            run.on_event(&event(20, EventKind::Puncture), &puncture([10.0, 0.0, 0.0]));
+            for (k, reading) in readings.iter().enumerate() {
+                // The grasper (tool 1) draws the thread; the driver reads nothing.
+                run.on_tick(30 + k as u64, &[at(0.0), knotted(*reading)]);
+            }
+            run.score()
+        };
+        let score = run_with(true, &[None, Some(half)]);
+        let knot = score.knot.clone().unwrap();
+        assert_eq!(knot.name.as_deref(), Some("half knot"));
+        assert!(
+            score.completed && !knot.secure && !score.passed,
+            "{score:?}"
+        );
+        let score = run_with(true, &[Some(half), Some(granny)]);
+        assert!(!score.knot.unwrap().secure && !score.passed);
+        let score = run_with(true, &[Some(half), Some(square)]);
+        let knot = score.knot.clone().unwrap();
+        assert_eq!(
+            (knot.name.as_deref(), knot.throws, knot.secure, knot.undone),
+            (Some("square knot"), [1, 1, 0, 0], true, 0)
+        );
+        assert!(score.passed && score.score == 100.0, "{score:?}");
+        // Tied, undone, tied again: one error, ten points, not passed.
+        let score = run_with(true, &[Some(square), None, Some(square)]);
+        assert_eq!((score.errors.knot_undone, score.score), (1, 90.0));
+        assert!(score.knot.unwrap().secure && !score.passed);
+        // Not tied off: the knot is reported, and neither asked nor counted against the stitch.
+        let score = run_with(false, &[Some(half), None]);
+        let knot = score.knot.unwrap();
+        assert_eq!((knot.name, knot.undone), (None, 1));
+        assert!(score.passed && score.errors.total() == 0);
+        // Another kind has no knot in its score.
+        assert!(
+            ExerciseRun::new(spec(10.0), 1, 0.001)
+                .score()
+                .knot
+                .is_none()
+        );
     }
 }

@@ -82,6 +82,8 @@ pub(crate) struct ExerciseSection {
     pub samples: Option<Spanned<Vec<String>>>,
     #[serde(default)]
     pub wound: Option<Spanned<[String; 2]>>,
+    #[serde(default)]
+    pub knot: Option<Spanned<bool>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -227,6 +227,20 @@ pub fn summary(report: &SessionReport) -> String {
                 sinew_server::scene::SUTURE_GAP_LIMIT_MM
             );
         }
+        if let Some(knot) = &e.knot {
+            let _ = writeln!(
+                s,
+                "  the knot at the end: {} ({}), {} knot(s) came undone{}",
+                knot.name.as_deref().unwrap_or("none"),
+                if knot.secure { "secure" } else { "not secure" },
+                knot.undone,
+                if knot.undone > 0 && e.errors.knot_undone > 0 {
+                    " (errors)"
+                } else {
+                    ""
+                }
+            );
+        }
         if let Some(r) = &e.ranking {
             let pairs: Vec<String> = r
                 .pairs

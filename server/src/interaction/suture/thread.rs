@@ -21,7 +21,9 @@
 //! - **tools**: a node within the thread's radius of a tool's tip or shaft (at its pose this tick) goes to that
 //!   clearance by the nearest way out (`ToolCollider::keep_clear`), without friction (not a node a hole holds);
 //!   one the tissue then puts back into the tool (pinched between the two) is moved along the tissue's
-//!   surface, out from under the tool;
+//!   surface, out from under the tool; then each segment whose middle lies within it (a node-only push lets a
+//!   2.3 mm segment cut through a 3 mm jaw's rim) goes out whole (`thread_tool_contact.rs`: swept-sphere
+//!   parts); the jaws holding a node leave that node and the two either side of it alone;
 //! - **its needle**: a segment within the thread's radius of the needle's wire goes out across it to that
 //!   clearance (`thread_needle.rs`), before the tools and the tissue and after them;
 //! - **contacts** then put each node back outside the tissue (last, so a thread pinched between a tool and the
@@ -56,6 +58,7 @@ use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{ThreadHole, inside_by_holes, take_nodes};
 use super::thread_needle::{NeedleWire, WireSegment};
 use super::thread_self_contact::SelfContact;
+use super::thread_tool_contact::clear_segment_of_tool;
 use super::thread_track::{MAX_TRACK_RINGS, refresh_tracks};
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
@@ -382,6 +385,53 @@ impl SutureThread {
                             }
                         }
                     };
+                    // Each segment against the tool parts (`thread_tool_contact.rs`): a segment, not only its
+                    // nodes, is kept out of a tool (not the one whose jaws hold a node of it or beside it).
+                    let tool_pass = |now: &mut [Vec3], floor: &[Vec3]| {
+                        let weight = |i: usize| {
+                            if by_hole[i] { 0.0 } else { w[i] }
+                        };
+                        for i in 0..now.len().saturating_sub(1) {
+                            if weight(i) + weight(i + 1) <= 0.0 {
+                                continue;
+                            }
+                            let jaws = |i: usize| {
+                                grips
+                                    .iter()
+                                    .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
+                                    .map(|g| usize::from(g.tool))
+                            };
+                            let (jaws_a, jaws_b) = (jaws(i), jaws(i + 1));
+                            for k in 0..tools {
+                                if jaws_a == Some(k / 2) || jaws_b == Some(k / 2) {
+                                    continue;
+                                }
+                                let Some((collider, position_mm, rotation)) = tool(k) else {
+                                    continue;
+                                };
+                                let Some((core, radius_mm)) =
+                                    collider.swept_core(&position_mm, &rotation)
+                                else {
+                                    continue;
+                                };
+                                let segment = WireSegment {
+                                    now: [now[i], now[i + 1]],
+                                    before: [before[i], before[i + 1]],
+                                    weights: [weight(i), weight(i + 1)],
+                                    floors: [floor[i], floor[i + 1]],
+                                    swaged: false,
+                                };
+                                if let Some([a, b]) = clear_segment_of_tool(
+                                    &core,
+                                    radius_mm,
+                                    &segment,
+                                    0.5 * THREAD_DIAMETER_MM,
+                                ) {
+                                    (now[i], now[i + 1]) = (a, b);
+                                }
+                            }
+                        }
+                    };
                     let mut contact_pass = |now: &mut [Vec3], floor: &mut [Vec3]| {
                         edge_pass(now);
                         needle_pass(now, floor);
@@ -442,6 +492,7 @@ impl SutureThread {
                                 }
                             }
                         }
+                        tool_pass(now, floor);
                         needle_pass(now, floor);
                         edge_pass(now);
                     };

@@ -145,24 +145,37 @@ impl NeedleWire {
         } else {
             return None;
         };
-        // Minimum-norm correction of the point at s out to the reach on that side: the nodes move by their
-        // weights at s and their inverse masses.
+        // The point at s out to the reach on that side (a thread pinched between the wire and the skin slides
+        // out from under the wire along the skin, or stays pinched: the skin has the last word, as with the
+        // tools).
+        let rotation = self.world_from_needle.rotation;
+        seg.moved_at(s, |denominator| {
+            rotation * ((out * reach_mm - away) / denominator)
+        })
+    }
+}
+
+impl WireSegment {
+    /// Its nodes moved so that its point at `s` (0: the first node, 1: the second) moves by a correction `c`
+    /// (world, mm): the minimum-norm correction, each node by its weight at `s` and its inverse mass times
+    /// `push(d) = c / d`, `d` the weights' sum at `s`; a node resting on a surface is not pushed into it. None for
+    /// a held segment or a non-finite result.
+    pub fn moved_at(&self, s: f32, push: impl Fn(f32) -> Vec3) -> Option<[Vec3; 2]> {
+        let [wa, wb] = self.weights;
         let (ga, gb) = (1.0 - s, s);
         let denominator = wa * ga * ga + wb * gb * gb;
         if denominator.is_nan() || denominator <= 1e-12 {
             return None;
         }
-        let push = self.world_from_needle.rotation * ((out * reach_mm - away) / denominator);
-        // Each node's move; a node resting on a surface is not pushed into it (a thread pinched between the wire
-        // and the skin slides out from under the wire along the skin, or stays pinched: the skin has the last
-        // word, as with the tools).
+        let push = push(denominator);
         let moved = |at: &Vec3, by: Vec3, floor: &Vec3| {
             let into = by.dot(floor);
             at + if into < 0.0 { by - floor * into } else { by }
         };
+        let [a, b] = &self.now;
         let to = [
-            moved(a, push * (wa * ga), &seg.floors[0]),
-            moved(b, push * (wb * gb), &seg.floors[1]),
+            moved(a, push * (wa * ga), &self.floors[0]),
+            moved(b, push * (wb * gb), &self.floors[1]),
         ];
         to.iter()
             .all(|p| p.iter().all(|c| c.is_finite()))

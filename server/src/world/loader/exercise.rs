@@ -131,6 +131,18 @@ impl Context<'_> {
             Some(at) => Some(self.exercise_wound(at, e.kind, objects)?),
             None => None,
         };
+        let knot = match &e.knot {
+            Some(at) => {
+                self.check(
+                    at,
+                    "exercise.knot",
+                    e.kind == ExerciseKind::Suture || !*at.get_ref(),
+                    "only a suture exercise is tied off with a knot",
+                )?;
+                *at.get_ref()
+            }
+            None => false,
+        };
         Ok(ExerciseSpec {
             name,
             kind: e.kind,
@@ -139,6 +151,7 @@ impl Context<'_> {
             targets,
             samples,
             wound,
+            knot,
         })
     }
 
