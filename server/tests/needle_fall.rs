@@ -1,7 +1,8 @@
 //! A needle let go in free space falls and comes to rest on the tissue (`interaction/suture/needle_fall.rs`),
 //! on the suture block, on virtual time: let go over the skin it lands on it and lies still, never inside it;
 //! let go beside the block it falls past it; the viewers are sent where it lies; a needle lying on the skin
-//! is taken again by the driver's jaws and lifted with them, and pushed along by a grasper swept across it.
+//! is taken again by the driver's jaws and lifted with them, and pushed along by a grasper swept across it; a
+//! needle passes from the driver's jaws to a grasper's and back in the air.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 #[path = "common/skin_block.rs"]
@@ -60,6 +61,18 @@ impl Dropper {
         open: bool,
         grasper_mm: Option<&Vector3<f32>>,
     ) {
+        self.step_with_grasper_jaws(origin_mm, rotation, open, grasper_mm, true);
+    }
+
+    /// [`Self::step_with_grasper`] with the grasper's jaws `grasper_closed` (or open).
+    fn step_with_grasper_jaws(
+        &mut self,
+        origin_mm: &Vector3<f32>,
+        rotation: &UnitQuaternion<f32>,
+        open: bool,
+        grasper_mm: Option<&Vector3<f32>>,
+        grasper_closed: bool,
+    ) {
         let mut command = pose_command(origin_mm, &self.device_origin_mm, rotation);
         command.jaws = JawInput {
             buttons: u32::from(open),
@@ -69,7 +82,7 @@ impl Dropper {
             let mut command =
                 pose_command(at, &self.grasper_origin_mm, &UnitQuaternion::identity());
             command.jaws = JawInput {
-                buttons: 1,
+                buttons: u32::from(grasper_closed),
                 jaw_angle_rad: 0.0,
             };
             command
@@ -270,6 +283,117 @@ fn a_needle_lying_on_the_skin_is_taken_again_by_the_drivers_jaws() {
         (rose - 20.0).abs() < 0.5,
         "the needle rose {rose} mm with jaws drawn 20 mm up"
     );
+}
+
+/// Hand to hand in the air: the driver holds the needle 30 mm over the skin; the grasper (upright, its jaws
+/// open) comes to the middle of its arc and closes: it takes the needle there, as it lies (no jump); the driver
+/// opens and leaves, and the needle stays in the grasper's jaws and follows them 10 mm along; the driver comes
+/// back to its tail and closes: it takes the needle back; the grasper opens, and the needle stays with the
+/// driver. Never loose, it never falls.
+#[test]
+fn a_needle_passes_from_hand_to_hand_in_the_air_and_back() {
+    let mut d = Dropper::new();
+    let level = Dropper::level();
+    let origin = Vector3::new(0.0, 0.0, 30.0);
+    let park = Vector3::new(30.0, 0.0, 40.0);
+    // The driver to its place, the grasper parked open.
+    for _ in 0..20_000 {
+        d.step_with_grasper_jaws(&origin, &level, false, Some(&park), false);
+        if (d.sim.tools[0].position_mm - origin).norm() < 0.01 {
+            break;
+        }
+    }
+    let middle = d.arc_points()[24];
+    // The open grasper to the middle of the arc, from 20 mm aside (0.1 mm a tick), held there.
+    let mut grasper = park;
+    for waypoint in [middle + Vector3::new(20.0, 0.0, 0.0), middle] {
+        for _ in 0..20_000 {
+            let to = waypoint - grasper;
+            grasper += to * (0.1 / to.norm().max(0.1));
+            d.step_with_grasper_jaws(&origin, &level, false, Some(&grasper), false);
+            if (d.sim.tools[1].position_mm - waypoint).norm() < 0.02 {
+                break;
+            }
+        }
+    }
+    assert!(matches!(d.holder(), NeedleHolder::Driver { .. }));
+    let before = d.world_from_needle();
+    for _ in 0..50 {
+        d.step_with_grasper_jaws(&origin, &level, false, Some(&grasper), true);
+    }
+    assert!(
+        matches!(d.holder(), NeedleHolder::Tool { tool: 1, .. }),
+        "the grasper did not take the needle from the driver: {:?}",
+        d.holder()
+    );
+    let jumped = (d.world_from_needle().translation.vector - before.translation.vector).norm();
+    assert!(jumped < 0.05, "the needle jumped {jumped} mm as it passed");
+    // The driver opens and draws 40 mm up: the needle stays in the grasper's jaws.
+    for k in 0..400 {
+        let up = origin + Vector3::new(0.0, 0.0, 40.0 * (k as f32 / 200.0).min(1.0));
+        d.step_with_grasper_jaws(&up, &level, true, Some(&grasper), true);
+    }
+    assert!(matches!(d.holder(), NeedleHolder::Tool { tool: 1, .. }));
+    let held = d.arc_points()[24];
+    assert!((held - middle).norm() < 0.1, "{held:?} for {middle:?}");
+    // The grasper carries it 10 mm along x.
+    let along = Vector3::new(10.0, 0.0, 0.0);
+    let from = grasper;
+    for k in 1..=500 {
+        grasper = from + along * (k as f32 / 500.0);
+        d.step_with_grasper_jaws(
+            &(origin + Vector3::new(0.0, 0.0, 40.0)),
+            &level,
+            true,
+            Some(&grasper),
+            true,
+        );
+    }
+    for _ in 0..200 {
+        d.step_with_grasper_jaws(
+            &(origin + Vector3::new(0.0, 0.0, 40.0)),
+            &level,
+            true,
+            Some(&grasper),
+            true,
+        );
+    }
+    let carried = d.arc_points()[24] - middle;
+    assert!(
+        (carried - along).norm() < 0.3,
+        "carried {carried:?} for {along:?}"
+    );
+    // The driver comes back, open, to where its jaws held the tail, and closes: it takes the needle back.
+    let target = d.world_from_needle() * d.tool_from_needle.inverse();
+    let (to, rotation) = (target.translation.vector, target.rotation);
+    let mut at = origin + Vector3::new(0.0, 0.0, 40.0);
+    for _ in 0..20_000 {
+        let step = to - at;
+        at += step * (0.1 / step.norm().max(0.1));
+        d.step_with_grasper_jaws(&at, &rotation, true, Some(&grasper), true);
+        if (d.sim.tools[0].position_mm - to).norm() < 0.05 {
+            break;
+        }
+    }
+    let before = d.world_from_needle();
+    for _ in 0..100 {
+        d.step_with_grasper_jaws(&at, &rotation, false, Some(&grasper), true);
+    }
+    assert!(
+        matches!(d.holder(), NeedleHolder::Driver { .. }),
+        "the driver did not take the needle back: {:?}",
+        d.holder()
+    );
+    let jumped = (d.world_from_needle().translation.vector - before.translation.vector).norm();
+    assert!(
+        jumped < 0.1,
+        "the needle jumped {jumped} mm as it passed back"
+    );
+    // The grasper opens: the needle stays with the driver.
+    for _ in 0..300 {
+        d.step_with_grasper_jaws(&at, &rotation, false, Some(&grasper), false);
+    }
+    assert!(matches!(d.holder(), NeedleHolder::Driver { .. }));
 }
 
 /// A grasper (upright, its jaws closed far off, its capsule's bottom 0.1 mm over the skin) swept 30 mm across a needle lying

@@ -144,10 +144,12 @@ impl NeedleHold {
         theirs
     }
 
-    /// Closing jaws at `world_from_tool` (`tool`: None for its driver's) take the needle if it is loose and a
-    /// point of its arc (`arc`) lies within `reach_mm` of them by `distance_mm` (world point -> distance to
-    /// the jaws' body). They clamp it where it lies. `in_tissue`: the needle runs through tissue now. Returns
-    /// the angle from the tail where they hold it, rad.
+    /// Closing jaws at `world_from_tool` (`tool`: None for its driver's) take the needle if a point of its arc
+    /// (`arc`) lies within `reach_mm` of them by `distance_mm` (world point -> distance to the jaws' body) and
+    /// they do not hold it already. They clamp it where it lies. A needle other jaws hold passes to these, hand
+    /// to hand: the newest jaws to close on it hold it, and the others hold nothing from then on (they let go
+    /// of nothing when they open). `in_tissue`: the needle runs through tissue now. Returns the angle from the
+    /// tail where they hold it, rad.
     pub fn take(
         &mut self,
         tool: Option<u16>,
@@ -157,7 +159,12 @@ impl NeedleHold {
         reach_mm: f32,
         in_tissue: bool,
     ) -> Option<f32> {
-        if !matches!(self.holder, NeedleHolder::Loose) || !finite(world_from_tool) {
+        let theirs = match (self.holder, tool) {
+            (NeedleHolder::Driver { .. }, None) => true,
+            (NeedleHolder::Tool { tool: held_by, .. }, Some(k)) => held_by == k,
+            _ => false,
+        };
+        if theirs || !finite(world_from_tool) {
             return None;
         }
         let (theta_rad, distance) = (0..=ARC_SAMPLES)
@@ -212,13 +219,36 @@ mod tests {
             hold.world_from_needle().translation.vector,
             Vec3::new(5.0, 10.0, 0.0)
         );
-        // A grasper's jaws do not take a needle another holds.
+        // Hand to hand: jaws that hold it do not take it again; a grasper's jaws closing on it take it from the
+        // driver where it lies, and the driver's take it back.
         let tip = hold.world_from_needle() * Point3::from(arc.tip().point_mm);
         let near_tip = |p: &Vec3| (p - tip.coords).norm();
+        let driver = at(5.0, 0.0, 0.0);
         assert!(
-            hold.take(Some(1), &at(0.0, 0.0, 0.0), &arc, near_tip, 1.0, true)
+            hold.take(None, &driver, &arc, near_tip, 1.0, false)
                 .is_none()
         );
+        let held_at = *hold.world_from_needle();
+        assert!(
+            hold.take(Some(1), &at(0.0, 0.0, 0.0), &arc, near_tip, 1.0, false)
+                .is_some()
+        );
+        assert!(hold.held_by(1) && !hold.in_drivers_jaws());
+        assert_eq!(*hold.world_from_needle(), held_at);
+        assert!(
+            hold.take(Some(1), &at(0.0, 0.0, 0.0), &arc, near_tip, 1.0, false)
+                .is_none()
+        );
+        // The driver's jaws opening let go of nothing now; closing again, they take it back.
+        assert!(!hold.let_go(None));
+        assert!(
+            hold.take(None, &driver, &arc, near_tip, 1.0, false)
+                .is_some()
+        );
+        assert!(hold.in_drivers_jaws() && !hold.held_by(1));
+        hold.place(&driver, |_| None);
+        let moved = hold.world_from_needle().translation.vector - held_at.translation.vector;
+        assert!(moved.norm() < 1e-4, "{moved:?}");
         // Let go, it stays put whatever the driver does.
         assert!(!hold.let_go(Some(1)));
         assert!(hold.let_go(None));
@@ -238,7 +268,7 @@ mod tests {
             .take(Some(1), &jaws, &arc, near_tip, 1.0, true)
             .unwrap();
         assert!((theta - arc.sweep_rad()).abs() < 1e-6, "{theta}");
-        assert!(hold.held_by(1) && hold.taken_in_tissue() && hold.regrasps() == 1);
+        assert!(hold.held_by(1) && hold.taken_in_tissue() && hold.regrasps() == 3);
         // It then follows tool 1, and its tip stays in the jaws.
         let moved = at(tip.x + 2.0, tip.y, tip.z - 1.0);
         hold.place(&at(0.0, 0.0, 0.0), |k| (k == 1).then_some(moved));

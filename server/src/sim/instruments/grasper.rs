@@ -266,7 +266,11 @@ impl Grasper {
         match pull {
             Some(pull) if pull.iter().all(|c| c.is_finite()) => self.needle_pull_n = pull,
             Some(_) => {}
-            None => self.needle_of = None,
+            // Taken from these jaws (hand to hand): they hold nothing now.
+            None => {
+                self.needle_of = None;
+                self.needle_pull_n = Vec3::zeros();
+            }
         }
     }
 
@@ -324,8 +328,9 @@ fn take_thread(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
     None
 }
 
-/// Tool `t`'s closing jaws take the first loose suture needle (in tool order) with a point within `bite_mm` of
-/// their body. Returns the tool whose needle they took. No allocation.
+/// Tool `t`'s closing jaws take the first suture needle (in tool order) with a point within `bite_mm` of their
+/// body, loose or in other jaws (hand to hand: `NeedleHold::take`). Returns the tool whose needle they took. No
+/// allocation.
 fn take_needle(sim: &mut Sim, t: usize, bite_mm: f32) -> Option<usize> {
     let reach_mm = bite_mm + BITE_TOLERANCE_MM;
     let world_from_jaws = nalgebra::Isometry3::from_parts(
