@@ -8,11 +8,13 @@
 //! - [`skill_state`]: the surgical state machine the events drive, with time per state;
 //! - [`metrics`]: task time, path length and economy, contact time, forces, harm;
 //! - [`exercise`]: an exercise's targets, clock and errors, scored from the events;
+//! - [`knot_score`]: the knot a suture exercise read, and which knots tie a stitch off;
 //! - [`observer`]: events, states and metrics per tool (and the exercise), fed one tick at a time;
 //! - [`wound_gap`]: how far a wound between two objects is open (a stitch's result).
 
 pub mod events;
 pub mod exercise;
+pub mod knot_score;
 pub mod metrics;
 pub mod observer;
 pub mod skill_state;
@@ -22,6 +24,7 @@ pub use events::{EventDetector, EventKind, SessionEvent, ToolActivity};
 pub use exercise::{
     ExerciseErrors, ExerciseRun, ExerciseScore, LiveScore, RankedPair, RankingResult, TargetHit,
 };
+pub use knot_score::{KnotScore, secure_knot};
 pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
 pub use observer::{LiveTraining, SessionObserver, TickView};
 pub use skill_state::{SkillMachine, SkillState, Transition};

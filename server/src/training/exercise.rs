@@ -39,6 +39,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::events::{EventKind, SessionEvent, ToolActivity};
+use super::knot_score::{KnotScore, secure_knot};
 use crate::scene::{ExerciseKind, ExerciseSpec, SUTURE_GAP_LIMIT_MM};
 
 /// Points lost per error.
@@ -78,25 +79,6 @@ impl ExerciseErrors {
     pub fn total(&self) -> u32 {
         self.wrong_tool + self.off_target + self.too_deep + self.knot_undone
     }
-}
-
-/// The knot a suture exercise read.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct KnotScore {
-    /// What a surgeon calls the knot read at the end (`square knot`, `half knot`, ...; None: no knot).
-    pub name: Option<String>,
-    /// Its throws: single and double, right- and left-handed.
-    pub throws: [u8; 4],
-    /// Secure: two throws or more that can alternate hands.
-    pub secure: bool,
-    /// Knots read that came undone.
-    pub undone: u32,
-}
-
-/// Whether `throws` make a secure knot: two or more, alternating hands where they can (a square knot, a
-/// surgeon's knot, three throws right-left-right; not a half knot, a surgeon's throw alone or a granny).
-pub fn secure_knot(throws: &crate::interaction::suture::Throws) -> bool {
-    throws.count() >= 2 && throws.can_alternate()
 }
 
 /// One pair of samples in a ranking: did the trainee put the softer first?

@@ -58,7 +58,7 @@ use super::thread_grip::{MAX_GRIPS, ThreadGrip};
 use super::thread_hole::{ThreadHole, inside_by_holes, take_nodes};
 use super::thread_needle::{NeedleWire, WireSegment};
 use super::thread_self_contact::SelfContact;
-use super::thread_tool_contact::clear_segment_of_tool;
+use super::thread_tool_contact::keep_segments_out_of_tools;
 use super::thread_track::{MAX_TRACK_RINGS, refresh_tracks};
 use super::{MAX_HOLES, SurfacePoint, ThreadChain};
 use crate::collision::{SurfaceCollider, ToolCollider, crossing_nearest};
@@ -388,49 +388,15 @@ impl SutureThread {
                     // Each segment against the tool parts (`thread_tool_contact.rs`): a segment, not only its
                     // nodes, is kept out of a tool (not the one whose jaws hold a node of it or beside it).
                     let tool_pass = |now: &mut [Vec3], floor: &[Vec3]| {
-                        let weight = |i: usize| {
-                            if by_hole[i] { 0.0 } else { w[i] }
-                        };
-                        for i in 0..now.len().saturating_sub(1) {
-                            if weight(i) + weight(i + 1) <= 0.0 {
-                                continue;
-                            }
-                            let jaws = |i: usize| {
-                                grips
-                                    .iter()
-                                    .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
-                                    .map(|g| usize::from(g.tool))
-                            };
-                            let (jaws_a, jaws_b) = (jaws(i), jaws(i + 1));
-                            for k in 0..tools {
-                                if jaws_a == Some(k / 2) || jaws_b == Some(k / 2) {
-                                    continue;
-                                }
-                                let Some((collider, position_mm, rotation)) = tool(k) else {
-                                    continue;
-                                };
-                                let Some((core, radius_mm)) =
-                                    collider.swept_core(&position_mm, &rotation)
-                                else {
-                                    continue;
-                                };
-                                let segment = WireSegment {
-                                    now: [now[i], now[i + 1]],
-                                    before: [before[i], before[i + 1]],
-                                    weights: [weight(i), weight(i + 1)],
-                                    floors: [floor[i], floor[i + 1]],
-                                    swaged: false,
-                                };
-                                if let Some([a, b]) = clear_segment_of_tool(
-                                    &core,
-                                    radius_mm,
-                                    &segment,
-                                    0.5 * THREAD_DIAMETER_MM,
-                                ) {
-                                    (now[i], now[i + 1]) = (a, b);
-                                }
-                            }
-                        }
+                        keep_segments_out_of_tools(
+                            now,
+                            before,
+                            |i| if by_hole[i] { 0.0 } else { w[i] },
+                            floor,
+                            |i| jaws_beside(grips, i),
+                            tools,
+                            &tool,
+                        );
                     };
                     let mut contact_pass = |now: &mut [Vec3], floor: &mut [Vec3]| {
                         edge_pass(now);
@@ -442,10 +408,7 @@ impl SutureThread {
                                 if !by_hole[i] {
                                     // The thread runs out between the jaws holding it: their
                                     // body does not push the nodes beside the one they hold.
-                                    let jaws = grips
-                                        .iter()
-                                        .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
-                                        .map(|g| usize::from(g.tool));
+                                    let jaws = jaws_beside(grips, i);
                                     keep_clear_of_tools(&mut now[i], tools, &tool, jaws, None);
                                 }
                                 // Kept inside an object it runs through (between its holes there), and free to
@@ -478,10 +441,7 @@ impl SutureThread {
                                 if let Some(normal) = side.resting_on.filter(|_| side.pushed)
                                     && !by_hole[i]
                                 {
-                                    let jaws = grips
-                                        .iter()
-                                        .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
-                                        .map(|g| usize::from(g.tool));
+                                    let jaws = jaws_beside(grips, i);
                                     keep_clear_of_tools(
                                         &mut now[i],
                                         tools,
@@ -526,6 +486,15 @@ impl SutureThread {
     pub fn pairs_held_apart(&self) -> u32 {
         self.pairs_apart
     }
+}
+
+/// The tool whose jaws hold a node within [`GRIP_CLEAR_NODES`] of node `i`: its body does not push node `i`
+/// (the thread runs out between the jaws).
+fn jaws_beside(grips: &[ThreadGrip], i: usize) -> Option<usize> {
+    grips
+        .iter()
+        .find(|g| (g.node as usize).abs_diff(i) <= GRIP_CLEAR_NODES)
+        .map(|g| usize::from(g.tool))
 }
 
 /// The thread's pull on node `i` (held: the tail, a grip), world, N: the segments either side pull it along

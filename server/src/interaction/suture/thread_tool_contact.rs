@@ -4,7 +4,7 @@
 //! jaws hold slid over them that way and off the free end past them (docs/suturing.md, "Contact inside the
 //! solve").
 //!
-//! Owns: [`clear_segment_of_tool`], the push that puts one segment out of one swept-sphere tool part (a ball,
+//! Owns: [`keep_segments_out_of_tools`] (a pass over the thread) and [`clear_segment_of_tool`], the push that puts one segment out of one swept-sphere tool part (a ball,
 //! a capsule: the tools' tips and shafts). A mesh tool has no core to measure from, and keeps the nodes'
 //! push alone.
 //!
@@ -20,9 +20,54 @@
 //!
 //! Pure and allocation-free: it runs in the thread's substeps.
 
+use super::thread::ThreadTool;
 use super::thread_needle::WireSegment;
 use super::thread_self_contact::closest_params;
 use crate::tissue::Vec3;
+
+/// One pass over the thread's segments (nodes `now`, at the substep's start `before`, inverse masses
+/// `weight(i)`, resting on surfaces of outward normals `floor`) against the tool parts `tool(0..tools)`
+/// (part `k` is tool `k / 2`'s): each segment put out of each swept-sphere part ([`clear_segment_of_tool`]),
+/// but the tool whose jaws hold a node beside either of its nodes (`jaws_beside(i)`). No allocation.
+pub fn keep_segments_out_of_tools<'b>(
+    now: &mut [Vec3],
+    before: &[Vec3],
+    weight: impl Fn(usize) -> f32,
+    floor: &[Vec3],
+    jaws_beside: impl Fn(usize) -> Option<usize>,
+    tools: usize,
+    tool: &impl Fn(usize) -> Option<ThreadTool<'b>>,
+) {
+    for i in 0..now.len().saturating_sub(1) {
+        if weight(i) + weight(i + 1) <= 0.0 {
+            continue;
+        }
+        let (jaws_a, jaws_b) = (jaws_beside(i), jaws_beside(i + 1));
+        for k in 0..tools {
+            if jaws_a == Some(k / 2) || jaws_b == Some(k / 2) {
+                continue;
+            }
+            let Some((collider, position_mm, rotation)) = tool(k) else {
+                continue;
+            };
+            let Some((core, radius_mm)) = collider.swept_core(&position_mm, &rotation) else {
+                continue;
+            };
+            let segment = WireSegment {
+                now: [now[i], now[i + 1]],
+                before: [before[i], before[i + 1]],
+                weights: [weight(i), weight(i + 1)],
+                floors: [floor[i], floor[i + 1]],
+                swaged: false,
+            };
+            if let Some([a, b]) =
+                clear_segment_of_tool(&core, radius_mm, &segment, 0.5 * super::THREAD_DIAMETER_MM)
+            {
+                (now[i], now[i + 1]) = (a, b);
+            }
+        }
+    }
+}
 
 /// The point of core `c0 c1` nearest `p`, as a parameter in `[0, 1]` (0 for a point core).
 fn nearest_on_core(c0: &Vec3, c1: &Vec3, p: &Vec3) -> f32 {
