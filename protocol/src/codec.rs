@@ -12,7 +12,7 @@ use serde::{Serialize, de::DeserializeOwned};
 use thiserror::Error;
 
 /// Protocol revision carried by every message. Bump on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 17;
+pub const PROTOCOL_VERSION: u16 = 18;
 
 /// Bytes of envelope before the postcard body.
 pub const HEADER_LEN: usize = 11;

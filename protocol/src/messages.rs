@@ -22,5 +22,5 @@ pub use needle_geometry::needle_point_in_tool_mm;
 pub use pose::{DevicePose, RenderMode};
 pub use puncture_term::PunctureTerm;
 pub use snapshot::{InstrumentInfo, ObjectSnapshot, SceneSnapshot, ToolInfo, ToolShaft, ToolShape};
-pub use stats::{DeviceStats, ExerciseStats, RejectCounts, ServerStats, TrainingStats};
-pub use tools::{NeedleState, ThreadState, ToolState, ToolStates};
+pub use stats::{DeviceStats, ExerciseStats, RejectCounts, ServerStats, TargetMark, TrainingStats};
+pub use tools::{HoleMark, NeedleState, ThreadState, ToolState, ToolStates};

@@ -133,7 +133,15 @@ fn tool_states(rng: &mut fastrand::Rng) -> ToolStates {
         threads: (0..rng.usize(0..3))
             .map(|_| {
                 let nodes: Vec<[f32; 3]> = (0..rng.usize(0..70)).map(|_| v3(rng)).collect();
-                ThreadState::from_nodes_mm(rng.u16(0..4), &nodes)
+                let mut thread = ThreadState::from_nodes_mm(rng.u16(0..4), &nodes);
+                thread.holes = (0..rng.usize(0..6))
+                    .map(|_| HoleMark {
+                        position_mm: v3(rng),
+                        pull_n: rng.f32() * 5.0,
+                        on_needle: rng.bool(),
+                    })
+                    .collect();
+                thread
             })
             .collect(),
         needles: (0..rng.usize(0..3))
@@ -341,6 +349,13 @@ fn stats(rng: &mut fastrand::Rng) -> ServerStats {
             time_s: rng.f32() * 60.0,
             completed: rng.bool(),
             timed_out: rng.bool(),
+            targets: (0..rng.usize(0..5))
+                .map(|_| TargetMark {
+                    at_mm: v3(rng),
+                    radius_mm: 0.5 + rng.f32() * 5.0,
+                    hit: rng.bool(),
+                })
+                .collect(),
         }),
     }
 }

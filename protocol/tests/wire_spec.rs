@@ -115,10 +115,14 @@ fn tool_states() -> ToolStates {
             jaw_angle_rad: 0.5,
             attachments: 12,
         }],
-        threads: vec![ThreadState::from_nodes_mm(
-            0,
-            &[[-18.0, 0.0, -2.0], [-16.0, 0.0, -2.5]],
-        )],
+        threads: vec![ThreadState {
+            holes: vec![HoleMark {
+                position_mm: [-16.0, 0.0, -3.0],
+                pull_n: 0.5,
+                on_needle: false,
+            }],
+            ..ThreadState::from_nodes_mm(0, &[[-18.0, 0.0, -2.0], [-16.0, 0.0, -2.5]])
+        }],
         needles: vec![NeedleState {
             tool: 0,
             position_mm: [-18.0, 0.0, 3.0],
@@ -188,6 +192,28 @@ fn stats() -> ServerStats {
             ..DeviceStats::default()
         }],
         server_id: "server".into(),
+        exercise: Some(ExerciseStats {
+            kind: "suture".into(),
+            score: 50.0,
+            hits: 1,
+            total: 2,
+            errors: 0,
+            time_s: 12.5,
+            completed: false,
+            timed_out: false,
+            targets: vec![
+                TargetMark {
+                    at_mm: [10.0, 0.0, 0.0],
+                    radius_mm: 2.0,
+                    hit: true,
+                },
+                TargetMark {
+                    at_mm: [-10.0, 0.0, 0.0],
+                    radius_mm: 2.0,
+                    hit: false,
+                },
+            ],
+        }),
         ..ServerStats::default()
     }
 }

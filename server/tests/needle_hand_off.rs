@@ -97,6 +97,33 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
     assert!(in_needle >= 2);
     assert_eq!(in_needle + wound.thread().holes().len(), 4);
     let places_before = hole_places(&wound);
+    // What the viewers are sent of the holes (protocol 18): the thread's, then the needle's, each where it is.
+    let frames = FrameExchange::new(&wound.sim);
+    assert!(frames.try_offer(&wound.sim, &[ToolOutput::default(); 2]));
+    let marks = frames
+        .with_frame(|f| f.threads.first().map(|t| t.holes.clone()))
+        .unwrap()
+        .expect("no thread sent");
+    let on_thread: Vec<_> = wound
+        .thread()
+        .holes()
+        .iter()
+        .map(|h| h.place_mm())
+        .collect();
+    let expected: Vec<_> = on_thread
+        .iter()
+        .map(|p| (*p, false))
+        .chain(places_before.iter().map(|p| (*p, true)))
+        .collect();
+    assert_eq!(marks.len(), 4);
+    for (mark, (at, on_needle)) in marks.iter().zip(&expected) {
+        assert_eq!(mark.on_needle, *on_needle, "{marks:?}");
+        assert!(
+            (Vector3::from(mark.position_mm) - at).norm() < 1e-4,
+            "{mark:?} sent for a hole at {at:?}"
+        );
+        assert!(mark.pull_n.is_finite() && mark.pull_n >= 0.0);
+    }
 
     // The driver opens its ratchet (its first button held) and rises 15 mm away; then lets the button go,
     // its jaws closing on nothing there.
@@ -244,6 +271,14 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
     assert!(frames.try_offer(&wound.sim, &[ToolOutput::default(); 2]));
     let sent = frames.with_frame(|f| f.needles.clone()).unwrap();
     assert_eq!(sent.len(), 1);
+    // All four holes are the thread's now, sent where it runs through them.
+    let marks = frames.with_frame(|f| f.threads[0].holes.clone()).unwrap();
+    assert_eq!(marks.len(), 4);
+    for (mark, hole) in marks.iter().zip(wound.thread().holes()) {
+        assert!(!mark.on_needle);
+        assert!((Vector3::from(mark.position_mm) - hole.place_mm()).norm() < 1e-4);
+        assert!((mark.pull_n - hole.pull_on_tissue_n().norm()).abs() < 1e-6);
+    }
     let InstrumentSpec::NeedleDriver(spec) = wound.sim.tools[0].instrument else {
         panic!("tool 0 is not a needle driver");
     };

@@ -128,10 +128,14 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
             orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
             ..ToolState::default()
         }],
-        threads: vec![ThreadState::from_nodes_mm(
-            0,
-            &[[0.0, 0.0, 1.0], [0.0, 2.0, 1.0], [0.0, 4.0, 0.5]],
-        )],
+        threads: vec![ThreadState {
+            holes: vec![sinew_protocol::HoleMark {
+                position_mm: [0.0, 2.0, 0.0],
+                pull_n: 1.0,
+                on_needle: true,
+            }],
+            ..ThreadState::from_nodes_mm(0, &[[0.0, 0.0, 1.0], [0.0, 2.0, 1.0], [0.0, 4.0, 0.5]])
+        }],
         needles: vec![sinew_protocol::NeedleState {
             tool: 0,
             position_mm: [0.0, 0.0, 3.0],
@@ -227,7 +231,14 @@ pub fn message_seeds() -> Vec<Vec<u8>> {
             sender,
             &ServerStats {
                 devices: vec![DeviceStats::default()],
-                exercise: Some(ExerciseStats::default()),
+                exercise: Some(ExerciseStats {
+                    targets: vec![sinew_protocol::TargetMark {
+                        at_mm: [0.0, 0.0, 0.0],
+                        radius_mm: 3.0,
+                        hit: false,
+                    }],
+                    ..ExerciseStats::default()
+                }),
                 ..ServerStats::default()
             },
         ),

@@ -1,6 +1,7 @@
 //! What an instructor watches for, drawn over the scene: each participant's id, role, mode, round trip and
 //! force, an arrow at each tool for the force the tissue exerts on it (scaled, coloured by how close it is to
-//! the device's limit), and the running exercise's live score.
+//! the device's limit), the running exercise's live score, and a ring round each of its targets (or a
+//! suture's marks) where the world file puts them: green once hit, yellow for the next, white after.
 //!
 //! Owns: turning a replica (tool states, 60 Hz) and the server's stats (1 Hz) into text lines and arrows
 //! ([`InstructorOverlay::build`], plain data, tested without a GPU), and drawing them on a kiss3d window or
@@ -67,6 +68,24 @@ pub struct ForceArrow {
     pub rgb: Rgb,
 }
 
+/// A ring round one of the exercise's targets, in the world's x-y plane (targets lie on surfaces facing up).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetRing {
+    /// Its centre: the target's mark on the tissue at rest, world mm.
+    pub centre_mm: [f32; 3],
+    /// Its radius: the target's, mm.
+    pub radius_mm: f32,
+    /// [`HIT_RGB`] once hit, [`NEXT_RGB`] for the next to hit, [`TEXT_RGB`] after it.
+    pub rgb: Rgb,
+}
+
+/// A target hit.
+pub const HIT_RGB: Rgb = [0.20, 0.85, 0.30];
+/// The next target to hit.
+pub const NEXT_RGB: Rgb = [0.95, 0.85, 0.15];
+/// Straight strokes per target ring.
+const RING_STROKES: usize = 32;
+
 /// The overlay of one frame.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct InstructorOverlay {
@@ -74,6 +93,8 @@ pub struct InstructorOverlay {
     pub lines: Vec<OverlayLine>,
     /// One arrow per active tool pushed by a force above [`ARROW_MIN_FORCE_N`].
     pub arrows: Vec<ForceArrow>,
+    /// One ring per target of the running exercise, in its order.
+    pub targets: Vec<TargetRing>,
 }
 
 /// Green well under the limit, through yellow at half of it, to red at 90% and beyond.
@@ -152,7 +173,26 @@ impl InstructorOverlay {
                 });
             }
         }
+        let mut targets = Vec::new();
         if let Some(exercise) = stats.and_then(|s| s.exercise.as_ref()) {
+            let next = exercise.targets.iter().position(|t| !t.hit);
+            targets.extend(
+                exercise
+                    .targets
+                    .iter()
+                    .enumerate()
+                    .map(|(i, target)| TargetRing {
+                        centre_mm: target.at_mm,
+                        radius_mm: target.radius_mm,
+                        rgb: if target.hit {
+                            HIT_RGB
+                        } else if Some(i) == next {
+                            NEXT_RGB
+                        } else {
+                            TEXT_RGB
+                        },
+                    }),
+            );
             let status = if exercise.completed {
                 "  done"
             } else if exercise.timed_out {
@@ -173,7 +213,11 @@ impl InstructorOverlay {
                 rgb: TEXT_RGB,
             });
         }
-        Self { lines, arrows }
+        Self {
+            lines,
+            arrows,
+            targets,
+        }
     }
 }
 
@@ -218,7 +262,8 @@ fn color(rgb: Rgb) -> Color {
     Color::new(rgb[0], rgb[1], rgb[2], 1.0)
 }
 
-/// Queue the overlay on `window` for its next frame: text top-left, arrows as 3D lines with a head.
+/// Queue the overlay on `window` for its next frame: text top-left, arrows as 3D lines with a head, target
+/// rings as 3D polygons.
 pub fn draw_overlay(window: &mut Window, overlay: &InstructorOverlay, font: &Arc<Font>) {
     for (i, line) in overlay.lines.iter().enumerate() {
         window.draw_text(
@@ -228,6 +273,16 @@ pub fn draw_overlay(window: &mut Window, overlay: &InstructorOverlay, font: &Arc
             font,
             color(line.rgb),
         );
+    }
+    for ring in &overlay.targets {
+        let centre = Vec3::from(ring.centre_mm);
+        let at = |k: usize| {
+            let a = std::f32::consts::TAU * k as f32 / RING_STROKES as f32;
+            centre + Vec3::new(a.cos(), a.sin(), 0.0) * ring.radius_mm
+        };
+        for k in 0..RING_STROKES {
+            window.draw_line(at(k), at(k + 1), color(ring.rgb), ARROW_WIDTH_PX, false);
+        }
     }
     for arrow in &overlay.arrows {
         let from = Vec3::from(arrow.from_mm);

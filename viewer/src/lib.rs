@@ -13,6 +13,7 @@ mod bounded_queue;
 pub mod camera_framing;
 pub mod client;
 pub mod error;
+pub mod hole_view;
 pub mod instructor_overlay;
 pub mod network_config;
 mod rate_meter;

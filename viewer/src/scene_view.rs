@@ -1,5 +1,5 @@
 //! kiss3d scene nodes mirroring a [`SceneReplica`]: one mesh per object, one sphere or capsule per tool, the
-//! suture threads (in [`crate::thread_view`]).
+//! suture threads (in [`crate::thread_view`]) and their needles' punctures (in [`crate::hole_view`]).
 //!
 //! Owns: the look of the scene (colours, materials, lights, background) and keeping the nodes in step with the
 //! replica: new vertex positions are written into the existing GPU meshes (and normals recomputed) when only
@@ -19,6 +19,7 @@ use kiss3d::window::Window;
 use sinew_protocol::{ToolInfo, ToolShape, ToolState};
 
 use crate::camera_framing::{CameraFraming, FIELD_OF_VIEW_RAD};
+use crate::hole_view::HoleView;
 use crate::replica::{ReplicaObject, SceneReplica};
 use crate::thread_view::ThreadView;
 
@@ -361,6 +362,8 @@ pub struct SceneView {
     burns: Vec<Option<SceneNode3d>>,
     /// The suture threads.
     threads: ThreadView,
+    /// The punctures of the threads' needles.
+    holes: HoleView,
 }
 
 impl Default for SceneView {
@@ -380,6 +383,8 @@ pub struct SceneViewCounts {
     pub tools: usize,
     /// Thread segments, over all threads.
     pub thread_segments: usize,
+    /// Holes marked, over all threads.
+    pub holes: usize,
 }
 
 impl SceneView {
@@ -396,6 +401,7 @@ impl SceneView {
             scratch: Vec::new(),
             burns: Vec::new(),
             threads: ThreadView::default(),
+            holes: HoleView::default(),
         }
     }
 
@@ -432,6 +438,7 @@ impl SceneView {
             triangles: layout.map_or(0, |l| l.objects.iter().map(|o| o.2.len()).sum()),
             tools: self.tools.len(),
             thread_segments: self.threads.segments(),
+            holes: self.holes.shown(),
         }
     }
 
@@ -441,6 +448,7 @@ impl SceneView {
         }
         // Their nodes went with the group.
         self.threads = ThreadView::default();
+        self.holes = HoleView::default();
         let mut group = scene.add_group();
         self.objects = replica
             .objects()
@@ -506,6 +514,7 @@ impl SceneView {
     fn update_tools(&mut self, replica: &SceneReplica) {
         if let Some(group) = self.group.as_mut() {
             self.threads.sync(group, &replica.tool_states().threads);
+            self.holes.sync(group, &replica.tool_states().threads);
         }
         let states = &replica.tool_states().tools;
         let needles = &replica.tool_states().needles;

@@ -1,5 +1,6 @@
 //! The instructor's overlay: what it says for given stats (no GPU), and that it reaches the pixels (offscreen,
-//! Mesa lavapipe): text in the top-left corner, a force arrow at the tool in its limit colour.
+//! Mesa lavapipe): text in the top-left corner, a force arrow at the tool in its limit colour, rings round the
+//! exercise's targets in their state's colour.
 
 // This whole file is test code: a panic is a test failure.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -8,8 +9,10 @@ mod common;
 
 use common::{quantize_all, sheet_positions_mm, sheet_snapshot};
 use image::RgbImage;
-use sinew_protocol::{DeviceStats, ExerciseStats, ServerStats, TrainingStats};
-use sinew_viewer::instructor_overlay::{ARROW_MM_PER_N, UNKNOWN_LIMIT_RGB, limit_rgb};
+use sinew_protocol::{DeviceStats, ExerciseStats, ServerStats, TargetMark, TrainingStats};
+use sinew_viewer::instructor_overlay::{
+    ARROW_MM_PER_N, HIT_RGB, NEXT_RGB, TEXT_RGB, UNKNOWN_LIMIT_RGB, limit_rgb,
+};
 use sinew_viewer::render::{SceneFrame, render_frames};
 use sinew_viewer::scene_view::BACKGROUND_RGB;
 use sinew_viewer::{InstructorOverlay, SceneReplica, frame_replica};
@@ -44,6 +47,7 @@ fn stats(force_limit_n: f32) -> ServerStats {
             time_s: 9.5,
             completed: false,
             timed_out: false,
+            targets: Vec::new(),
         }),
         ..ServerStats::default()
     }
@@ -179,5 +183,100 @@ fn overlay_reaches_the_pixels() {
     assert!(
         red_over > red_plain + 40,
         "the force arrow drew {red_over} red pixels against {red_plain} without it"
+    );
+}
+
+/// Green, as a hit target's ring: green well above red and blue (tissue pink is red-dominant).
+fn ring_green(p: &image::Rgb<u8>) -> bool {
+    let [r, g, b] = p.0.map(i32::from);
+    g > 120 && g > r + 50 && g > b + 50
+}
+
+/// Yellow, as the next target's ring: red and green both high, blue well below them (0.15 linear is about 108
+/// in sRGB).
+fn ring_yellow(p: &image::Rgb<u8>) -> bool {
+    let [r, g, b] = p.0.map(i32::from);
+    r > 180 && g > 170 && b + 60 < g
+}
+
+#[test]
+fn rings_each_target_where_the_world_marks_it_green_once_hit_and_yellow_next() {
+    // No force: no arrow, so only the rings differ between the two frames. The targets lie in front of the
+    // probe (which stands over the sheet's centre), below the text (the participant's line is green too).
+    let replica = replica_with_force(0.0);
+    let mut stats = stats(3.3);
+    let exercise = stats.exercise.as_mut().unwrap();
+    exercise.targets = [(-20.0, true), (0.0, false), (20.0, false)]
+        .map(|(x, hit)| TargetMark {
+            at_mm: [x, -15.0, 0.0],
+            radius_mm: 5.0,
+            hit,
+        })
+        .to_vec();
+    let overlay = InstructorOverlay::build(&replica, Some(&stats));
+    assert!(overlay.arrows.is_empty());
+    let rgbs: Vec<_> = overlay.targets.iter().map(|t| t.rgb).collect();
+    assert_eq!(rgbs, [HIT_RGB, NEXT_RGB, TEXT_RGB]);
+    assert_eq!(overlay.targets[1].centre_mm, [0.0, -15.0, 0.0]);
+    assert_eq!(overlay.targets[1].radius_mm, 5.0);
+    // Without the exercise's targets (an older server, or none): no ring.
+    let no_targets = InstructorOverlay::build(&replica, Some(&self::stats(3.3)));
+    assert!(no_targets.targets.is_empty());
+
+    let framing = frame_replica(&replica);
+    let frames = [
+        SceneFrame {
+            replica: &replica,
+            overlay: Some(&no_targets),
+        },
+        SceneFrame {
+            replica: &replica,
+            overlay: Some(&overlay),
+        },
+    ];
+    let images = render_frames(&frames, &framing, WIDTH, HEIGHT).unwrap_or_else(|err| {
+        panic!("offscreen rendering failed (needs Mesa lavapipe, see render_png.rs): {err}")
+    });
+    let (plain, ringed): (&RgbImage, &RgbImage) = (&images[0].0, &images[1].0);
+    ringed
+        .save(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("sinew_viewer_targets.png"))
+        .unwrap();
+    // Below the text lines.
+    let scene_pixels = |img: &RgbImage| {
+        img.enumerate_pixels()
+            .filter(|(_, y, _)| *y > 100)
+            .map(|(x, _, p)| (x, *p))
+            .collect::<Vec<_>>()
+    };
+    let count = |img: &RgbImage, f: fn(&image::Rgb<u8>) -> bool| {
+        scene_pixels(img).iter().filter(|(_, p)| f(p)).count()
+    };
+    let (green, yellow) = (
+        count(ringed, ring_green) - count(plain, ring_green).min(count(ringed, ring_green)),
+        count(ringed, ring_yellow) - count(plain, ring_yellow).min(count(ringed, ring_yellow)),
+    );
+    println!("target rings: {green} green pixels (hit), {yellow} yellow (next)");
+    assert!(
+        green > 60,
+        "the hit target's ring drew {green} green pixels"
+    );
+    assert!(
+        yellow > 60,
+        "the next target's ring drew {yellow} yellow pixels"
+    );
+    // The hit ring is left of the next one, as the targets lie along x.
+    let mean_x = |f: fn(&image::Rgb<u8>) -> bool| {
+        let xs: Vec<u32> = scene_pixels(ringed)
+            .iter()
+            .filter(|(_, p)| f(p))
+            .map(|(x, _)| *x)
+            .collect();
+        xs.iter().map(|&x| f64::from(x)).sum::<f64>() / xs.len().max(1) as f64
+    };
+    assert!(
+        mean_x(ring_green) < mean_x(ring_yellow),
+        "green ring at x {} px, yellow at {} px",
+        mean_x(ring_green),
+        mean_x(ring_yellow)
     );
 }

@@ -290,3 +290,76 @@ fn draws_a_suture_thread_where_the_tool_states_lay_it_and_follows_it() {
         "moving the thread changed only {changed} pixels"
     );
 }
+
+/// Amber, as a hole pulled tight is drawn: red and green high, blue well below green (tissue pink has blue
+/// near green).
+fn amber(p: &image::Rgb<u8>) -> bool {
+    let [r, g, b] = p.0.map(i32::from);
+    r > 150 && g > 100 && r >= g && b + 50 < g
+}
+
+#[test]
+fn marks_a_threads_holes_dark_when_slack_and_amber_when_drawn_tight() {
+    use sinew_protocol::{HoleMark, ThreadState};
+    let n = 20;
+    let flat_q = quantize_all(&sheet_positions_mm(n));
+    let snapshot = sheet_snapshot(flat_q, n, 1, [30.0, 30.0, 20.0]);
+    let mut replica = SceneReplica::from_snapshot(snapshot);
+    let framing = frame_replica(&replica);
+    // A thread lying on the sheet from (-20, -5) to (20, -5), 0.3 mm above it; four holes along it, 10 mm apart.
+    let nodes: Vec<[f32; 3]> = (0..=40).map(|i| [-20.0 + i as f32, -5.0, 0.3]).collect();
+    let with_holes = |pull_n: f32| {
+        let mut thread = ThreadState::from_nodes_mm(0, &nodes);
+        thread.holes = (0..4)
+            .map(|k| HoleMark {
+                position_mm: [-15.0 + 10.0 * k as f32, -5.0, 0.0],
+                pull_n,
+                on_needle: k == 3,
+            })
+            .collect();
+        thread
+    };
+    let mut frames = Vec::new();
+    for holes in [None, Some(0.0), Some(3.3)] {
+        let mut states = replica.tool_states().clone();
+        states.frame += 1;
+        states.threads = vec![match holes {
+            None => ThreadState::from_nodes_mm(0, &nodes),
+            Some(pull_n) => with_holes(pull_n),
+        }];
+        assert!(replica.apply_tools(states));
+        frames.push(replica.clone());
+    }
+    let images = render_sequence(&frames.iter().collect::<Vec<_>>(), &framing, WIDTH, HEIGHT)
+        .unwrap_or_else(|err| panic!("offscreen rendering failed: {err}"));
+    let (bare, slack, tight) = (&images[0].0, &images[1].0, &images[2].0);
+    let changed = |a: &RgbImage, b: &RgbImage| {
+        a.pixels()
+            .zip(b.pixels())
+            .filter(|(p, q)| p.0.iter().zip(q.0).any(|(&x, y)| x.abs_diff(y) > 20))
+            .count()
+    };
+    // The slack holes are darker than what they cover.
+    let darker = bare
+        .pixels()
+        .zip(slack.pixels())
+        .filter(|(p, q)| {
+            p.0.iter().map(|&c| u32::from(c)).sum::<u32>()
+                > q.0.iter().map(|&c| u32::from(c)).sum::<u32>() + 60
+        })
+        .count();
+    let ambers = |img: &RgbImage| img.pixels().filter(|p| amber(p)).count();
+    println!(
+        "holes: {} pixels changed marking them ({darker} darker), {} amber drawn tight ({} slack)",
+        changed(bare, slack),
+        ambers(tight),
+        ambers(slack)
+    );
+    assert!(darker >= 30, "only {darker} pixels darkened by four holes");
+    assert_eq!(ambers(slack), 0, "amber pixels with no pull");
+    assert!(
+        ambers(tight) >= 25,
+        "drawn tight, the holes show {} amber pixels",
+        ambers(tight)
+    );
+}

@@ -1,4 +1,4 @@
-"""Sinew's wire in Python (protocol 6; the specification is protocol/WIRE.md).
+"""Sinew's wire in Python (protocol 18; the specification is protocol/WIRE.md).
 
 - `sinew_client.wire`: the envelope and postcard codec of every message (pure Python, no zenoh).
 - `sinew_client.device`: a haptic device client over zenoh: join (token, hello), publish poses, receive forces,
@@ -16,11 +16,14 @@ from .wire import (
     ParticipantHello,
     MeshDelta,
     NeedleState,
+    HoleMark,
     ThreadState,
     ToolState,
     ToolStates,
     SceneSnapshot,
     ServerStats,
+    ExerciseStats,
+    TargetMark,
     decode,
     encode,
 )
@@ -36,11 +39,14 @@ __all__ = [
     "ParticipantHello",
     "MeshDelta",
     "NeedleState",
+    "HoleMark",
     "ThreadState",
     "ToolState",
     "ToolStates",
     "SceneSnapshot",
     "ServerStats",
+    "ExerciseStats",
+    "TargetMark",
     "decode",
     "encode",
 ]

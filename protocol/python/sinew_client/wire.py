@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional
 
-PROTOCOL_VERSION = 17
+PROTOCOL_VERSION = 18
 HEADER_LEN = 11
 
 # Message kinds (the byte after the version).
@@ -339,12 +339,22 @@ class QuantBounds:
 
 
 @dataclass
+class HoleMark:
+    """A puncture in a tissue's surface made by a thread's needle: where it is, how hard it pulls (protocol 18)."""
+
+    position_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    pull_n: float = wire_field("f32", default=0.0)
+    on_needle: bool = wire_field("bool", default=False)
+
+
+@dataclass
 class ThreadState:
     """A suture thread as it lies: its polyline in the world, mm, from the needle's tail (protocol 14)."""
 
     tool: int = wire_field("u16", default=0)
     bounds: QuantBounds = wire_field(QuantBounds, default_factory=lambda: QuantBounds([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]))
     nodes_q: List[List[int]] = wire_field(("vec", ("arr", "u16", 3)), default_factory=list)
+    holes: List[HoleMark] = wire_field(("vec", HoleMark), default_factory=list)
 
     def nodes_mm(self) -> List[List[float]]:
         return [self.bounds.dequantize(q) for q in self.nodes_q]
@@ -487,6 +497,15 @@ class DeviceStats:
 
 
 @dataclass
+class TargetMark:
+    """One target of the running exercise: where it is marked, its radius, hit or not (protocol 18)."""
+
+    at_mm: List[float] = wire_field(V3, default_factory=lambda: [0.0, 0.0, 0.0])
+    radius_mm: float = wire_field("f32", default=0.0)
+    hit: bool = wire_field("bool", default=False)
+
+
+@dataclass
 class ExerciseStats:
     kind: str = wire_field("str", default="")
     score: float = wire_field("f32", default=0.0)
@@ -496,6 +515,7 @@ class ExerciseStats:
     time_s: float = wire_field("f32", default=0.0)
     completed: bool = wire_field("bool", default=False)
     timed_out: bool = wire_field("bool", default=False)
+    targets: List[TargetMark] = wire_field(("vec", TargetMark), default_factory=list)
 
 
 @dataclass

@@ -55,6 +55,8 @@ def main():
     nodes = snapshot.tool_states.threads[0].nodes_mm()
     expected = [[-18.0, 0.0, -2.0], [-16.0, 0.0, -2.5]]
     assert all(abs(a - b) < 1e-3 for n, e in zip(nodes, expected) for a, b in zip(n, e)), nodes
+    hole = snapshot.tool_states.threads[0].holes[0]
+    assert hole.position_mm == [-16.0, 0.0, -3.0] and hole.pull_n == 0.5 and not hole.on_needle
     assert snapshot.tool_states.needles[0].tool == 0
     assert snapshot.tool_states.needles[0].position_mm == [-18.0, 0.0, 3.0]
     assert snapshot.objects[0].bounds.dequantize([65535, 0, 32768])[0] == 40.0
@@ -62,7 +64,9 @@ def main():
     assert delta.topology is not None and delta.topology.parents == [5] and delta.topology.added == [[301, 6, 7]]
     assert snapshot.objects[0].topology_epoch == 0
     _, stats = wire.decode(vectors["ServerStats"], wire.ServerStats)
-    assert stats.devices[0].training.skill_state == "contact" and stats.exercise is None
+    assert stats.devices[0].training.skill_state == "contact" and stats.exercise.kind == "suture"
+    marks = stats.exercise.targets
+    assert [(t.at_mm, t.radius_mm, t.hit) for t in marks] == [([10.0, 0.0, 0.0], 2.0, True), ([-10.0, 0.0, 0.0], 2.0, False)]
     # Bad input: clear errors, never a crash.
     for bad, why in [
         (b"", "truncated"),

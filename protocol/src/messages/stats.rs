@@ -123,6 +123,25 @@ pub struct ExerciseStats {
     pub completed: bool,
     /// The time limit passed.
     pub timed_out: bool,
+    /// The exercise's targets (or a suture's marks) in order, with whether each is hit: a viewer marks them.
+    /// Protocol 18.
+    pub targets: Vec<TargetMark>,
+}
+
+/// One target of the running exercise, where the world file puts it. Protocol 18.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct TargetMark {
+    /// Where it is marked on the tissue at rest, world mm.
+    pub at_mm: [f32; 3],
+    /// How close counts as on it, mm.
+    pub radius_mm: f32,
+    /// It has been hit.
+    pub hit: bool,
+}
+
+impl ExerciseStats {
+    /// Most targets one exercise may show.
+    pub const MAX_TARGETS: usize = 256;
 }
 
 /// Server health, published at 1 Hz on `sinew/<scene>/stats`.
@@ -193,7 +212,70 @@ impl Message for ServerStats {
         }
         if let Some(exercise) = &self.exercise {
             check::finite("exercise", &[exercise.score, exercise.time_s])?;
+            if exercise.targets.len() > ExerciseStats::MAX_TARGETS {
+                return Err(("exercise.targets", "more than 256 targets"));
+            }
+            for target in &exercise.targets {
+                check::finite("exercise.targets.at_mm", &target.at_mm)?;
+                if !(target.radius_mm.is_finite() && target.radius_mm > 0.0) {
+                    return Err(("exercise.targets.radius_mm", "not a positive finite number"));
+                }
+            }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_exercises_targets_must_be_finite_with_a_positive_radius() {
+        let target = TargetMark {
+            at_mm: [10.0, 0.0, 0.0],
+            radius_mm: 3.0,
+            hit: true,
+        };
+        let with = |targets: Vec<TargetMark>| ServerStats {
+            exercise: Some(ExerciseStats {
+                targets,
+                ..ExerciseStats::default()
+            }),
+            ..ServerStats::default()
+        };
+        assert_eq!(with(vec![target]).validate(), Ok(()));
+        for (bad, field) in [
+            (
+                TargetMark {
+                    at_mm: [0.0, f32::NAN, 0.0],
+                    ..target
+                },
+                "exercise.targets.at_mm",
+            ),
+            (
+                TargetMark {
+                    radius_mm: 0.0,
+                    ..target
+                },
+                "exercise.targets.radius_mm",
+            ),
+            (
+                TargetMark {
+                    radius_mm: f32::NAN,
+                    ..target
+                },
+                "exercise.targets.radius_mm",
+            ),
+        ] {
+            assert!(
+                matches!(with(vec![target, bad]).validate(), Err((f, _)) if f == field),
+                "{bad:?}"
+            );
+        }
+        assert!(matches!(
+            with(vec![target; ExerciseStats::MAX_TARGETS + 1]).validate(),
+            Err(("exercise.targets", _))
+        ));
     }
 }

@@ -37,11 +37,29 @@ pub struct ThreadState {
     pub bounds: QuantBounds,
     /// The thread's nodes from the needle's tail to the free end, quantized in `bounds`.
     pub nodes_q: Vec<[u16; 3]>,
+    /// The punctures in the tissue's surface that belong to this thread's needle: the holes the thread runs
+    /// through (the stitches), then the holes the needle itself still passes through. Protocol 18.
+    pub holes: Vec<HoleMark>,
+}
+
+/// A puncture in a tissue's surface, made by a needle: a viewer marks it, so a watching instructor sees where
+/// each bite went in and came out and how hard the stitch pulls there. Protocol 18.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct HoleMark {
+    /// Where the hole is now, world mm (the punctured material point of the surface, as the tissue moved it).
+    pub position_mm: [f32; 3],
+    /// How hard what runs through it pulls on the tissue there, N (the thread's pull for a stitch's hole, the
+    /// needle's for a hole on the needle): a viewer shows a stitch drawn tight.
+    pub pull_n: f32,
+    /// The needle still passes through it (the thread has not reached it yet).
+    pub on_needle: bool,
 }
 
 impl ThreadState {
     /// Most nodes one thread may have (a 512-segment thread has 513).
     pub const MAX_NODES: usize = 1024;
+    /// Most holes one thread may carry (a running suture of 64 stitches, with the needle's own).
+    pub const MAX_HOLES: usize = 256;
     /// How far the bounds reach past the nodes' box, mm (so a straight thread's bounds have extent).
     pub const MARGIN_MM: f32 = 0.5;
     /// Bounds of a thread with no finite node on an axis (valid, and never used to place a node).
@@ -58,7 +76,8 @@ impl ThreadState {
     }
 
     /// Quantize `nodes_mm` (world mm) into this message, reusing its buffer (no allocation once it has held
-    /// as many nodes). Non-finite coordinates land on the bounds' corner.
+    /// as many nodes). Non-finite coordinates land on the bounds' corner. The holes are cleared: push this
+    /// frame's after.
     pub fn set(&mut self, tool: u16, nodes_mm: impl Iterator<Item = [f32; 3]> + Clone) {
         let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
         for p in nodes_mm.clone() {
@@ -80,6 +99,7 @@ impl ThreadState {
         self.bounds = bounds;
         self.nodes_q.clear();
         self.nodes_q.extend(nodes_mm.map(|p| bounds.quantize(p).0));
+        self.holes.clear();
     }
 
     /// The nodes, world mm (dequantized).
@@ -94,6 +114,7 @@ impl Default for ThreadState {
             tool: 0,
             bounds: Self::EMPTY_BOUNDS,
             nodes_q: Vec::new(),
+            holes: Vec::new(),
         }
     }
 }
@@ -104,14 +125,16 @@ impl Clone for ThreadState {
             tool: self.tool,
             bounds: self.bounds,
             nodes_q: self.nodes_q.clone(),
+            holes: self.holes.clone(),
         }
     }
 
-    /// Reuses the nodes' buffer (the publish thread copies every frame's threads).
+    /// Reuses the nodes' and holes' buffers (the publish thread copies every frame's threads).
     fn clone_from(&mut self, source: &Self) {
         self.tool = source.tool;
         self.bounds = source.bounds;
         self.nodes_q.clone_from(&source.nodes_q);
+        self.holes.clone_from(&source.holes);
     }
 }
 
@@ -179,6 +202,16 @@ impl Message for ToolStates {
             if thread.nodes_q.len() > ThreadState::MAX_NODES {
                 return Err(("threads.nodes_q", "more than 1024 nodes"));
             }
+            if thread.holes.len() > ThreadState::MAX_HOLES {
+                return Err(("threads.holes", "more than 256 holes"));
+            }
+            for hole in &thread.holes {
+                check::finite("threads.holes.position_mm", &hole.position_mm)?;
+                check::finite("threads.holes.pull_n", &[hole.pull_n])?;
+                if hole.pull_n < 0.0 {
+                    return Err(("threads.holes.pull_n", "negative"));
+                }
+            }
         }
         if self.needles.len() > Self::MAX_THREADS {
             return Err(("needles", "more than 64 needles"));
@@ -235,5 +268,57 @@ mod tests {
             ..ToolStates::default()
         };
         assert_eq!(states.validate(), Ok(()));
+    }
+
+    #[test]
+    fn a_threads_holes_are_cleared_by_set_and_a_bad_hole_is_refused_by_name() {
+        let mut thread = ThreadState::from_nodes_mm(0, &[[0.0; 3], [2.0, 0.0, 0.0]]);
+        let hole = HoleMark {
+            position_mm: [1.0, 0.0, -0.2],
+            pull_n: 1.5,
+            on_needle: false,
+        };
+        thread.holes.push(hole);
+        let with = |thread: &ThreadState| ToolStates {
+            threads: vec![thread.clone()],
+            ..ToolStates::default()
+        };
+        assert_eq!(with(&thread).validate(), Ok(()));
+        for (bad, field) in [
+            (
+                HoleMark {
+                    position_mm: [f32::NAN, 0.0, 0.0],
+                    ..hole
+                },
+                "threads.holes.position_mm",
+            ),
+            (
+                HoleMark {
+                    pull_n: f32::INFINITY,
+                    ..hole
+                },
+                "threads.holes.pull_n",
+            ),
+            (
+                HoleMark {
+                    pull_n: -1.0,
+                    ..hole
+                },
+                "threads.holes.pull_n",
+            ),
+        ] {
+            let mut wrong = thread.clone();
+            wrong.holes.push(bad);
+            assert!(
+                matches!(with(&wrong).validate(), Err((f, _)) if f == field),
+                "{bad:?}"
+            );
+        }
+        let mut many = thread.clone();
+        many.holes = vec![hole; ThreadState::MAX_HOLES + 1];
+        assert!(matches!(with(&many).validate(), Err(("threads.holes", _))));
+        // The next frame's `set` starts its holes afresh (the buffer kept).
+        thread.set(0, [[0.0; 3]].into_iter());
+        assert!(thread.holes.is_empty() && thread.holes.capacity() >= 1);
     }
 }

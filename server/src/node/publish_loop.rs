@@ -8,14 +8,15 @@ use std::time::{Duration, Instant};
 use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::rt::Pacer;
 use sinew_protocol::{
-    DeviceStats, ExerciseStats, MeshDelta, ServerStats, ToolStates, TrainingStats, encode,
+    DeviceStats, ExerciseStats, MeshDelta, ServerStats, TargetMark, ToolStates, TrainingStats,
+    encode,
 };
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
 use super::{ServerError, Shared};
 use crate::replication::ObjectReplication;
-use crate::scene::ExerciseKind;
+use crate::scene::{ExerciseKind, ExerciseSpec};
 use crate::tissue::Vec3;
 use crate::training::LiveScore;
 
@@ -71,7 +72,7 @@ pub(crate) fn build_stats(shared: &Shared) -> ServerStats {
             .exercise
             .as_ref()
             .zip(report.exercise.as_ref())
-            .map(|(spec, live)| exercise_stats(spec.kind, live));
+            .map(|(spec, live)| exercise_stats(spec, live));
     }
     if let Ok(replication) = shared.replication.lock() {
         stats.deltas_sent = replication.deltas_sent;
@@ -98,11 +99,17 @@ pub fn training_stats(live: &super::LiveTraining) -> TrainingStats {
     }
 }
 
-/// The wire form of an exercise's running score.
-pub fn exercise_stats(kind: ExerciseKind, live: &LiveScore) -> ExerciseStats {
+/// The wire form of an exercise's running score, with its targets and which are hit (targets are hit in
+/// order: the first `hits`; a ranking has samples, not targets).
+pub fn exercise_stats(spec: &ExerciseSpec, live: &LiveScore) -> ExerciseStats {
     let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    let hit_targets = if spec.kind == ExerciseKind::StiffnessRanking {
+        0
+    } else {
+        live.hits
+    };
     ExerciseStats {
-        kind: kind.as_str().to_owned(),
+        kind: spec.kind.as_str().to_owned(),
         score: live.score as f32,
         hits: count(live.hits),
         total: count(live.total),
@@ -110,6 +117,17 @@ pub fn exercise_stats(kind: ExerciseKind, live: &LiveScore) -> ExerciseStats {
         time_s: live.time_s as f32,
         completed: live.completed,
         timed_out: live.timed_out,
+        targets: spec
+            .targets
+            .iter()
+            .take(ExerciseStats::MAX_TARGETS)
+            .enumerate()
+            .map(|(i, target)| TargetMark {
+                at_mm: target.at_mm,
+                radius_mm: target.radius_mm,
+                hit: i < hit_targets,
+            })
+            .collect(),
     }
 }
 

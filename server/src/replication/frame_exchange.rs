@@ -3,7 +3,7 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use sinew_protocol::{NeedleState, ThreadState, ToolState};
+use sinew_protocol::{HoleMark, NeedleState, ThreadState, ToolState};
 
 use crate::sim::{Sim, ToolOutput};
 
@@ -166,8 +166,8 @@ fn copy_needles(sim: &Sim, needles: &mut Vec<NeedleState>) {
     }
 }
 
-/// Quantize the threads laid out in `sim` into `threads` (their buffers reused: no allocation unless a thread
-/// appeared or grew).
+/// Quantize the threads laid out in `sim` into `threads`, each with its needle's holes in the surface (their
+/// buffers reused: no allocation unless a thread appeared or grew, or a hole was made).
 fn copy_threads(sim: &Sim, threads: &mut Vec<ThreadState>) {
     let mut n = 0;
     for (t, tool) in sim.tools.iter().enumerate() {
@@ -177,7 +177,32 @@ fn copy_threads(sim: &Sim, threads: &mut Vec<ThreadState>) {
         if threads.len() == n {
             threads.push(ThreadState::default());
         }
-        threads[n].set(t as u16, thread.nodes_mm().iter().map(|p| [p.x, p.y, p.z]));
+        let dst = &mut threads[n];
+        dst.set(t as u16, thread.nodes_mm().iter().map(|p| [p.x, p.y, p.z]));
+        let stitches = thread.holes().iter().map(|hole| HoleMark {
+            position_mm: hole.place_mm().into(),
+            pull_n: hole.pull_on_tissue_n().norm(),
+            on_needle: false,
+        });
+        let on_needle = tool.needle().into_iter().flat_map(|needle| {
+            needle.holes().iter().filter_map(|hole| {
+                let object = sim.objects.get(usize::from(hole.point.object))?;
+                let at_mm = hole.point.position_mm(&object.model, &object.state)?;
+                Some(HoleMark {
+                    position_mm: at_mm.into(),
+                    pull_n: hole.force_n.norm(),
+                    on_needle: true,
+                })
+            })
+        });
+        dst.holes.extend(
+            stitches
+                .chain(on_needle)
+                .filter(|mark| {
+                    mark.position_mm.iter().all(|c| c.is_finite()) && mark.pull_n.is_finite()
+                })
+                .take(ThreadState::MAX_HOLES),
+        );
         n += 1;
     }
     threads.truncate(n);

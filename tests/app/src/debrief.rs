@@ -92,7 +92,7 @@ fn replay_stats(
             .exercise
             .as_ref()
             .zip(observer.exercise())
-            .map(|(spec, run)| exercise_stats(spec.kind, &run.live())),
+            .map(|(spec, run)| exercise_stats(spec, &run.live())),
         ..ServerStats::default()
     }
 }
