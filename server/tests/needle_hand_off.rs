@@ -271,6 +271,12 @@ fn the_driver_lets_the_needle_go_in_the_tissue_and_the_grasper_takes_it_at_the_t
     assert!(frames.try_offer(&wound.sim, &[ToolOutput::default(); 2]));
     let sent = frames.with_frame(|f| f.needles.clone()).unwrap();
     assert_eq!(sent.len(), 1);
+    // Offered again, once warm, the frame with its thread and four holes allocates nothing.
+    let outputs = [ToolOutput::default(); 2];
+    let allocations = count_this_thread(|| {
+        assert!(frames.try_offer(&wound.sim, &outputs));
+    });
+    assert_eq!(allocations, 0, "handing off the holes allocated");
     // All four holes are the thread's now, sent where it runs through them.
     let marks = frames.with_frame(|f| f.threads[0].holes.clone()).unwrap();
     assert_eq!(marks.len(), 4);

@@ -278,14 +278,67 @@ struct Walk {
     /// the thread's own contact held pairs apart.
     least_apart_mm: f32,
     passed_through: u32,
+    /// The tick a pair first passed through each other.
+    first_pass_tick: Option<usize>,
     ticks_self_touching: u32,
+    /// The thread's crossings over itself seen from above as the walk starts, and at the 1000th tick.
+    crossings_at_start: usize,
+    crossings_at_1000: usize,
     ticks_resting: u32,
     allocations: u64,
 }
 
+/// How the thread lies when the random walk starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Start {
+    /// Laid out level from over the block's middle and let fall onto it.
+    Fallen,
+    /// Then laid in a pile on the skin ([`pile_path`]): coils crossing each other, let settle.
+    Piled,
+}
+
+/// How many pairs of the thread's segments (sharing no node) cross each other seen from above (in the x-y
+/// plane).
+fn crossings_seen_from_above(nodes: &[Vector3<f32>]) -> usize {
+    let cross = |o: &Vector3<f32>, a: &Vector3<f32>, b: &Vector3<f32>| {
+        (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
+    };
+    let segments = nodes.len() - 1;
+    (0..segments)
+        .flat_map(|i| (i + 2..segments).map(move |j| (i, j)))
+        .filter(|&(i, j)| {
+            let (a0, a1, b0, b1) = (&nodes[i], &nodes[i + 1], &nodes[j], &nodes[j + 1]);
+            cross(a0, a1, b0) * cross(a0, a1, b1) < 0.0
+                && cross(b0, b1, a0) * cross(b0, b1, a1) < 0.0
+        })
+        .count()
+}
+
+/// A pile of thread on the suture block's skin for a needle whose tail is at `tail`: down from the tail to the
+/// block's middle, then five coils of 5 mm radius, each shifted 2.5 mm along x from the last and rising 0.5 mm
+/// (two diameters: laid clear of each other), so each coil crosses the one below it twice; the rest of the
+/// thread runs on from the last coil's end.
+fn pile_path(tail: Vector3<f32>) -> Vec<Vector3<f32>> {
+    let start = Vector3::new(-6.0, 0.0, 0.6);
+    let mut path = vec![tail, Vector3::new(start.x, start.y, tail.z.min(6.0)), start];
+    let (radius, shift, coils) = (5.0, 2.5, 5.0f32);
+    for k in 1..=(coils * 24.0) as usize {
+        let t = std::f32::consts::TAU * k as f32 / 24.0;
+        let turns = k as f32 / 24.0;
+        path.push(Vector3::new(
+            start.x + radius - radius * t.cos() + shift * turns,
+            start.y + radius * t.sin(),
+            start.z + 0.5 * turns,
+        ));
+    }
+    let end = *path.last().unwrap();
+    path.push(end + Vector3::new(0.0, -10.0, 0.0));
+    path
+}
+
 /// 10,000 ticks of the needle wandering over the block and the grasper chasing the thread, from the thread let
-/// fall onto it; the randomness from `seed`.
-fn random_run(seed: u64) -> Walk {
+/// fall onto it (and piled, for [`Start::Piled`]); the randomness from `seed`.
+fn random_run(seed: u64, start: Start) -> Walk {
     let mut d = Driver::new();
     let level = Driver::level();
     // Laid out level from over the block's middle and let fall onto it.
@@ -306,6 +359,15 @@ fn random_run(seed: u64) -> Walk {
             .fold(f32::NEG_INFINITY, f32::max)
     };
     assert!(deepest(&d) <= -0.9 * radius);
+    if start == Start::Piled {
+        let path = pile_path(d.tail_now());
+        assert!(d.sim.tools[0].thread_mut().unwrap().lay_along(&path));
+        assert!(
+            deepest(&d) <= -0.9 * radius,
+            "the pile was laid in the skin"
+        );
+    }
+    let crossings_at_start = crossings_seen_from_above(d.nodes());
     let mut random = Random(seed);
     let mut target = origin;
     let mut yaw = 0.0f32;
@@ -317,6 +379,7 @@ fn random_run(seed: u64) -> Walk {
     let segments = d.nodes().len() - 1;
     let mut gaps = vec![None; segments * segments];
     let mut walk = Walk {
+        crossings_at_start,
         deepest_in_skin_mm: f32::NEG_INFINITY,
         deepest_in_tools_mm: f32::NEG_INFINITY,
         deepest_segment_in_tools_mm: f32::NEG_INFINITY,
@@ -371,7 +434,13 @@ fn random_run(seed: u64) -> Walk {
         if in_tools.max(segments_in_tools) > -0.5 * THREAD_DIAMETER_MM - 0.01 {
             walk.ticks_touching_tools += 1;
         }
+        if tick == 1000 {
+            walk.crossings_at_1000 = crossings_seen_from_above(d.nodes());
+        }
         let (least, passed) = self_contact(d.nodes(), &mut gaps);
+        if passed > 0 && walk.passed_through == 0 {
+            walk.first_pass_tick = Some(tick);
+        }
         walk.least_apart_mm = walk.least_apart_mm.min(least);
         walk.passed_through += passed;
         let thread = d.sim.tools[0].thread().unwrap();
@@ -418,7 +487,8 @@ fn assert_kept_apart(seed: u64, walk: &Walk) {
     );
     assert_eq!(
         walk.passed_through, 0,
-        "seed {seed}: the thread passed through itself"
+        "seed {seed}: the thread passed through itself (first at tick {:?})",
+        walk.first_pass_tick
     );
     assert!(
         walk.least_apart_mm > 0.5 * THREAD_DIAMETER_MM,
@@ -449,6 +519,35 @@ fn assert_kept_apart(seed: u64, walk: &Walk) {
     assert_eq!(walk.allocations, 0, "seed {seed}: the ticks allocated");
 }
 
+/// The thread piled on the skin in coils that cross one another ([`pile_path`]: 12 crossings seen from above),
+/// then the random walk, 10,000 ticks on each of two seeds. The coils spring open within about ten ticks (the
+/// thread's bending; none is left crossed by the 1000th tick), the thread touching itself as they do: no two
+/// segments may pass through each other then, nor into the skin or a tool over the rest of the walk. Measured
+/// (seeds 5-8): a pair passes through another on seeds 5, 6 and 8, at ticks 4-10, as the coils spring open.
+#[test]
+#[ignore = "known gap (issue 32): coils of 5 mm laid on the skin spring open within 10 ticks (the thread's bending, as a laid knot's), and on 3 of 4 seeds a pair passes through another as they do (docs/suturing.md, \"The thread on itself\")"]
+fn a_thread_piled_on_itself_never_passes_through_itself_over_10000_random_ticks() {
+    assert_counting_works();
+    for seed in seeds(5..=6) {
+        let walk = random_run(seed, Start::Piled);
+        println!(
+            "seed {seed}, piled: {} crossings seen from above as laid, {} at tick 1000",
+            walk.crossings_at_start, walk.crossings_at_1000
+        );
+        assert_kept_apart(seed, &walk);
+        assert!(
+            walk.crossings_at_start >= 8,
+            "the pile crosses itself {} times",
+            walk.crossings_at_start
+        );
+        assert!(
+            walk.ticks_self_touching >= 10,
+            "seed {seed}: the thread touched itself only {} ticks",
+            walk.ticks_self_touching
+        );
+    }
+}
+
 /// The seeds a test runs: `SINEW_SEED=<n>` runs that one alone.
 fn seeds(shipped: std::ops::RangeInclusive<u64>) -> Vec<u64> {
     match std::env::var("SINEW_SEED")
@@ -470,7 +569,7 @@ fn a_thread_lies_on_the_skin_and_never_passes_into_it_or_the_tools_over_10000_ra
     let mut resting = 0;
     let chosen = seeds(1..=4);
     for &seed in &chosen {
-        let walk = random_run(seed);
+        let walk = random_run(seed, Start::Fallen);
         assert_kept_apart(seed, &walk);
         touching_tools += walk.ticks_touching_tools;
         resting += walk.ticks_resting;
