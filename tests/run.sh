@@ -24,6 +24,11 @@ if ! python3 -c "import zenoh" >/dev/null 2>&1; then
   python3 -m pip install --quiet "eclipse-zenoh==1.10.2" 2>/dev/null \
     || python3 -m pip install --quiet --break-system-packages "eclipse-zenoh==1.10.2"
 fi
+# zenoh's own router, for the backbone test (tests/tests/zenohd_backbone.rs): a crate on the registry, built
+# once into cargo's bin directory (about 5 minutes on 2 cores).
+if ! command -v zenohd >/dev/null 2>&1 && [ ! -x "${CARGO_HOME:-$HOME/.cargo}/bin/zenohd" ]; then
+  cargo install zenohd --version 1.10.2 --locked --quiet
+fi
 # Mesa wants a runtime dir (else it prints a harmless error per render).
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/xdg-runtime-$(id -u)}"
 mkdir -p "$XDG_RUNTIME_DIR" && chmod 700 "$XDG_RUNTIME_DIR"

@@ -1,0 +1,192 @@
+//! zenoh's own router as a site's backbone (issue 34, first slice: loopback, no TLS): `zenohd` 1.10.2 routes,
+//! and every role is its client: the `sinew-server` process, two hapticservers with simulated hands pressing the
+//! pad, and `sinew-recorder`. Both hands press and feel the pad; the recorder, which joins only the router,
+//! records both surgeons' poses and presence (joined to a server peer it gets neither); killing the server and
+//! starting a new one leaves the router and the other roles running and both hands feel the pad again; killing
+//! the router and starting it again on the same port, likewise.
+//!
+//! Needs `zenohd` on PATH or in `~/.cargo/bin` (`cargo install zenohd --version 1.10.2 --locked`; `.ci/run`
+//! installs it): without it the test fails and says so.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use hapticserver::{HapticServer, SimDevice};
+use sinew_protocol::network::NetworkOptions;
+use sinew_server::recording::survey;
+use sinew_testkit::harness::{
+    KillOnDrop, free_loopback_endpoint, pad_device_config, serial, wait_until, worlds_dir,
+};
+use sinew_testkit::netns::role_binary;
+use sinew_testkit::scenarios::press;
+
+/// The `zenohd` binary: on PATH, else cargo's install directory.
+fn zenohd_binary() -> PathBuf {
+    let on_path = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|dir| dir.join("zenohd"))
+            .find(|p| p.is_file())
+    });
+    let in_cargo = std::env::var_os("CARGO_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")))
+        .map(|home| home.join("bin/zenohd"))
+        .filter(|p| p.is_file());
+    on_path.or(in_cargo).unwrap_or_else(|| {
+        panic!(
+            "zenohd is not installed: `cargo install zenohd --version 1.10.2 --locked` (.ci/run installs it)"
+        )
+    })
+}
+
+/// `zenohd` listening on `endpoint` (TCP on loopback), no multicast scouting; returned once it accepts
+/// connections (a client's session opened before then fails).
+fn start_router(endpoint: &str) -> KillOnDrop {
+    let router = KillOnDrop(
+        Command::new(zenohd_binary())
+            .args(["--listen", endpoint, "--no-multicast-scouting"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("starting zenohd"),
+    );
+    let address = endpoint.strip_prefix("tcp/").expect("a tcp/ endpoint");
+    assert!(
+        wait_until(Duration::from_secs(10), || std::net::TcpStream::connect(
+            address
+        )
+        .is_ok()),
+        "zenohd never listened on {endpoint}"
+    );
+    router
+}
+
+/// The `sinew-server` process on `worlds/pad.toml`, a client of the router at `router`.
+fn start_server(router: &str) -> KillOnDrop {
+    KillOnDrop(
+        Command::new(role_binary("sinew-server").unwrap())
+            .arg("--world")
+            .arg(worlds_dir().join("pad.toml"))
+            .args(["--zenoh-mode", "client", "--connect", router])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("starting sinew-server"),
+    )
+}
+
+/// A hapticserver for device `id` pressing the pad 6 mm, a client of the router at `router`.
+fn start_hand(id: &str, router: &str) -> hapticserver::HapticHandle {
+    let mut config = pad_device_config(id, Box::new(SimDevice::new(press(6.0, 1.0))), router);
+    config.network = NetworkOptions {
+        connect: vec![router.to_owned()],
+        mode: Some("client".to_owned()),
+        ..NetworkOptions::default()
+    };
+    HapticServer::start(config).expect("starting the hapticserver")
+}
+
+/// Both hands feel the pad: over 0.3 N each, within `timeout`.
+fn both_feel(hands: &[hapticserver::HapticHandle], timeout: Duration) -> bool {
+    wait_until(timeout, || {
+        hands
+            .iter()
+            .all(|h| h.report().last_rendered_force_magnitude_n() > 0.3)
+    })
+}
+
+fn forces(hands: &[hapticserver::HapticHandle]) -> Vec<f32> {
+    hands
+        .iter()
+        .map(|h| h.report().last_rendered_force_magnitude_n())
+        .collect()
+}
+
+#[test]
+fn every_role_a_client_of_zenohd_presses_feels_records_and_rejoins_after_each_restart() {
+    let _serial = serial();
+    let router = free_loopback_endpoint().unwrap();
+    let mut zenohd = start_router(&router);
+    let mut server = start_server(&router);
+    let hands = [start_hand("left", &router), start_hand("right", &router)];
+    assert!(
+        both_feel(&hands, Duration::from_secs(30)),
+        "through zenohd the hands never both felt the pad: {:?} N",
+        forces(&hands)
+    );
+    println!("through zenohd: both hands feel {:?} N", forces(&hands));
+
+    // The recorder joins the router alone, as an instructor's laptop would: it hears both surgeons.
+    let file = std::env::temp_dir().join(format!("sinew-{}-zenohd.mcap", std::process::id()));
+    let recorder = Command::new(role_binary("sinew-recorder").unwrap())
+        .args(["--out", file.to_str().unwrap(), "--scene", "pad"])
+        .args(["--zenoh-mode", "client", "--connect", &router])
+        .args(["--duration-s", "2.5", "--id", "instructor-recorder"])
+        .output()
+        .unwrap();
+    println!(
+        "sinew-recorder: {}{}",
+        String::from_utf8_lossy(&recorder.stdout),
+        String::from_utf8_lossy(&recorder.stderr)
+    );
+    assert!(recorder.status.success());
+    let wire = survey(&file).unwrap();
+    println!("recorder file topics: {:?}", wire.topic_counts);
+    let count = |topic: &str| wire.topic_counts.get(topic).copied().unwrap_or(0);
+    for device in ["left", "right"] {
+        // 2.5 s of poses and forces at up to 1 kHz, allowing for a loaded machine.
+        assert!(
+            count(&format!("sinew/pad/device/{device}/pose")) > 300,
+            "{device}'s poses did not reach the recorder"
+        );
+        assert!(count(&format!("sinew/pad/device/{device}/force")) > 300);
+        let key = format!("sinew/pad/presence/haptic/{device}");
+        assert!(
+            wire.presence
+                .iter()
+                .any(|(_, k, joined)| *k == key && *joined),
+            "{key} never joined: {:?}",
+            wire.presence
+        );
+    }
+    let _ = std::fs::remove_file(&file);
+
+    // The server dies: the router and the hands run on, their forces fade; a new server, and both feel again.
+    drop(server);
+    assert!(
+        wait_until(Duration::from_secs(5), || forces(&hands)
+            .iter()
+            .all(|f| *f < 0.05)),
+        "the forces did not fade with the server gone: {:?} N",
+        forces(&hands)
+    );
+    server = start_server(&router);
+    assert!(
+        both_feel(&hands, Duration::from_secs(30)),
+        "after the server's restart the hands never both felt the pad: {:?} N",
+        forces(&hands)
+    );
+    println!("after the server's restart: {:?} N", forces(&hands));
+
+    // The router dies and comes back on the same port: every role reconnects, and both feel again.
+    drop(zenohd);
+    assert!(
+        wait_until(Duration::from_secs(5), || forces(&hands)
+            .iter()
+            .all(|f| *f < 0.05)),
+        "the forces did not fade with the router gone: {:?} N",
+        forces(&hands)
+    );
+    zenohd = start_router(&router);
+    assert!(
+        both_feel(&hands, Duration::from_secs(30)),
+        "after the router's restart the hands never both felt the pad: {:?} N",
+        forces(&hands)
+    );
+    println!("after the router's restart: {:?} N", forces(&hands));
+    drop(hands);
+    drop(server);
+    drop(zenohd);
+}
