@@ -5,6 +5,11 @@
 //! starting a new one leaves the router and the other roles running and both hands feel the pad again; killing
 //! the router and starting it again on the same port, likewise.
 //!
+//! Then the same over mutual TLS on QUIC: `zenohd` with the lab's certificates (the server's, its names
+//! `localhost` and `127.0.0.1`), QUIC only, every role a client with its own certificate, QUIC's mixed
+//! reliability on every link (poses and forces as datagrams): both hands press and feel, and the recorder (the
+//! observer's certificate) records both surgeons.
+//!
 //! Needs `zenohd` on PATH or in `~/.cargo/bin` (`cargo install zenohd --version 1.10.2 --locked`; `.ci/run`
 //! installs it): without it the test fails and says so.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
@@ -15,6 +20,7 @@ use std::time::Duration;
 
 use hapticserver::{HapticServer, SimDevice};
 use sinew_protocol::network::NetworkOptions;
+use sinew_protocol::security::TlsFiles;
 use sinew_server::recording::survey;
 use sinew_testkit::harness::{
     KillOnDrop, free_loopback_endpoint, pad_device_config, serial, wait_until, worlds_dir,
@@ -52,6 +58,45 @@ fn start_router(endpoint: &str) -> KillOnDrop {
             .spawn()
             .expect("starting zenohd"),
     );
+    wait_listening(endpoint);
+    router
+}
+
+/// `zenohd` as a secured router: the zenoh configuration a role gets from [`NetworkOptions`] (mode router,
+/// listening on `endpoint` with QUIC's mixed reliability, mutual TLS with `files`, QUIC only, scouting off),
+/// each entry given as `--cfg KEY:VALUE`.
+fn start_secured_router(endpoint: &str, files: &TlsFiles) -> KillOnDrop {
+    let options = NetworkOptions {
+        listen: vec![endpoint.to_owned()],
+        mode: Some("router".to_owned()),
+        tls: Some(files.clone()),
+        ..NetworkOptions::default()
+    };
+    let mut command = Command::new(zenohd_binary());
+    for (key, value) in options.config_entries() {
+        command.arg(format!("--cfg={key}:{value}"));
+    }
+    let router = KillOnDrop(
+        command
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("starting zenohd"),
+    );
+    // QUIC is UDP: wait until the router's process is up and has bound its port (a UDP bind on it fails).
+    let address = endpoint.strip_prefix("quic/").expect("a quic/ endpoint");
+    assert!(
+        wait_until(Duration::from_secs(10), || std::net::UdpSocket::bind(
+            address
+        )
+        .is_err()),
+        "zenohd never bound {endpoint}"
+    );
+    router
+}
+
+/// Wait until something accepts TCP connections at `endpoint` (`tcp/HOST:PORT`).
+fn wait_listening(endpoint: &str) {
     let address = endpoint.strip_prefix("tcp/").expect("a tcp/ endpoint");
     assert!(
         wait_until(Duration::from_secs(10), || std::net::TcpStream::connect(
@@ -60,16 +105,16 @@ fn start_router(endpoint: &str) -> KillOnDrop {
         .is_ok()),
         "zenohd never listened on {endpoint}"
     );
-    router
 }
 
 /// The `sinew-server` process on `worlds/pad.toml`, a client of the router at `router`.
-fn start_server(router: &str) -> KillOnDrop {
+fn start_server(router: &str, extra: &[String]) -> KillOnDrop {
     KillOnDrop(
         Command::new(role_binary("sinew-server").unwrap())
             .arg("--world")
             .arg(worlds_dir().join("pad.toml"))
             .args(["--zenoh-mode", "client", "--connect", router])
+            .args(extra)
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -77,53 +122,40 @@ fn start_server(router: &str) -> KillOnDrop {
     )
 }
 
-/// A hapticserver for device `id` pressing the pad 6 mm, a client of the router at `router`.
-fn start_hand(id: &str, router: &str) -> hapticserver::HapticHandle {
+/// A hapticserver for device `id` pressing the pad 6 mm, a client of the router at `router` (with its
+/// certificate `tls`, if given).
+fn start_hand(id: &str, router: &str, tls: Option<&TlsFiles>) -> hapticserver::HapticHandle {
     let mut config = pad_device_config(id, Box::new(SimDevice::new(press(6.0, 1.0))), router);
     config.network = NetworkOptions {
         connect: vec![router.to_owned()],
         mode: Some("client".to_owned()),
+        tls: tls.cloned(),
         ..NetworkOptions::default()
     };
     HapticServer::start(config).expect("starting the hapticserver")
 }
 
-/// Both hands feel the pad: over 0.3 N each, within `timeout`.
-fn both_feel(hands: &[hapticserver::HapticHandle], timeout: Duration) -> bool {
-    wait_until(timeout, || {
-        hands
-            .iter()
-            .all(|h| h.report().last_rendered_force_magnitude_n() > 0.3)
-    })
+/// The `--tls-*` flags of a role with certificate `files`.
+fn tls_args(files: &TlsFiles) -> Vec<String> {
+    [
+        ("--tls-ca", &files.ca),
+        ("--tls-cert", &files.cert),
+        ("--tls-key", &files.key),
+    ]
+    .into_iter()
+    .flat_map(|(flag, path)| [flag.to_owned(), path.display().to_string()])
+    .collect()
 }
 
-fn forces(hands: &[hapticserver::HapticHandle]) -> Vec<f32> {
-    hands
-        .iter()
-        .map(|h| h.report().last_rendered_force_magnitude_n())
-        .collect()
-}
-
-#[test]
-fn every_role_a_client_of_zenohd_presses_feels_records_and_rejoins_after_each_restart() {
-    let _serial = serial();
-    let router = free_loopback_endpoint().unwrap();
-    let mut zenohd = start_router(&router);
-    let mut server = start_server(&router);
-    let hands = [start_hand("left", &router), start_hand("right", &router)];
-    assert!(
-        both_feel(&hands, Duration::from_secs(30)),
-        "through zenohd the hands never both felt the pad: {:?} N",
-        forces(&hands)
-    );
-    println!("through zenohd: both hands feel {:?} N", forces(&hands));
-
-    // The recorder joins the router alone, as an instructor's laptop would: it hears both surgeons.
-    let file = std::env::temp_dir().join(format!("sinew-{}-zenohd.mcap", std::process::id()));
+/// `sinew-recorder` for 2.5 s, a client of the router at `router` with `extra` flags; its file surveyed
+/// (asserting it ran and both surgeons' poses, forces and presence are in it) and removed.
+fn record_both_surgeons(router: &str, extra: &[String], name: &str) {
+    let file = std::env::temp_dir().join(format!("sinew-{}-{name}.mcap", std::process::id()));
     let recorder = Command::new(role_binary("sinew-recorder").unwrap())
         .args(["--out", file.to_str().unwrap(), "--scene", "pad"])
-        .args(["--zenoh-mode", "client", "--connect", &router])
+        .args(["--zenoh-mode", "client", "--connect", router])
         .args(["--duration-s", "2.5", "--id", "instructor-recorder"])
+        .args(extra)
         .output()
         .unwrap();
     println!(
@@ -152,6 +184,43 @@ fn every_role_a_client_of_zenohd_presses_feels_records_and_rejoins_after_each_re
         );
     }
     let _ = std::fs::remove_file(&file);
+}
+
+/// Both hands feel the pad: over 0.3 N each, within `timeout`.
+fn both_feel(hands: &[hapticserver::HapticHandle], timeout: Duration) -> bool {
+    wait_until(timeout, || {
+        hands
+            .iter()
+            .all(|h| h.report().last_rendered_force_magnitude_n() > 0.3)
+    })
+}
+
+fn forces(hands: &[hapticserver::HapticHandle]) -> Vec<f32> {
+    hands
+        .iter()
+        .map(|h| h.report().last_rendered_force_magnitude_n())
+        .collect()
+}
+
+#[test]
+fn every_role_a_client_of_zenohd_presses_feels_records_and_rejoins_after_each_restart() {
+    let _serial = serial();
+    let router = free_loopback_endpoint().unwrap();
+    let mut zenohd = start_router(&router);
+    let mut server = start_server(&router, &[]);
+    let hands = [
+        start_hand("left", &router, None),
+        start_hand("right", &router, None),
+    ];
+    assert!(
+        both_feel(&hands, Duration::from_secs(30)),
+        "through zenohd the hands never both felt the pad: {:?} N",
+        forces(&hands)
+    );
+    println!("through zenohd: both hands feel {:?} N", forces(&hands));
+
+    // The recorder joins the router alone, as an instructor's laptop would: it hears both surgeons.
+    record_both_surgeons(&router, &[], "zenohd");
 
     // The server dies: the router and the hands run on, their forces fade; a new server, and both feel again.
     drop(server);
@@ -162,7 +231,7 @@ fn every_role_a_client_of_zenohd_presses_feels_records_and_rejoins_after_each_re
         "the forces did not fade with the server gone: {:?} N",
         forces(&hands)
     );
-    server = start_server(&router);
+    server = start_server(&router, &[]);
     assert!(
         both_feel(&hands, Duration::from_secs(30)),
         "after the server's restart the hands never both felt the pad: {:?} N",
@@ -189,4 +258,39 @@ fn every_role_a_client_of_zenohd_presses_feels_records_and_rejoins_after_each_re
     drop(hands);
     drop(server);
     drop(zenohd);
+}
+
+#[test]
+fn over_mutual_tls_on_quic_every_role_a_client_of_zenohd_presses_feels_and_is_recorded() {
+    let _serial = serial();
+    let dir = std::env::temp_dir().join(format!("sinew-certs-zenohd-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let certs = sinew::certs::make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap();
+    let role = |name: &str| certs.role(name).unwrap().clone();
+    let router = free_loopback_endpoint()
+        .unwrap()
+        .replacen("tcp/", "quic/", 1);
+    let zenohd = start_secured_router(&router, &role("server"));
+    let server = start_server(&router, &tls_args(&role("server")));
+    let hands = [
+        start_hand("left", &router, Some(&role("device-left"))),
+        start_hand("right", &router, Some(&role("device-right"))),
+    ];
+    assert!(
+        both_feel(&hands, Duration::from_secs(30)),
+        "over TLS through zenohd the hands never both felt the pad: {:?} N",
+        forces(&hands)
+    );
+    let report = hands[0].report();
+    println!(
+        "over TLS through zenohd: both hands feel {:?} N; left's round trip p50 {:.0} us, p99 {:.0} us",
+        forces(&hands),
+        report.round_trip.percentile_us(50.0),
+        report.round_trip.percentile_us(99.0)
+    );
+    record_both_surgeons(&router, &tls_args(&role("observer")), "zenohd-tls");
+    drop(hands);
+    drop(server);
+    drop(zenohd);
+    let _ = std::fs::remove_dir_all(&dir);
 }
