@@ -64,12 +64,18 @@ fn start_router(endpoint: &str) -> KillOnDrop {
 
 /// `zenohd` as a secured router: the zenoh configuration a role gets from [`NetworkOptions`] (mode router,
 /// listening on `endpoint` with QUIC's mixed reliability, mutual TLS with `files`, QUIC only, scouting off),
-/// each entry given as `--cfg KEY:VALUE`.
-fn start_secured_router(endpoint: &str, files: &TlsFiles) -> KillOnDrop {
+/// each entry given as `--cfg KEY:VALUE`; with `access_control` (JSON5), the router enforces it on what each
+/// client's link brings in, by the client certificate's common name.
+fn start_secured_router(
+    endpoint: &str,
+    files: &TlsFiles,
+    access_control: Option<String>,
+) -> KillOnDrop {
     let options = NetworkOptions {
         listen: vec![endpoint.to_owned()],
         mode: Some("router".to_owned()),
         tls: Some(files.clone()),
+        access_control,
         ..NetworkOptions::default()
     };
     let mut command = Command::new(zenohd_binary());
@@ -270,7 +276,7 @@ fn over_mutual_tls_on_quic_every_role_a_client_of_zenohd_presses_feels_and_is_re
     let router = free_loopback_endpoint()
         .unwrap()
         .replacen("tcp/", "quic/", 1);
-    let zenohd = start_secured_router(&router, &role("server"));
+    let zenohd = start_secured_router(&router, &role("server"), None);
     let server = start_server(&router, &tls_args(&role("server")));
     let hands = [
         start_hand("left", &router, Some(&role("device-left"))),
@@ -291,6 +297,80 @@ fn over_mutual_tls_on_quic_every_role_a_client_of_zenohd_presses_feels_and_is_re
     record_both_surgeons(&router, &tls_args(&role("observer")), "zenohd-tls");
     drop(hands);
     drop(server);
+    drop(zenohd);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The lab's access rules at the router (`access_control_json5`, as a server enforces them): a device that
+/// presents the observer's certificate and publishes as `left` moves nothing (the router drops its hello and
+/// poses: the server never hears it; without the rules, 2991 of its poses reached the server and dented the pad
+/// 6.7 mm), while `right` with its own certificate presses and feels the pad through the same router. The
+/// server runs in this process, a client of the router, to read its stats.
+#[test]
+fn at_zenohd_the_labs_access_rules_keep_an_observer_from_moving_a_tool() {
+    use sinew_server::node::{ServerConfig, ServerNode};
+    use sinew_testkit::harness::{deepest_dent_mm, load_shipped_world, wait_device_active};
+    let _serial = serial();
+    let dir = std::env::temp_dir().join(format!("sinew-certs-zenohd-acl-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let certs = sinew::certs::make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap();
+    let role = |name: &str| certs.role(name).unwrap().clone();
+    let router = free_loopback_endpoint()
+        .unwrap()
+        .replacen("tcp/", "quic/", 1);
+    let acl =
+        sinew_protocol::security::access_control_json5("pad", &["left".into(), "right".into()]);
+    let zenohd = start_secured_router(&router, &role("server"), Some(acl));
+    let mut server = ServerNode::start(
+        load_shipped_world("pad.toml").unwrap(),
+        ServerConfig {
+            network: NetworkOptions {
+                connect: vec![router.clone()],
+                mode: Some("client".to_owned()),
+                tls: Some(role("server")),
+                ..NetworkOptions::default()
+            },
+            server_id: "server".into(),
+            spin_native_accuracy_ns: 0,
+            ..ServerConfig::default()
+        },
+    )
+    .unwrap();
+    let impostor = start_hand("left", &router, Some(&role("observer")));
+    std::thread::sleep(Duration::from_secs(3));
+    let published = impostor.report().poses_published;
+    let stats = server.stats();
+    let left = stats
+        .devices
+        .iter()
+        .find(|d| d.device_id == "left")
+        .unwrap();
+    println!(
+        "the observer's certificate as left: {published} poses published, {} reached the server, dent {:.3} mm",
+        left.poses_received,
+        deepest_dent_mm(&server)
+    );
+    assert!(published > 1000, "the impostor published {published} poses");
+    assert!(!left.active && left.poses_received == 0, "{left:?}");
+    assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
+    assert_eq!(impostor.report().forces_received, 0);
+    let right = start_hand("right", &router, Some(&role("device-right")));
+    assert!(
+        wait_device_active(&server, "right", Duration::from_secs(10)),
+        "right never drove its tool through the router's rules: {:?}",
+        server.stats().devices
+    );
+    assert!(
+        wait_until(Duration::from_secs(20), || right
+            .report()
+            .last_rendered_force_magnitude_n()
+            > 0.3),
+        "right never felt the pad: {:?} N",
+        right.report().last_rendered_force_magnitude_n()
+    );
+    drop(right);
+    drop(impostor);
+    server.stop();
     drop(zenohd);
     let _ = std::fs::remove_dir_all(&dir);
 }
