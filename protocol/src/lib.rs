@@ -2,7 +2,8 @@
 //!
 //! Owns: every message that crosses zenoh ([`messages`]), the key expressions they travel on ([`keys`]),
 //! the versioned envelope and its typed decode errors ([`codec`]), mesh-position quantization ([`quantize`]),
-//! the zenoh endpoint options every role shares ([`network`]), and TLS and access control ([`security`]). It
+//! the zenoh endpoint options every role shares ([`network`]), TLS and access control ([`security`]) and a
+//! router's zenoh configuration file ([`zenoh_config_file`]). It
 //! also holds the three tiny real-time primitives every role uses ([`rt`]: latest-value mailbox, latency
 //! histogram, loop pacer) so the roles need not depend on each other. With the `cli` feature, the command-line flags every role shares ([`cli`]).
 //!
@@ -18,6 +19,7 @@ pub mod network;
 pub mod quantize;
 pub mod rt;
 pub mod security;
+pub mod zenoh_config_file;
 
 pub use codec::{
     DecodeError, InstanceId, Message, MessageKind, PROTOCOL_VERSION, decode, decode_from, encode,

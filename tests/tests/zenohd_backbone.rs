@@ -5,10 +5,11 @@
 //! starting a new one leaves the router and the other roles running and both hands feel the pad again; killing
 //! the router and starting it again on the same port, likewise.
 //!
-//! Then the same over mutual TLS on QUIC: `zenohd` with the lab's certificates (the server's, its names
-//! `localhost` and `127.0.0.1`), QUIC only, every role a client with its own certificate, QUIC's mixed
-//! reliability on every link (poses and forces as datagrams): both hands press and feel, and the recorder (the
-//! observer's certificate) records both surgeons.
+//! Then the same over mutual TLS on QUIC: `zenohd` with the configuration `sinew certs` writes for a lab
+//! (`zenohd.json5`: the lab's `server` certificate, QUIC only, the lab's access rules), every role a client with its
+//! own certificate, QUIC's mixed reliability on every link: both hands press and feel, and the recorder (the
+//! observer's certificate) records both surgeons; and the router's rules keep a device presenting the
+//! observer's certificate from moving a tool.
 //!
 //! Needs `zenohd` on PATH or in `~/.cargo/bin` (`cargo install zenohd --version 1.10.2 --locked`; `.ci/run`
 //! installs it): without it the test fails and says so.
@@ -62,28 +63,17 @@ fn start_router(endpoint: &str) -> KillOnDrop {
     router
 }
 
-/// `zenohd` as a secured router: the zenoh configuration a role gets from [`NetworkOptions`] (mode router,
-/// listening on `endpoint` with QUIC's mixed reliability, mutual TLS with `files`, QUIC only, scouting off),
-/// each entry given as `--cfg KEY:VALUE`; with `access_control` (JSON5), the router enforces it on what each
-/// client's link brings in, by the client certificate's common name.
-fn start_secured_router(
-    endpoint: &str,
-    files: &TlsFiles,
-    access_control: Option<String>,
-) -> KillOnDrop {
-    let options = NetworkOptions {
-        listen: vec![endpoint.to_owned()],
-        mode: Some("router".to_owned()),
-        tls: Some(files.clone()),
-        access_control,
-        ..NetworkOptions::default()
-    };
-    let mut command = Command::new(zenohd_binary());
-    for (key, value) in options.config_entries() {
-        command.arg(format!("--cfg={key}:{value}"));
-    }
+/// The lab's `zenohd`: the configuration `sinew certs` writes (`write_router_config`: mode router, listening on
+/// `endpoint` with QUIC's mixed reliability, mutual TLS with the lab's `server` certificate, QUIC only, the
+/// lab's access rules for the pad's `left` and `right`), loaded with `zenohd -c`.
+fn start_lab_router(certs: &sinew::certs::LabCerts, endpoint: &str) -> KillOnDrop {
+    let devices = ["left".to_owned(), "right".to_owned()];
+    let config =
+        sinew::certs::write_router_config(certs, &[endpoint.to_owned()], "pad", &devices).unwrap();
     let router = KillOnDrop(
-        command
+        Command::new(zenohd_binary())
+            .arg("-c")
+            .arg(&config)
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -96,7 +86,8 @@ fn start_secured_router(
             address
         )
         .is_err()),
-        "zenohd never bound {endpoint}"
+        "zenohd never bound {endpoint} (its config: {})",
+        config.display()
     );
     router
 }
@@ -276,7 +267,7 @@ fn over_mutual_tls_on_quic_every_role_a_client_of_zenohd_presses_feels_and_is_re
     let router = free_loopback_endpoint()
         .unwrap()
         .replacen("tcp/", "quic/", 1);
-    let zenohd = start_secured_router(&router, &role("server"), None);
+    let zenohd = start_lab_router(&certs, &router);
     let server = start_server(&router, &tls_args(&role("server")));
     let hands = [
         start_hand("left", &router, Some(&role("device-left"))),
@@ -301,7 +292,7 @@ fn over_mutual_tls_on_quic_every_role_a_client_of_zenohd_presses_feels_and_is_re
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// The lab's access rules at the router (`access_control_json5`, as a server enforces them): a device that
+/// The lab's access rules at the router (`zenohd.json5`'s, the rules a server enforces): a device that
 /// presents the observer's certificate and publishes as `left` moves nothing (the router drops its hello and
 /// poses: the server never hears it; without the rules, 2991 of its poses reached the server and dented the pad
 /// 6.7 mm), while `right` with its own certificate presses and feels the pad through the same router. The
@@ -318,9 +309,7 @@ fn at_zenohd_the_labs_access_rules_keep_an_observer_from_moving_a_tool() {
     let router = free_loopback_endpoint()
         .unwrap()
         .replacen("tcp/", "quic/", 1);
-    let acl =
-        sinew_protocol::security::access_control_json5("pad", &["left".into(), "right".into()]);
-    let zenohd = start_secured_router(&router, &role("server"), Some(acl));
+    let zenohd = start_lab_router(&certs, &router);
     let mut server = ServerNode::start(
         load_shipped_world("pad.toml").unwrap(),
         ServerConfig {

@@ -124,6 +124,12 @@ enum Command {
         /// (repeatable): a site's DNS name or IP.
         #[arg(long = "host", value_name = "NAME")]
         hosts: Vec<String>,
+        /// The scene whose access rules the lab's router config (zenohd.json5) enforces.
+        #[arg(long, default_value = "pad")]
+        scene: String,
+        /// Where the lab's zenohd listens (repeatable; QUIC endpoints).
+        #[arg(long = "router-listen", value_name = "ENDPOINT", default_values_t = ["quic/0.0.0.0:7447".to_owned()])]
+        router_listen: Vec<String>,
     },
     /// What a recording holds: its metadata, messages per topic, ticks, presence changes, damage. Reads
     /// `sinew-recorder`'s files too.
@@ -218,8 +224,12 @@ fn main() -> anyhow::Result<()> {
             out,
             devices,
             hosts,
+            scene,
+            router_listen,
         } => {
             let certs = sinew::certs::make_lab_certs(&out, &devices, &hosts)?;
+            let router =
+                sinew::certs::write_router_config(&certs, &router_listen, &scene, &devices)?;
             println!(
                 "CA: {} (its key ca-key.pem signs new certificates: keep it offline)",
                 certs.ca.display()
@@ -232,6 +242,11 @@ fn main() -> anyhow::Result<()> {
                     files.key.display()
                 );
             }
+            println!(
+                "router (scene `{scene}`, listening on {}): zenohd -c {}",
+                router_listen.join(", "),
+                router.display()
+            );
         }
         Command::Info { file } => info(&file)?,
         Command::Report { file, out } => {
