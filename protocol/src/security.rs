@@ -1,7 +1,7 @@
 //! Sessions only the invited can join: TLS files, role names and the access-control rules, as plain data.
 //!
 //! Owns: [`TlsFiles`] (a role's CA, certificate and key), [`RoleName`] (the certificate common name that says
-//! who a peer is: `server`, `observer` or `device-<id>`) and [`access_control_json5`], the rules a server
+//! who a peer is: `server`, `observer`, `device-<id>` or a site's `router`) and [`access_control_json5`], the rules a server
 //! enforces on what reaches it. Identity comes from TLS client certificates (mutual TLS), not zenoh's
 //! user/password: a certificate proves the peer holds a key the lab's CA signed, its common name is the role
 //! zenoh's access control matches exactly, and the same files also encrypt the link. A password would travel
@@ -12,7 +12,11 @@
 //!   everything the server publishes;
 //! - `device-<id>` may publish only its own pose, hello and presence token;
 //! - `observer` may publish only a viewer's hello and presence token: never a pose;
-//! - `server` may do anything (a second server for the scene must still be noticed and refused).
+//! - `server` may do anything (a second server for the scene must still be noticed and refused);
+//! - `router`, a site's `zenohd`, may do what the server may, and is sent everything: behind it a server sees
+//!   every message arrive under the router's certificate and sends everything to it, and the router holds each
+//!   client to these same rules (its `zenohd.json5`). With the router only granted the server's rule, the
+//!   server's sending to it was refused (it is not otherwise in the lab) and no hand felt the pad.
 //!
 //! Must not: open sessions or read certificates' contents (zenoh does, when a role opens its session).
 
@@ -54,15 +58,19 @@ pub enum RoleName {
     Observer,
     /// The hapticserver of one device id.
     Device(String),
+    /// A site's `zenohd`, which every role is a client of (`sinew certs` writes its configuration): it holds
+    /// each client to the rules below, and a server behind it lets through what it brings in.
+    Router,
 }
 
 impl RoleName {
-    /// The certificate common name: `server`, `observer` or `device-<id>`.
+    /// The certificate common name: `server`, `observer`, `device-<id>` or `router`.
     pub fn common_name(&self) -> String {
         match self {
             RoleName::Server => "server".to_owned(),
             RoleName::Observer => "observer".to_owned(),
             RoleName::Device(id) => format!("device-{id}"),
+            RoleName::Router => "router".to_owned(),
         }
     }
 
@@ -107,13 +115,15 @@ pub fn access_control_json5(scene: &str, device_ids: &[String]) -> String {
     let mut everyone = vec![
         RoleName::Server.common_name(),
         RoleName::Observer.common_name(),
+        RoleName::Router.common_name(),
     ];
     let mut subjects = vec![
         "{id:\"server\",cert_common_names:[\"server\"]}".to_owned(),
         "{id:\"observer\",cert_common_names:[\"observer\"]}".to_owned(),
+        "{id:\"router\",cert_common_names:[\"router\"]}".to_owned(),
     ];
     let mut policies = vec![
-        "{rules:[\"server\"],subjects:[\"server\"]}".to_owned(),
+        "{rules:[\"server\"],subjects:[\"server\",\"router\"]}".to_owned(),
         "{rules:[\"observer\"],subjects:[\"observer\"]}".to_owned(),
     ];
     for id in device_ids {
@@ -157,7 +167,7 @@ mod tests {
         assert!(acl.contains("\"sinew/pad/device/left/pose\""));
         assert!(acl.contains("cert_common_names:[\"device-right\"]"));
         assert!(acl.contains(
-            "cert_common_names:[\"server\",\"observer\",\"device-left\",\"device-right\"]"
+            "cert_common_names:[\"server\",\"observer\",\"router\",\"device-left\",\"device-right\"]"
         ));
         // An observer's rule names no pose key.
         let observer = acl

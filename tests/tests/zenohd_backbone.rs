@@ -6,7 +6,7 @@
 //! the router and starting it again on the same port, likewise.
 //!
 //! Then the same over mutual TLS on QUIC: `zenohd` with the configuration `sinew certs` writes for a lab
-//! (`zenohd.json5`: the lab's `server` certificate, QUIC only, the lab's access rules), every role a client with its
+//! (`zenohd.json5`: the lab's `router` certificate, QUIC only, the lab's access rules), every role a client with its
 //! own certificate, QUIC's mixed reliability on every link: both hands press and feel, and the recorder (the
 //! observer's certificate) records both surgeons; and the router's rules keep a device presenting the
 //! observer's certificate from moving a tool.
@@ -64,7 +64,7 @@ fn start_router(endpoint: &str) -> KillOnDrop {
 }
 
 /// The lab's `zenohd`: the configuration `sinew certs` writes (`write_router_config`: mode router, listening on
-/// `endpoint` with QUIC's mixed reliability, mutual TLS with the lab's `server` certificate, QUIC only, the
+/// `endpoint` with QUIC's mixed reliability, mutual TLS with the lab's `router` certificate, QUIC only, the
 /// lab's access rules for the pad's `left` and `right`), loaded with `zenohd -c`.
 fn start_lab_router(certs: &sinew::certs::LabCerts, endpoint: &str) -> KillOnDrop {
     let devices = ["left".to_owned(), "right".to_owned()];
@@ -302,6 +302,7 @@ fn at_zenohd_the_labs_access_rules_keep_an_observer_from_moving_a_tool() {
     use sinew_server::node::{ServerConfig, ServerNode};
     use sinew_testkit::harness::{deepest_dent_mm, load_shipped_world, wait_device_active};
     let _serial = serial();
+    sinew_server::node::access_refusals::install_for_tests();
     let dir = std::env::temp_dir().join(format!("sinew-certs-zenohd-acl-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let certs = sinew::certs::make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap();
@@ -346,7 +347,8 @@ fn at_zenohd_the_labs_access_rules_keep_an_observer_from_moving_a_tool() {
     let right = start_hand("right", &router, Some(&role("device-right")));
     assert!(
         wait_device_active(&server, "right", Duration::from_secs(10)),
-        "right never drove its tool through the router's rules: {:?}",
+        "right never drove its tool through the router's rules: {:?} {:?}",
+        server.stats().rejected,
         server.stats().devices
     );
     assert!(

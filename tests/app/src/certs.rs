@@ -3,7 +3,7 @@
 //! Owns: making a certificate authority and one certificate per role, signed by it, as PEM files, and the
 //! lab's `zenohd` configuration using the router's ([`write_router_config`]). The role
 //! is the certificate's common name, which zenoh's access control matches (`server`, `observer`,
-//! `device-<id>`: see `sinew_protocol::security`); every certificate names the hosts it may be reached at
+//! `device-<id>`, `router`: see `sinew_protocol::security`); every certificate names the hosts it may be reached at
 //! (localhost and the loopback addresses, plus `--host`), because in peer mode each role both accepts and
 //! dials, so each certificate serves as a TLS server and a TLS client.
 //!
@@ -51,7 +51,7 @@ fn write_private(path: &Path, text: &str) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Make a CA and certificates for the server, one observer and each device in `device_ids`, into `dir`
+/// Make a CA and certificates for the server, one observer, a site's router and each device in `device_ids`, into `dir`
 /// (created if needed). `hosts` are extra names or addresses the roles are reached at (a site's DNS name).
 /// Refuses to overwrite an existing `ca-key.pem`.
 pub fn make_lab_certs(
@@ -67,7 +67,7 @@ pub fn make_lab_certs(
          certificate)",
         ca_key_path.display()
     );
-    let mut names: Vec<RoleName> = vec![RoleName::Server, RoleName::Observer];
+    let mut names: Vec<RoleName> = vec![RoleName::Server, RoleName::Observer, RoleName::Router];
     for id in device_ids {
         let role = RoleName::Device(id.clone());
         role.check().map_err(anyhow::Error::msg)?;
@@ -145,14 +145,8 @@ pub fn make_lab_certs(
 }
 
 /// Write `zenohd.json5` into the lab's folder: `zenohd -c` it to run the site's router (listening on `listen`,
-/// QUIC endpoints; mutual TLS; the lab's access rules for `scene` and its devices `device_ids`). Returns its
-/// path.
-///
-/// The router presents the lab's `server` certificate. Behind it the server's own rules see every message
-/// arrive from the router, under the router's certificate, and must let through what the router let through
-/// (it held each client to the same rules): as `server` it may. A certificate of its own (`router`) was tried:
-/// no hand then felt the pad through it, with no refusal counted at the server; why is not yet found
-/// (docs/sites.md).
+/// QUIC endpoints; mutual TLS with the lab's `router` certificate; the lab's access rules for `scene` and its
+/// devices `device_ids`). Returns its path.
 pub fn write_router_config(
     certs: &LabCerts,
     listen: &[String],
@@ -160,8 +154,8 @@ pub fn write_router_config(
     device_ids: &[String],
 ) -> anyhow::Result<PathBuf> {
     let router = certs
-        .role(&RoleName::Server.common_name())
-        .context("the lab has no server certificate")?;
+        .role(&RoleName::Router.common_name())
+        .context("the lab has no router certificate")?;
     sinew_protocol::keys::validate_segment("scene", scene).map_err(|e| anyhow::anyhow!("{e}"))?;
     let text =
         sinew_protocol::zenoh_config_file::lab_router_config(listen, router, scene, device_ids);
