@@ -192,6 +192,27 @@ fn both_feel(hands: &[hapticserver::HapticHandle], timeout: Duration) -> bool {
     })
 }
 
+/// With the `what` gone, every hand's force fades below 0.05 N within 5 s.
+fn assert_forces_fade(hands: &[hapticserver::HapticHandle], what: &str) {
+    assert!(
+        wait_until(Duration::from_secs(5), || forces(hands)
+            .iter()
+            .all(|f| *f < 0.05)),
+        "the forces did not fade with the {what} gone: {:?} N",
+        forces(hands)
+    );
+}
+
+/// After the `what`'s restart, both hands feel the pad again within 30 s.
+fn assert_both_feel_again(hands: &[hapticserver::HapticHandle], what: &str) {
+    assert!(
+        both_feel(hands, Duration::from_secs(30)),
+        "after the {what}'s restart the hands never both felt the pad: {:?} N",
+        forces(hands)
+    );
+    println!("after the {what}'s restart: {:?} N", forces(hands));
+}
+
 fn forces(hands: &[hapticserver::HapticHandle]) -> Vec<f32> {
     hands
         .iter()
@@ -221,37 +242,15 @@ fn every_role_a_client_of_zenohd_presses_feels_records_and_rejoins_after_each_re
 
     // The server dies: the router and the hands run on, their forces fade; a new server, and both feel again.
     drop(server);
-    assert!(
-        wait_until(Duration::from_secs(5), || forces(&hands)
-            .iter()
-            .all(|f| *f < 0.05)),
-        "the forces did not fade with the server gone: {:?} N",
-        forces(&hands)
-    );
+    assert_forces_fade(&hands, "server");
     server = start_server(&router, &[]);
-    assert!(
-        both_feel(&hands, Duration::from_secs(30)),
-        "after the server's restart the hands never both felt the pad: {:?} N",
-        forces(&hands)
-    );
-    println!("after the server's restart: {:?} N", forces(&hands));
+    assert_both_feel_again(&hands, "server");
 
     // The router dies and comes back on the same port: every role reconnects, and both feel again.
     drop(zenohd);
-    assert!(
-        wait_until(Duration::from_secs(5), || forces(&hands)
-            .iter()
-            .all(|f| *f < 0.05)),
-        "the forces did not fade with the router gone: {:?} N",
-        forces(&hands)
-    );
+    assert_forces_fade(&hands, "router");
     zenohd = start_router(&router);
-    assert!(
-        both_feel(&hands, Duration::from_secs(30)),
-        "after the router's restart the hands never both felt the pad: {:?} N",
-        forces(&hands)
-    );
-    println!("after the router's restart: {:?} N", forces(&hands));
+    assert_both_feel_again(&hands, "router");
     drop(hands);
     drop(server);
     drop(zenohd);
