@@ -23,8 +23,24 @@ pub fn zenoh_config(network: &NetworkOptions) -> Result<zenoh::Config, ViewerErr
             .insert_json5(key, &value)
             .map_err(|e| ViewerError::zenoh(format!("setting `{key}` to {value}"), e))?;
     }
+    if network.config_file.is_none() {
+        // zenoh's open waits (500 ms) for the declarations of every peer it connects to, and warns `Scouting
+        // delay elapsed before start conditions are met` when they come later: on a loaded 2-core runner a
+        // server busy starting its scene answered later than that (CI, 2026-11-29). The viewer does not need
+        // the wait: its first snapshot query, if no queryable is known yet, fails quietly and is retried at
+        // once when the server's presence arrives (`client.rs`), and deltas are subscribed before it.
+        config
+            .insert_json5(RETURN_WITHOUT_DECLARATIONS.0, RETURN_WITHOUT_DECLARATIONS.1)
+            .map_err(|e| {
+                ViewerError::zenoh(format!("setting `{}`", RETURN_WITHOUT_DECLARATIONS.0), e)
+            })?;
+    }
     Ok(config)
 }
+
+/// The session's open returns without waiting for the connected peers' declarations.
+const RETURN_WITHOUT_DECLARATIONS: (&str, &str) =
+    ("open/return_conditions/connect_scouted", "false");
 
 #[cfg(test)]
 mod tests {
@@ -33,6 +49,15 @@ mod tests {
     #[test]
     fn default_client_options_make_a_config() {
         assert!(zenoh_config(&NetworkOptions::client_default()).is_ok());
+    }
+
+    #[test]
+    fn the_viewer_does_not_wait_for_the_servers_declarations_to_open() {
+        let config = zenoh_config(&NetworkOptions::client_default()).unwrap();
+        assert_eq!(
+            config.get_json(RETURN_WITHOUT_DECLARATIONS.0).unwrap(),
+            RETURN_WITHOUT_DECLARATIONS.1
+        );
     }
 
     #[test]
