@@ -15,9 +15,9 @@ pub struct NetworkArgs {
     /// the server's TCP and UDP endpoints at 127.0.0.1:7447, a viewer or recorder to the TCP one, a server to none].
     #[arg(long, value_name = "ENDPOINT")]
     pub connect: Vec<String>,
-    /// zenoh endpoint to listen on (repeatable) [default, unless --zenoh-config is given: a server listens on
-    /// tcp/127.0.0.1:7447 and udp/127.0.0.1:7447 (devices get one transport with two links: reliable messages on
-    /// TCP, poses and forces on UDP), the other roles on none].
+    /// zenoh endpoint to listen on (repeatable) [default, unless --zenoh-config is given or --zenoh-mode is
+    /// client: a server listens on tcp/127.0.0.1:7447 and udp/127.0.0.1:7447 (devices get one transport with two
+    /// links: reliable messages on TCP, poses and forces on UDP), the other roles on none].
     #[arg(long, value_name = "ENDPOINT")]
     pub listen: Vec<String>,
     /// zenoh config file (JSON5), loaded first; --connect, --listen and --zenoh-mode override it.
@@ -30,7 +30,8 @@ pub struct NetworkArgs {
     /// TLS (over QUIC) and default endpoints become quic/ ones (a server then enforces the roles' access rules).
     #[arg(long, value_name = "FILE", requires_all = ["tls_cert", "tls_key"])]
     pub tls_ca: Option<std::path::PathBuf>,
-    /// This role's certificate (PEM); its common name is the role: server, observer or device-<id>.
+    /// This role's certificate (PEM); its common name is the role and scene: server@<scene>, observer@<scene> or
+    /// device-<id>@<scene> (`sinew certs` issues them).
     #[arg(long, value_name = "FILE", requires_all = ["tls_ca", "tls_key"])]
     pub tls_cert: Option<std::path::PathBuf>,
     /// This role's private key (PEM).
@@ -56,9 +57,16 @@ impl NetworkArgs {
             Some(tls) => role_default.secured(tls),
             None => role_default,
         };
+        // A client of a router is reached through the router: it listens on nothing unless told to (a server
+        // listening on its default port beside another scene's server on the same host could not bind it).
+        let default_listen = if self.zenoh_mode.as_deref() == Some("client") {
+            Vec::new()
+        } else {
+            role_default.listen
+        };
         NetworkOptions {
             config_file: self.zenoh_config.clone(),
-            listen: pick(&self.listen, role_default.listen),
+            listen: pick(&self.listen, default_listen),
             connect: pick(&self.connect, role_default.connect),
             mode: self.zenoh_mode.clone(),
             tls: role_default.tls,
@@ -144,6 +152,17 @@ mod tests {
         .options(server());
         assert_eq!(given.listen, vec!["tcp/0.0.0.0:7447"]);
         assert_eq!(given.connect, vec!["tcp/r:7447"]);
+        // A server that is a router's client listens on nothing, unless told to.
+        let client = parse(&["role", "--zenoh-mode", "client", "--connect", "tcp/r:7447"]);
+        assert!(client.options(server()).listen.is_empty());
+        let told = parse(&[
+            "role",
+            "--zenoh-mode",
+            "client",
+            "--listen",
+            "tcp/0.0.0.0:7448",
+        ]);
+        assert_eq!(told.options(server()).listen, vec!["tcp/0.0.0.0:7448"]);
         let file = parse(&[
             "role",
             "--zenoh-config",

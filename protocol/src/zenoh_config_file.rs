@@ -3,12 +3,12 @@
 //!
 //! Owns: nesting the entries' `a/b/c` paths into objects ([`config_document`]) and a lab's router file
 //! ([`lab_router_config`]: mode router, its listen endpoints, mutual TLS with its certificate, QUIC only, the
-//! lab's access rules for a scene).
+//! access rules of every scene it carries).
 //!
 //! Must not: parse or check the values (zenoh does, when the file is loaded: the tests load what this writes).
 
 use crate::network::NetworkOptions;
-use crate::security::{TlsFiles, access_control_json5};
+use crate::security::{SceneRoles, TlsFiles, router_access_control_json5};
 
 /// One level of the document: each key's value, a JSON5 text or a nested level, in first-insertion order.
 enum Node {
@@ -71,20 +71,15 @@ pub fn config_document(entries: &[(&str, String)]) -> String {
 }
 
 /// A lab's `zenohd` configuration: a router listening on `listen` (QUIC endpoints: mixed reliability is added),
-/// mutual TLS with `tls` (the router's certificate), QUIC only, multicast scouting off, and the lab's access
-/// rules for `scene` and its devices `device_ids` enforced on what each client's link brings in (by its
-/// certificate's common name), as a server enforces them when it is the router itself.
-pub fn lab_router_config(
-    listen: &[String],
-    tls: &TlsFiles,
-    scene: &str,
-    device_ids: &[String],
-) -> String {
+/// mutual TLS with `tls` (the router's certificate), QUIC only, multicast scouting off, and the access rules of
+/// every scene in `scenes` enforced on what each client's link brings in and is sent (by its certificate's
+/// common name), as a server enforces its scene's when it is the router itself.
+pub fn lab_router_config(listen: &[String], tls: &TlsFiles, scenes: &[SceneRoles]) -> String {
     let options = NetworkOptions {
         listen: listen.to_vec(),
         mode: Some("router".to_owned()),
         tls: Some(tls.clone()),
-        access_control: Some(access_control_json5(scene, device_ids)),
+        access_control: Some(router_access_control_json5(scenes)),
         ..NetworkOptions::default()
     };
     config_document(&options.config_entries())
@@ -120,8 +115,10 @@ mod tests {
         let doc = lab_router_config(
             &["quic/0.0.0.0:7447".to_owned()],
             &tls,
-            "pad",
-            &["left".to_owned()],
+            &[SceneRoles {
+                scene: "pad".into(),
+                device_ids: vec!["left".into()],
+            }],
         );
         for part in [
             "mode: \"router\"",

@@ -406,6 +406,7 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     // The server's lab address goes into every certificate: the devices check the name they dialled.
     let certs = sinew::certs::make_lab_certs(
         &certs_dir,
+        "pad",
         &["left".into()],
         std::slice::from_ref(&server_ip),
     )

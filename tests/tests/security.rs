@@ -20,7 +20,7 @@ fn lab(name: &str) -> LabCerts {
     sinew_server::node::access_refusals::install_for_tests();
     let dir = std::env::temp_dir().join(format!("sinew-certs-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap()
+    make_lab_certs(&dir, "pad", &["left".into(), "right".into()], &[]).unwrap()
 }
 
 /// A free loopback port as a secured (QUIC, TLS 1.3) endpoint.
@@ -157,6 +157,58 @@ fn a_device_publishing_another_devices_pose_is_refused_and_that_tool_does_not_mo
         "a lab certificate passes the handshake"
     );
     impostor.stop().unwrap();
+    drop(server);
+    cleanup(&certs);
+}
+
+/// One lab (one CA, one site) holds two scenes: `left`'s certificate of the cautery scene is signed by the same
+/// CA and passes the handshake, but its name (`device-left@cautery`) is in none of the pad's rules: the pad's
+/// server sends it nothing (not even its subscriptions, so its poses never leave its own session: a few
+/// hellos are all the server counts as refused), hears nothing of it, and its tool does not move.
+#[test]
+fn a_device_certificate_of_another_scene_in_the_same_lab_is_refused() {
+    let _serial = serial();
+    let certs = lab("two-scenes");
+    let cautery = make_lab_certs(&certs.dir, "cautery", &["left".into()], &[]).unwrap();
+    assert_eq!(cautery.ca, certs.ca, "the second scene reuses the lab's CA");
+    let endpoint = tls_endpoint();
+    let server = start_tls_server(&certs, &endpoint);
+    let target = Arc::new(LatestValue::new());
+    target.store([0.0, 0.0, -5.0]);
+    let mut stranger = start_tls_device(
+        "left",
+        cautery.role("device-left").unwrap(),
+        &endpoint,
+        &target,
+    );
+    std::thread::sleep(Duration::from_secs(3));
+    let report = stranger.report();
+    let stats = server.stats();
+    let slot = stats
+        .devices
+        .iter()
+        .find(|d| d.device_id == "left")
+        .unwrap();
+    println!(
+        "cautery's left at the pad: {} poses published, {} received, {:?}, link {:?}",
+        report.poses_published, slot.poses_received, stats.rejected, report.server_link
+    );
+    assert!(report.poses_published > 1000);
+    assert!(!slot.active && slot.poses_received == 0, "{slot:?}");
+    assert!(deepest_dent_mm(&server) < 0.05, "the tissue moved");
+    assert_eq!(report.forces_received, 0);
+    assert!(
+        !matches!(
+            report.server_link,
+            hapticserver::server_watch::Link::Joined(_)
+        ),
+        "it saw the pad's server: {report}"
+    );
+    assert_eq!(
+        stats.rejected.tls_refused, 0,
+        "the same CA signed it: the handshake passes"
+    );
+    stranger.stop().unwrap();
     drop(server);
     cleanup(&certs);
 }

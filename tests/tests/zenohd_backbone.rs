@@ -11,6 +11,10 @@
 //! observer's certificate) records both surgeons; and the router's rules keep a device presenting the
 //! observer's certificate from moving a tool.
 //!
+//! And two scenes on one lab router (the pad and the cautery pad, each with its own server process and
+//! surgeon): each scene's roles reach only their own, by key and by certificate (`device-left@pad` cannot
+//! publish into the cautery scene, `observer@pad` cannot read it).
+//!
 //! Needs `zenohd` on PATH or in `~/.cargo/bin` (`cargo install zenohd --version 1.10.2 --locked`; `.ci/run`
 //! installs it): without it the test fails and says so.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
@@ -67,9 +71,7 @@ fn start_router(endpoint: &str) -> KillOnDrop {
 /// `endpoint` with QUIC's mixed reliability, mutual TLS with the lab's `router` certificate, QUIC only, the
 /// lab's access rules for the pad's `left` and `right`), loaded with `zenohd -c`.
 fn start_lab_router(certs: &sinew::certs::LabCerts, endpoint: &str) -> KillOnDrop {
-    let devices = ["left".to_owned(), "right".to_owned()];
-    let config =
-        sinew::certs::write_router_config(certs, &[endpoint.to_owned()], "pad", &devices).unwrap();
+    let config = sinew::certs::write_router_config(&certs.dir, &[endpoint.to_owned()]).unwrap();
     let router = KillOnDrop(
         Command::new(zenohd_binary())
             .arg("-c")
@@ -106,10 +108,15 @@ fn wait_listening(endpoint: &str) {
 
 /// The `sinew-server` process on `worlds/pad.toml`, a client of the router at `router`.
 fn start_server(router: &str, extra: &[String]) -> KillOnDrop {
+    start_server_on("pad.toml", router, extra)
+}
+
+/// The `sinew-server` process on `worlds/<world>`, a client of the router at `router`.
+fn start_server_on(world: &str, router: &str, extra: &[String]) -> KillOnDrop {
     KillOnDrop(
         Command::new(role_binary("sinew-server").unwrap())
             .arg("--world")
-            .arg(worlds_dir().join("pad.toml"))
+            .arg(worlds_dir().join(world))
             .args(["--zenoh-mode", "client", "--connect", router])
             .args(extra)
             .stdout(Stdio::null())
@@ -122,7 +129,19 @@ fn start_server(router: &str, extra: &[String]) -> KillOnDrop {
 /// A hapticserver for device `id` pressing the pad 6 mm, a client of the router at `router` (with its
 /// certificate `tls`, if given).
 fn start_hand(id: &str, router: &str, tls: Option<&TlsFiles>) -> hapticserver::HapticHandle {
+    start_hand_in("pad", id, router, tls)
+}
+
+/// A hapticserver for device `id` of `scene` pressing 6 mm, a client of the router at `router` (with its
+/// certificate `tls`, if given).
+fn start_hand_in(
+    scene: &str,
+    id: &str,
+    router: &str,
+    tls: Option<&TlsFiles>,
+) -> hapticserver::HapticHandle {
     let mut config = pad_device_config(id, Box::new(SimDevice::new(press(6.0, 1.0))), router);
+    config.scene = scene.to_owned();
     config.network = NetworkOptions {
         connect: vec![router.to_owned()],
         mode: Some("client".to_owned()),
@@ -144,12 +163,17 @@ fn tls_args(files: &TlsFiles) -> Vec<String> {
     .collect()
 }
 
-/// `sinew-recorder` for 2.5 s, a client of the router at `router` with `extra` flags; its file surveyed
-/// (asserting it ran and both surgeons' poses, forces and presence are in it) and removed.
-fn record_both_surgeons(router: &str, extra: &[String], name: &str) {
+/// `sinew-recorder` for 2.5 s on `scene`, a client of the router at `router` with `extra` flags: its file's
+/// survey (the file removed).
+fn record(
+    router: &str,
+    scene: &str,
+    extra: &[String],
+    name: &str,
+) -> sinew_server::recording::Recording {
     let file = std::env::temp_dir().join(format!("sinew-{}-{name}.mcap", std::process::id()));
     let recorder = Command::new(role_binary("sinew-recorder").unwrap())
-        .args(["--out", file.to_str().unwrap(), "--scene", "pad"])
+        .args(["--out", file.to_str().unwrap(), "--scene", scene])
         .args(["--zenoh-mode", "client", "--connect", router])
         .args(["--duration-s", "2.5", "--id", "instructor-recorder"])
         .args(extra)
@@ -162,7 +186,15 @@ fn record_both_surgeons(router: &str, extra: &[String], name: &str) {
     );
     assert!(recorder.status.success());
     let wire = survey(&file).unwrap();
-    println!("recorder file topics: {:?}", wire.topic_counts);
+    println!("{name}: recorder file topics: {:?}", wire.topic_counts);
+    let _ = std::fs::remove_file(&file);
+    wire
+}
+
+/// `sinew-recorder` on the pad (see [`record`]), asserting both surgeons' poses, forces and presence are in its
+/// file.
+fn record_both_surgeons(router: &str, extra: &[String], name: &str) {
+    let wire = record(router, "pad", extra, name);
     let count = |topic: &str| wire.topic_counts.get(topic).copied().unwrap_or(0);
     for device in ["left", "right"] {
         // 2.5 s of poses and forces at up to 1 kHz, allowing for a loaded machine.
@@ -180,7 +212,6 @@ fn record_both_surgeons(router: &str, extra: &[String], name: &str) {
             wire.presence
         );
     }
-    let _ = std::fs::remove_file(&file);
 }
 
 /// Both hands feel the pad: over 0.3 N each, within `timeout`.
@@ -261,7 +292,8 @@ fn over_mutual_tls_on_quic_every_role_a_client_of_zenohd_presses_feels_and_is_re
     let _serial = serial();
     let dir = std::env::temp_dir().join(format!("sinew-certs-zenohd-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let certs = sinew::certs::make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap();
+    let certs =
+        sinew::certs::make_lab_certs(&dir, "pad", &["left".into(), "right".into()], &[]).unwrap();
     let role = |name: &str| certs.role(name).unwrap().clone();
     let router = free_loopback_endpoint()
         .unwrap()
@@ -304,7 +336,8 @@ fn at_zenohd_the_labs_access_rules_keep_an_observer_from_moving_a_tool() {
     sinew_server::node::access_refusals::install_for_tests();
     let dir = std::env::temp_dir().join(format!("sinew-certs-zenohd-acl-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let certs = sinew::certs::make_lab_certs(&dir, &["left".into(), "right".into()], &[]).unwrap();
+    let certs =
+        sinew::certs::make_lab_certs(&dir, "pad", &["left".into(), "right".into()], &[]).unwrap();
     let role = |name: &str| certs.role(name).unwrap().clone();
     let router = free_loopback_endpoint()
         .unwrap()
@@ -361,6 +394,112 @@ fn at_zenohd_the_labs_access_rules_keep_an_observer_from_moving_a_tool() {
     drop(right);
     drop(impostor);
     server.stop();
+    drop(zenohd);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Two scenes on one lab router (`sinew certs` run once per scene: one CA, one router, `zenohd.json5` with both
+/// scenes' rules): the pad and the cautery pad, each with its own server process and a surgeon pressing it,
+/// both feel their tissue. The router keeps them apart by key and by certificate: the pad's observer records
+/// the pad's surgeon but, asking for the cautery scene, records nothing of it; a hand holding the pad's `left`
+/// certificate and publishing as the cautery's `left` reaches nothing (the cautery's observer records none of
+/// its poses, and it is sent no force), while the cautery's own surgeon is recorded there.
+#[test]
+fn two_scenes_on_one_zenohd_reach_only_their_own_roles() {
+    let _serial = serial();
+    let dir =
+        std::env::temp_dir().join(format!("sinew-certs-zenohd-scenes-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let both = ["left".to_owned(), "right".to_owned()];
+    let pad = sinew::certs::make_lab_certs(&dir, "pad", &both, &[]).unwrap();
+    let cautery = sinew::certs::make_lab_certs(&dir, "cautery", &both, &[]).unwrap();
+    let router = free_loopback_endpoint()
+        .unwrap()
+        .replacen("tcp/", "quic/", 1);
+    let zenohd = start_lab_router(&pad, &router);
+    let pad_server = start_server_on("pad.toml", &router, &tls_args(pad.role("server").unwrap()));
+    let cautery_server = start_server_on(
+        "cautery.toml",
+        &router,
+        &tls_args(cautery.role("server").unwrap()),
+    );
+    let hands = [
+        start_hand_in("pad", "left", &router, pad.role("device-left")),
+        start_hand_in("cautery", "right", &router, cautery.role("device-right")),
+    ];
+    assert!(
+        both_feel(&hands, Duration::from_secs(30)),
+        "the two scenes' surgeons never both felt their tissue: {:?} N",
+        forces(&hands)
+    );
+    println!("pad's left and cautery's right feel {:?} N", forces(&hands));
+    // The pad's left certificate, publishing as the cautery's left.
+    let stranger = start_hand_in("cautery", "left", &router, pad.role("device-left"));
+
+    let pad_observer = tls_args(pad.role("observer").unwrap());
+    let own = record(&router, "pad", &pad_observer, "pad-by-pad");
+    let count = |wire: &sinew_server::recording::Recording, topic: &str| {
+        wire.topic_counts.get(topic).copied().unwrap_or(0)
+    };
+    assert!(
+        count(&own, "sinew/pad/device/left/pose") > 300,
+        "the pad's observer missed its surgeon"
+    );
+    // The wire's keys (the recorder's own channels, `/sinew/...`, aside).
+    let wire_topics = |wire: &sinew_server::recording::Recording| -> Vec<String> {
+        wire.topic_counts
+            .iter()
+            .filter(|(topic, n)| topic.starts_with("sinew/") && **n > 0)
+            .map(|(topic, _)| topic.clone())
+            .collect()
+    };
+    assert!(
+        wire_topics(&own)
+            .iter()
+            .all(|t| t.starts_with("sinew/pad/")),
+        "the pad's recording holds another scene's messages: {:?}",
+        own.topic_counts
+    );
+    let other = record(&router, "cautery", &pad_observer, "cautery-by-pad");
+    // Its own presence token it sees locally; no other role's.
+    let others_presence: Vec<_> = other
+        .presence
+        .iter()
+        .filter(|(_, key, _)| !key.ends_with("/viewer/instructor-recorder"))
+        .collect();
+    assert!(
+        wire_topics(&other).is_empty() && others_presence.is_empty(),
+        "the pad's observer read the cautery scene: {:?} {:?}",
+        other.topic_counts,
+        other.presence
+    );
+    let theirs = record(
+        &router,
+        "cautery",
+        &tls_args(cautery.role("observer").unwrap()),
+        "cautery-by-cautery",
+    );
+    assert!(
+        count(&theirs, "sinew/cautery/device/right/pose") > 300,
+        "the cautery's observer missed its surgeon"
+    );
+    assert!(count(&theirs, "sinew/cautery/device/right/force") > 300);
+    assert_eq!(
+        count(&theirs, "sinew/cautery/device/left/pose"),
+        0,
+        "the pad's certificate published into the cautery scene"
+    );
+    let report = stranger.report();
+    println!(
+        "the pad's left certificate as the cautery's left: {} poses published, {} forces received",
+        report.poses_published, report.forces_received
+    );
+    assert!(report.poses_published > 1000);
+    assert_eq!(report.forces_received, 0);
+    drop(stranger);
+    drop(hands);
+    drop(pad_server);
+    drop(cautery_server);
     drop(zenohd);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -110,11 +110,14 @@ enum Command {
         #[command(flatten)]
         network: sinew_protocol::cli::NetworkArgs,
     },
-    /// Make a lab's certificates for mutual TLS: a CA, and one certificate per role (server, observer, and a
-    /// device per --device), each naming its role as its common name. Give each role its three files
-    /// (--tls-ca ca.pem --tls-cert ROLE.pem --tls-key ROLE-key.pem); keep ca-key.pem offline.
+    /// Make a scene's certificates for mutual TLS: one per role (server, observer, and a device per --device)
+    /// in OUT/SCENE/, each naming its role and scene as its common name (`device-left@pad`), signed by the
+    /// lab's CA (OUT/ca.pem: made the first time, reused for each scene added); the site router's certificate
+    /// and its zenohd.json5, rewritten with the access rules of every scene in OUT. Give each role its three
+    /// files (--tls-ca OUT/ca.pem --tls-cert OUT/SCENE/ROLE.pem --tls-key OUT/SCENE/ROLE-key.pem); keep
+    /// ca-key.pem offline.
     Certs {
-        /// Folder to write into (created; an existing CA key is never replaced).
+        /// The lab's folder (created; an existing CA is reused, never replaced).
         #[arg(long, default_value = "sinew-certs")]
         out: PathBuf,
         /// A device id to make a certificate for (repeatable).
@@ -124,7 +127,7 @@ enum Command {
         /// (repeatable): a site's DNS name or IP.
         #[arg(long = "host", value_name = "NAME")]
         hosts: Vec<String>,
-        /// The scene whose access rules the lab's router config (zenohd.json5) enforces.
+        /// The scene to issue certificates for (one lab's router can carry several: run again with another).
         #[arg(long, default_value = "pad")]
         scene: String,
         /// Where the lab's zenohd listens (repeatable; QUIC endpoints).
@@ -227,23 +230,27 @@ fn main() -> anyhow::Result<()> {
             scene,
             router_listen,
         } => {
-            let certs = sinew::certs::make_lab_certs(&out, &devices, &hosts)?;
-            let router =
-                sinew::certs::write_router_config(&certs, &router_listen, &scene, &devices)?;
+            let certs = sinew::certs::make_lab_certs(&out, &scene, &devices, &hosts)?;
+            let router = sinew::certs::write_router_config(&out, &router_listen)?;
+            let scenes: Vec<String> = sinew::certs::lab_scenes(&out)?
+                .into_iter()
+                .map(|s| s.scene)
+                .collect();
             println!(
                 "CA: {} (its key ca-key.pem signs new certificates: keep it offline)",
                 certs.ca.display()
             );
             for (name, files) in &certs.roles {
                 println!(
-                    "{name}: --tls-ca {} --tls-cert {} --tls-key {}",
+                    "{name} of `{scene}`: --tls-ca {} --tls-cert {} --tls-key {}",
                     files.ca.display(),
                     files.cert.display(),
                     files.key.display()
                 );
             }
             println!(
-                "router (scene `{scene}`, listening on {}): zenohd -c {}",
+                "router (scenes {}, listening on {}): zenohd -c {}",
+                scenes.join(", "),
                 router_listen.join(", "),
                 router.display()
             );
