@@ -19,6 +19,12 @@ pub const DEFAULT_DEVICE_ENDPOINTS: [&str; 2] = ["tcp/127.0.0.1:7447", "udp/127.
 /// within 2.2 s. A handshake is a few round trips, so 1 s still leaves room for a 200 ms path.
 pub const LINK_TIMEOUT_MS: u64 = 1000;
 
+/// How long a client of a router keeps trying to reach it when its session opens, ms (zenoh's default for a
+/// client: one try). A QUIC handshake whose first flight is lost waits out its probe timeout (about a second)
+/// and then the link's open timeout ends it: through a lab path with 50 ms round trips and 2% loss a viewer
+/// failed to start that way (`Unable to connect to any of [quic/...]`); retried, it joins.
+pub const CLIENT_CONNECT_TIMEOUT_MS: u64 = 10_000;
+
 /// First retry period of a lost connect endpoint, ms (doubling up to [`RETRY_MAX_MS`]).
 pub const RETRY_INIT_MS: u64 = 50;
 
@@ -227,6 +233,9 @@ impl NetworkOptions {
                     "{router:[],peer:[\"router\"]}".to_owned(),
                 ));
             }
+            if self.mode.as_deref() == Some("client") {
+                entries.push(("connect/timeout_ms", CLIENT_CONNECT_TIMEOUT_MS.to_string()));
+            }
             // A lost server is retried every 50 ms, backing off to every 250 ms (zenoh's default is 1 s
             // doubling to 4 s): a restarted server is rejoined within about a quarter second of its return.
             entries.push((
@@ -307,6 +316,28 @@ mod tests {
         assert_eq!(
             value("listen/endpoints").as_deref(),
             Some(r#"["tcp/127.0.0.1:7447","udp/127.0.0.1:7447"]"#)
+        );
+    }
+
+    #[test]
+    fn a_client_keeps_trying_its_router_when_it_opens() {
+        let client = NetworkOptions {
+            connect: vec!["quic/10.0.0.1:7447".to_owned()],
+            mode: Some("client".to_owned()),
+            ..NetworkOptions::default()
+        };
+        let entries = client.config_entries();
+        assert!(
+            entries
+                .iter()
+                .any(|(k, v)| *k == "connect/timeout_ms" && *v == "10000")
+        );
+        assert!(
+            !NetworkOptions::device_default()
+                .config_entries()
+                .iter()
+                .any(|(k, _)| *k == "connect/timeout_ms"),
+            "a peer keeps zenoh's default"
         );
     }
 

@@ -82,8 +82,16 @@ pub fn lab_router_config(listen: &[String], tls: &TlsFiles, scenes: &[SceneRoles
         access_control: Some(router_access_control_json5(scenes)),
         ..NetworkOptions::default()
     };
-    config_document(&options.config_entries())
+    let mut entries = options.config_entries();
+    entries.push(("transport/link/tx/lease", ROUTER_LINK_LEASE_MS.to_string()));
+    config_document(&entries)
 }
+
+/// The link lease a lab's router announces, ms (zenoh's default: 10 s): every role drops its session with a
+/// router that died silently this long after (a killed `zenohd` sends nothing on its QUIC links), and only then
+/// dials the router again. With the default, roles stayed on a dead router's session for 10 s, 6 s past its
+/// restart (`zenohd_sites.rs`).
+pub const ROUTER_LINK_LEASE_MS: u64 = 3000;
 
 #[cfg(test)]
 mod tests {
@@ -128,6 +136,7 @@ mod tests {
             "protocols: [\"quic\"]",
             "access_control: {enabled:true,default_permission:\"deny\"",
             "\"sinew/pad/device/left/pose\"",
+            "lease: 3000",
         ] {
             assert!(doc.contains(part), "{part} not in\n{doc}");
         }

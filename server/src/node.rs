@@ -247,11 +247,25 @@ impl ServerNode {
         }
         let session = open_session(&network)?;
         let asked = std::time::Instant::now();
-        let found = session::live_servers(&session, &keys)?;
+        let mut found = session::live_servers(&session, &keys)?;
         tracing::debug!(
             ms = asked.elapsed().as_millis(),
             "asked for other live servers"
         );
+        if !found.is_empty() {
+            // It may have just died: a silent death (a kill on QUIC links) leaves it present until its lease
+            // at the router or peers ends.
+            tracing::info!(
+                found = %found.join(", "),
+                "another server is live for scene `{}`: waiting up to {:?} for it to leave",
+                world.scene,
+                session::DEPARTURE_WAIT
+            );
+            while !found.is_empty() && asked.elapsed() < session::DEPARTURE_WAIT {
+                std::thread::sleep(std::time::Duration::from_millis(250));
+                found = session::live_servers(&session, &keys)?;
+            }
+        }
         if !found.is_empty() {
             let _ = session.close().wait();
             return Err(ServerError::AnotherServer {

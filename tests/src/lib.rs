@@ -22,3 +22,4 @@ pub mod lab_run;
 pub mod netem;
 pub mod netns;
 pub mod scenarios;
+pub mod zenohd;

@@ -19,7 +19,6 @@
 //! installs it): without it the test fails and says so.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -32,25 +31,7 @@ use sinew_testkit::harness::{
 };
 use sinew_testkit::netns::role_binary;
 use sinew_testkit::scenarios::press;
-
-/// The `zenohd` binary: on PATH, else cargo's install directory.
-fn zenohd_binary() -> PathBuf {
-    let on_path = std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|dir| dir.join("zenohd"))
-            .find(|p| p.is_file())
-    });
-    let in_cargo = std::env::var_os("CARGO_HOME")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")))
-        .map(|home| home.join("bin/zenohd"))
-        .filter(|p| p.is_file());
-    on_path.or(in_cargo).unwrap_or_else(|| {
-        panic!(
-            "zenohd is not installed: `cargo install zenohd --version 1.10.2 --locked` (.ci/run installs it)"
-        )
-    })
-}
+use sinew_testkit::zenohd::{tls_args, zenohd_binary};
 
 /// `zenohd` listening on `endpoint` (TCP on loopback), no multicast scouting; returned once it accepts
 /// connections (a client's session opened before then fails).
@@ -149,18 +130,6 @@ fn start_hand_in(
         ..NetworkOptions::default()
     };
     HapticServer::start(config).expect("starting the hapticserver")
-}
-
-/// The `--tls-*` flags of a role with certificate `files`.
-fn tls_args(files: &TlsFiles) -> Vec<String> {
-    [
-        ("--tls-ca", &files.ca),
-        ("--tls-cert", &files.cert),
-        ("--tls-key", &files.key),
-    ]
-    .into_iter()
-    .flat_map(|(flag, path)| [flag.to_owned(), path.display().to_string()])
-    .collect()
 }
 
 /// `sinew-recorder` for 2.5 s on `scene`, a client of the router at `router` with `extra` flags: its file's

@@ -61,6 +61,17 @@ mod tests {
     }
 
     #[test]
+    fn a_client_of_a_router_makes_a_config_that_keeps_trying_it() {
+        let options = NetworkOptions {
+            connect: vec!["tcp/10.0.0.1:7447".to_owned()],
+            mode: Some("client".to_owned()),
+            ..NetworkOptions::default()
+        };
+        let config = zenoh_config(&options).unwrap();
+        assert_eq!(config.get_json("connect/timeout_ms").unwrap(), "10000");
+    }
+
+    #[test]
     fn bad_endpoint_is_a_clear_error() {
         let options = NetworkOptions {
             connect: vec!["nonsense".to_owned()],

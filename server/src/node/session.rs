@@ -15,8 +15,31 @@ pub fn open_session(options: &NetworkOptions) -> zenoh::Result<zenoh::Session> {
             .insert_json5(key, &value)
             .map_err(|e| format!("zenoh config `{key}` = {value}: {e}"))?;
     }
+    if options.config_file.is_none() {
+        // The lease this server announces: how long a router or peer keeps its session (and its presence
+        // token) after hearing nothing from it. A killed server's QUIC (UDP) links end without a word, so
+        // with zenoh's 10 s default a router kept the dead server's token that long and a new server for
+        // the scene refused to start beside it.
+        config
+            .insert_json5(
+                "transport/link/tx/lease",
+                &SERVER_LINK_LEASE.as_millis().to_string(),
+            )
+            .map_err(|e| format!("zenoh config `transport/link/tx/lease`: {e}"))?;
+    }
     zenoh::open(config).wait()
 }
+
+/// The link lease a server announces (zenoh's default: 10 s): its sessions end this long after it dies
+/// silently (a kill on a QUIC link). It sends a keep-alive every quarter lease when it has nothing else to
+/// send; its stats, deltas and forces keep its links alive anyway.
+pub const SERVER_LINK_LEASE: std::time::Duration = std::time::Duration::from_secs(3);
+
+/// How long a starting server waits for a live server of its scene to leave before refusing: a server that
+/// just died silently is still present until its lease ends.
+pub const DEPARTURE_WAIT: std::time::Duration = std::time::Duration::from_millis(
+    SERVER_LINK_LEASE.as_millis() as u64 + 1500,
+);
 
 /// How long a server waits for answers when it asks who else is live for its scene, ms.
 pub const LIVE_SERVER_QUERY_MS: u64 = 500;
