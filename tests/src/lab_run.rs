@@ -2,14 +2,15 @@
 //! numbers out of a role's status line, the relay's loss count, and a hapticserver's `--trace-csv`.
 //!
 //! Owns: [`require_lab`], [`assert_namespaces_gone`], [`start_lab_server`], [`status_number`],
-//! [`relay_loss`], [`read_trace`], [`final_line`], [`shipped_world`].
+//! [`relay_loss`], [`read_trace`], [`final_line`], [`shipped_world`], and a grasp-pull script as
+//! `hapticserver` flags with its trace shifted to script time ([`grasp_pull_args`], [`to_script_time`]).
 //! Must not: build or tear down the lab itself (that is [`crate::netns`]) or judge a run (the tests do).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
 use std::time::Duration;
 
-use hapticserver::{Trace, TraceSample};
+use hapticserver::{HandScript, Trace, TraceSample};
 
 use crate::netns::{NetnsLab, role_binary};
 
@@ -110,6 +111,54 @@ pub fn expect_final_line(output: &std::process::Output) -> String {
             String::from_utf8_lossy(&output.stderr)
         )
     })
+}
+
+/// The command-line form of a grasp-pull script (`hapticserver --script grasp-pull ...`, as the tug of war's
+/// scripts are). Panics for another script, or one whose pull does not take 1 s (the command line's).
+pub fn grasp_pull_args(script: &HandScript) -> Vec<String> {
+    let HandScript::GraspPull {
+        at_mm,
+        depth_mm,
+        approach_mm,
+        descend_s,
+        settle_s,
+        pull_mm,
+        pull_s,
+        hold_s,
+    } = script
+    else {
+        panic!("the tug of war's scripts are grasp-pulls: {script:?}");
+    };
+    assert_eq!(*pull_s, 1.0, "the command line's grasp-pull pulls over 1 s");
+    let vec3 = |v: &[f32; 3]| format!("{},{},{}", v[0], v[1], v[2]);
+    [
+        ("--script", "grasp-pull".to_owned()),
+        ("--at-mm", vec3(at_mm)),
+        ("--depth-mm", depth_mm.to_string()),
+        ("--approach-mm", approach_mm.to_string()),
+        ("--descend-s", descend_s.to_string()),
+        ("--settle-s", settle_s.to_string()),
+        ("--pull-mm", vec3(pull_mm)),
+        ("--hold-s", hold_s.to_string()),
+    ]
+    .into_iter()
+    .flat_map(|(flag, value)| [flag.to_owned(), value])
+    .collect()
+}
+
+/// Shift a trace's clock to script time: the hand holds exactly still at its start until the script begins,
+/// and the script's first tick moves it.
+pub fn to_script_time(trace: &mut [TraceSample]) -> anyhow::Result<()> {
+    let start_mm = trace.first().map(|s| s.position_mm).unwrap_or_default();
+    let moved = trace
+        .iter()
+        .position(|s| s.position_mm != start_mm)
+        .ok_or_else(|| anyhow::anyhow!("the scripted hand never moved"))?;
+    let t0_s = trace[moved].t_s - 0.001;
+    for sample in trace.iter_mut() {
+        sample.t_s -= t0_s;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

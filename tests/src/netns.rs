@@ -2,7 +2,9 @@
 //! loss, so cross-process tests and benches can run roles on two "machines".
 //!
 //! Owns: [`NetnsLab`] (three namespaces per lab: server side `10.X.0.1/24`, device side `10.X.0.2/24`, and a
-//! relay namespace holding the peers of both veth pairs, where `sinew-netem` ([`crate::netem`]) bridges them),
+//! relay namespace holding the peers of both veth pairs, where `sinew-netem` ([`crate::netem`]) bridges them;
+//! with [`LabConfig::second_site`], a fourth: a second device site `10.X.1.2/24` reaching the server side's
+//! second address `10.X.1.1/24` over a path of its own, bridged by a second relay in the same namespace),
 //! starting commands inside the server or device namespace, and tearing everything down on drop, panics
 //! included. Also [`role_binary`] (where `cargo test --workspace --release` put a workspace binary) and
 //! [`wait_output`] (wait for a child with a timeout).
@@ -33,6 +35,12 @@ pub const LAB_INTERFACE: &str = "eth0";
 /// The relay's interfaces: towards the server side and towards the device side.
 pub const RELAY_INTERFACES: [&str; 2] = ["tosrv", "todev"];
 
+/// The second site's path ([`LabConfig::second_site`]): the server side's second interface, and the second
+/// relay's interfaces towards the server side and towards the second site.
+pub const SECOND_SITE_SERVER_INTERFACE: &str = "eth1";
+/// See [`SECOND_SITE_SERVER_INTERFACE`].
+pub const SECOND_RELAY_INTERFACES: [&str; 2] = ["tosrv2", "todev2"];
+
 /// SCHED_FIFO priority of the relay when [`LabConfig::relay_realtime`] (above the roles, which run SCHED_OTHER).
 const RELAY_PRIORITY: &str = "50";
 
@@ -61,6 +69,18 @@ pub struct LabConfig {
     pub drops_to_device: Vec<ScriptedDrop>,
     /// Scripted loss on top of `device_to_server`.
     pub drops_to_server: Vec<ScriptedDrop>,
+    /// A second device site with its own path to the server side (two surgeons at two sites): `None` for the
+    /// usual two sides.
+    pub second_site: Option<SitePath>,
+}
+
+/// A second site's path to the server side: one emulation per direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SitePath {
+    /// Frames from the server side to the second site.
+    pub server_to_site: EmulationConfig,
+    /// Frames from the second site to the server side.
+    pub site_to_server: EmulationConfig,
 }
 
 impl LabConfig {
@@ -83,8 +103,32 @@ impl LabConfig {
             tcp_congestion_control: None,
             drops_to_device: Vec::new(),
             drops_to_server: Vec::new(),
+            second_site: None,
         }
     }
+
+    /// The same lab with a second device site whose path is like the first's (seeds shifted by 2).
+    pub fn with_second_site(mut self) -> Self {
+        let shifted = |config: EmulationConfig| EmulationConfig {
+            seed: config.seed.wrapping_add(2),
+            ..config
+        };
+        self.second_site = Some(SitePath {
+            server_to_site: shifted(self.server_to_device),
+            site_to_server: shifted(self.device_to_server),
+        });
+        self
+    }
+}
+
+/// One relay's bridge: its two interfaces in the relay namespace (`a` towards the server side) and what
+/// each direction does to frames.
+struct RelaySpec {
+    interfaces: [&'static str; 2],
+    a_to_b: EmulationConfig,
+    b_to_a: EmulationConfig,
+    drops_a_to_b: Vec<ScriptedDrop>,
+    drops_b_to_a: Vec<ScriptedDrop>,
 }
 
 /// The relay's option for `drops` (nothing when there are none).
@@ -143,6 +187,9 @@ pub enum LabError {
         /// Its standard output and error so far.
         output: String,
     },
+    /// The second site was asked of a lab built without one.
+    #[error("this lab has no second site (build it with LabConfig::with_second_site)")]
+    NoSecondSite,
 }
 
 fn io_error(what: impl Into<String>) -> impl FnOnce(std::io::Error) -> LabError {
@@ -305,6 +352,8 @@ pub enum Side {
     Server,
     /// The device's namespace (`10.X.0.2`).
     Device,
+    /// The second device site's namespace (`10.X.1.2`), when the lab has one.
+    SecondDevice,
 }
 
 /// Three namespaces, two veth pairs and a relay; see the module doc. Dropping it ends every process in its
@@ -314,10 +363,14 @@ pub struct NetnsLab {
     server_ns: String,
     device_ns: String,
     relay_ns: String,
+    /// The second device site's namespace, when [`LabConfig::second_site`].
+    second_ns: Option<String>,
     subnet: u8,
     config: LabConfig,
     relay: Option<Child>,
     relay_log: PathBuf,
+    second_relay: Option<Child>,
+    second_relay_log: PathBuf,
     children: Vec<u32>,
 }
 
@@ -344,10 +397,19 @@ impl NetnsLab {
     /// Needs the `sinew-netem` binary ([`role_binary`]).
     pub fn new(config: LabConfig) -> Result<Self, LabError> {
         Self::available().map_err(LabError::Unavailable)?;
+        let second = config.second_site.iter().flat_map(|path| {
+            [
+                path.server_to_site.validate(),
+                path.site_to_server.validate(),
+            ]
+        });
         for problem in [
             config.server_to_device.validate(),
             config.device_to_server.validate(),
-        ] {
+        ]
+        .into_iter()
+        .chain(second)
+        {
             problem.map_err(|e| LabError::Relay(format!("bad lab config: {e}")))?;
         }
         let netem = role_binary("sinew-netem")?;
@@ -361,15 +423,35 @@ impl NetnsLab {
             server_ns: name("srv"),
             device_ns: name("dev"),
             relay_ns: name("rly"),
+            second_ns: config.second_site.map(|_| name("dv2")),
             subnet,
             config,
             relay: None,
             relay_log: std::env::temp_dir().join(format!("{}.log", name("netem"))),
+            second_relay: None,
+            second_relay_log: std::env::temp_dir().join(format!("{}.log", name("netem2"))),
             children: Vec::new(),
         };
         // From here on, Drop removes whatever was created.
         lab.build_network()?;
-        lab.start_relay(&netem)?;
+        let first = RelaySpec {
+            interfaces: RELAY_INTERFACES,
+            a_to_b: lab.config.server_to_device,
+            b_to_a: lab.config.device_to_server,
+            drops_a_to_b: lab.config.drops_to_device.clone(),
+            drops_b_to_a: lab.config.drops_to_server.clone(),
+        };
+        lab.relay = Some(lab.start_relay(&netem, &first, &lab.relay_log)?);
+        if let Some(path) = lab.config.second_site {
+            let second = RelaySpec {
+                interfaces: SECOND_RELAY_INTERFACES,
+                a_to_b: path.server_to_site,
+                b_to_a: path.site_to_server,
+                drops_a_to_b: Vec::new(),
+                drops_b_to_a: Vec::new(),
+            };
+            lab.second_relay = Some(lab.start_relay(&netem, &second, &lab.second_relay_log)?);
+        }
         Ok(lab)
     }
 
@@ -388,11 +470,35 @@ impl NetnsLab {
             ]));
             ip(&["-n", ns, "link", "set", "lo", "up"])?;
         }
-        let sides = [
-            (&self.server_ns, RELAY_INTERFACES[0], self.server_ip()),
-            (&self.device_ns, RELAY_INTERFACES[1], self.device_ip()),
+        let mut sides = vec![
+            (
+                &self.server_ns,
+                LAB_INTERFACE,
+                RELAY_INTERFACES[0],
+                self.server_ip(),
+            ),
+            (
+                &self.device_ns,
+                LAB_INTERFACE,
+                RELAY_INTERFACES[1],
+                self.device_ip(),
+            ),
         ];
-        for (ns, relay_end, address) in sides {
+        if let Some(second_ns) = &self.second_ns {
+            sides.push((
+                &self.server_ns,
+                SECOND_SITE_SERVER_INTERFACE,
+                SECOND_RELAY_INTERFACES[0],
+                self.server_ip_for_second_site(),
+            ));
+            sides.push((
+                second_ns,
+                LAB_INTERFACE,
+                SECOND_RELAY_INTERFACES[1],
+                self.second_site_ip(),
+            ));
+        }
+        for (ns, interface, relay_end, address) in sides {
             ip(&[
                 "-n",
                 &self.relay_ns,
@@ -403,12 +509,12 @@ impl NetnsLab {
                 "veth",
                 "peer",
                 "name",
-                LAB_INTERFACE,
+                interface,
                 "netns",
                 ns,
             ])?;
             // One segment per skb: the relay reads whole frames of at most the MTU (no TSO super-frames).
-            for (in_ns, interface) in [(ns.as_str(), LAB_INTERFACE), (&self.relay_ns, relay_end)] {
+            for (in_ns, interface) in [(ns.as_str(), interface), (&self.relay_ns, relay_end)] {
                 ip(&["-n", in_ns, "link", "set", interface, "gso_max_segs", "1"])?;
                 ip(&["-n", in_ns, "link", "set", interface, "up"])?;
             }
@@ -419,7 +525,7 @@ impl NetnsLab {
                 "add",
                 &format!("{address}/24"),
                 "dev",
-                LAB_INTERFACE,
+                interface,
             ])?;
             if let Some(algorithm) = self.config.tcp_congestion_control {
                 run(Command::new("ip").args([
@@ -435,9 +541,16 @@ impl NetnsLab {
         Ok(())
     }
 
-    fn start_relay(&mut self, netem: &Path) -> Result<(), LabError> {
-        let log = std::fs::File::create(&self.relay_log)
-            .map_err(io_error(format!("creating {}", self.relay_log.display())))?;
+    /// Start one `sinew-netem` in the relay namespace as `spec` says, logging to `log`; returned once it
+    /// reports that it is bridging.
+    fn start_relay(
+        &self,
+        netem: &Path,
+        spec: &RelaySpec,
+        log_path: &Path,
+    ) -> Result<Child, LabError> {
+        let log = std::fs::File::create(log_path)
+            .map_err(io_error(format!("creating {}", log_path.display())))?;
         let log_err = log
             .try_clone()
             .map_err(io_error("duplicating the relay log handle"))?;
@@ -450,40 +563,31 @@ impl NetnsLab {
             .arg(netem)
             .arg("--spin-ns")
             .arg(self.config.relay_spin_ns.to_string())
-            .args(["--a", RELAY_INTERFACES[0], "--b", RELAY_INTERFACES[1]])
+            .args(["--a", spec.interfaces[0], "--b", spec.interfaces[1]])
             .arg("--a-to-b")
-            .arg(format_direction(&self.config.server_to_device))
+            .arg(format_direction(&spec.a_to_b))
             .arg("--b-to-a")
-            .arg(format_direction(&self.config.device_to_server))
-            .args(scripted_drops(
-                "--drop-a-to-b",
-                &self.config.drops_to_device,
-            ))
-            .args(scripted_drops(
-                "--drop-b-to-a",
-                &self.config.drops_to_server,
-            ))
+            .arg(format_direction(&spec.b_to_a))
+            .args(scripted_drops("--drop-a-to-b", &spec.drops_a_to_b))
+            .args(scripted_drops("--drop-b-to-a", &spec.drops_b_to_a))
             .stdin(Stdio::null())
             .stdout(log)
             .stderr(log_err);
-        let child = command
+        let mut child = command
             .spawn()
             .map_err(io_error(format!("starting `{}`", describe(&command))))?;
-        self.relay = Some(child);
         let deadline = Instant::now() + RELAY_START_TIMEOUT;
         loop {
-            let text = std::fs::read_to_string(&self.relay_log).unwrap_or_default();
+            let text = std::fs::read_to_string(log_path).unwrap_or_default();
             if text.contains("bridging") {
-                return Ok(());
+                return Ok(child);
             }
-            let exited = self
-                .relay
-                .as_mut()
-                .and_then(|relay| relay.try_wait().ok().flatten());
-            if let Some(status) = exited {
+            if let Some(status) = child.try_wait().ok().flatten() {
                 return Err(LabError::Relay(format!("exited ({status}): {text}")));
             }
             if Instant::now() >= deadline {
+                let _ = child.kill();
+                let _ = child.wait();
                 return Err(LabError::Relay(format!(
                     "no `bridging` line within {RELAY_START_TIMEOUT:?}: {text}"
                 )));
@@ -514,16 +618,24 @@ impl NetnsLab {
         lab_namespaces()
     }
 
-    /// The lab's namespaces: server side, device side, relay.
-    pub fn namespaces(&self) -> [&str; 3] {
-        [&self.server_ns, &self.device_ns, &self.relay_ns]
+    /// The lab's namespaces: server side, device side, relay, and the second site's if it has one.
+    pub fn namespaces(&self) -> Vec<&str> {
+        let mut all = vec![
+            self.server_ns.as_str(),
+            self.device_ns.as_str(),
+            self.relay_ns.as_str(),
+        ];
+        all.extend(self.second_ns.as_deref());
+        all
     }
 
     /// The namespace of `side`.
-    pub fn namespace(&self, side: Side) -> &str {
+    /// [`LabError::NoSecondSite`] for [`Side::SecondDevice`] in a lab without one.
+    pub fn namespace(&self, side: Side) -> Result<&str, LabError> {
         match side {
-            Side::Server => &self.server_ns,
-            Side::Device => &self.device_ns,
+            Side::Server => Ok(&self.server_ns),
+            Side::Device => Ok(&self.device_ns),
+            Side::SecondDevice => self.second_ns.as_deref().ok_or(LabError::NoSecondSite),
         }
     }
 
@@ -535,6 +647,16 @@ impl NetnsLab {
     /// The device side's address, `10.X.0.2`.
     pub fn device_ip(&self) -> Ipv4Addr {
         Ipv4Addr::new(10, self.subnet, 0, 2)
+    }
+
+    /// The server side's address on the second site's path, `10.X.1.1`.
+    pub fn server_ip_for_second_site(&self) -> Ipv4Addr {
+        Ipv4Addr::new(10, self.subnet, 1, 1)
+    }
+
+    /// The second site's address, `10.X.1.2`.
+    pub fn second_site_ip(&self) -> Ipv4Addr {
+        Ipv4Addr::new(10, self.subnet, 1, 2)
     }
 
     /// The path's configuration.
@@ -558,7 +680,7 @@ impl NetnsLab {
     pub fn spawn_in(&mut self, side: Side, command: &Command) -> Result<Child, LabError> {
         let mut inside = Command::new("ip");
         inside
-            .args(["netns", "exec", self.namespace(side)])
+            .args(["netns", "exec", self.namespace(side)?])
             .arg(command.get_program())
             .args(command.get_args());
         for (key, value) in command.get_envs() {
@@ -587,6 +709,7 @@ impl NetnsLab {
         let end = match side {
             Side::Server => RELAY_INTERFACES[0],
             Side::Device => RELAY_INTERFACES[1],
+            Side::SecondDevice => SECOND_RELAY_INTERFACES[1],
         };
         ip(&["-n", &self.relay_ns, "link", "set", end, "down"]).map(|_| ())
     }
@@ -596,11 +719,20 @@ impl NetnsLab {
         &self.children
     }
 
-    /// Stop the relay (SIGTERM) and return what it printed: the `bridging` line and one counter line per
-    /// direction (`received .. forwarded .. lost ..`, send lateness percentiles). The path is down afterwards.
+    /// Stop the relays (SIGTERM) and return what they printed: per relay the `bridging` line and one counter
+    /// line per direction (`received .. forwarded .. lost ..`, send lateness percentiles); the second site's
+    /// relay after the first's. The paths are down afterwards.
     pub fn stop_relay(&mut self) -> Result<String, LabError> {
-        if let Some(mut relay) = self.relay.take() {
+        let relays: Vec<Child> = self
+            .relay
+            .take()
+            .into_iter()
+            .chain(self.second_relay.take())
+            .collect();
+        if !relays.is_empty() {
             signal("-TERM", &pids_in(&self.relay_ns));
+        }
+        for mut relay in relays {
             let deadline = Instant::now() + Duration::from_secs(3);
             while relay.try_wait().ok().flatten().is_none() && Instant::now() < deadline {
                 std::thread::sleep(Duration::from_millis(10));
@@ -608,20 +740,33 @@ impl NetnsLab {
             let _ = relay.kill();
             let _ = relay.wait();
         }
-        std::fs::read_to_string(&self.relay_log)
-            .map_err(io_error(format!("reading {}", self.relay_log.display())))
+        let mut text = std::fs::read_to_string(&self.relay_log)
+            .map_err(io_error(format!("reading {}", self.relay_log.display())))?;
+        if self.second_ns.is_some() {
+            text += &std::fs::read_to_string(&self.second_relay_log).map_err(io_error(format!(
+                "reading {}",
+                self.second_relay_log.display()
+            )))?;
+        }
+        Ok(text)
     }
 }
 
 impl Drop for NetnsLab {
     fn drop(&mut self) {
-        let namespaces: Vec<String> = self.namespaces().map(str::to_owned).to_vec();
+        let namespaces: Vec<String> = self.namespaces().into_iter().map(str::to_owned).collect();
         tear_down(&namespaces, Duration::from_secs(2));
-        if let Some(mut relay) = self.relay.take() {
+        for mut relay in self
+            .relay
+            .take()
+            .into_iter()
+            .chain(self.second_relay.take())
+        {
             let _ = relay.kill();
             let _ = relay.wait();
         }
         let _ = std::fs::remove_file(&self.relay_log);
+        let _ = std::fs::remove_file(&self.second_relay_log);
     }
 }
 

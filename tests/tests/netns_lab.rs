@@ -46,7 +46,7 @@ fn a_lossy_40_ms_path_carries_ping_and_a_haptic_session_then_vanishes() {
     let haptic_bin = role_binary("hapticserver").unwrap();
     let world = shipped_world("pad");
     let mut lab = NetnsLab::new(LabConfig::symmetric(20.0, 0.0, 0.05, 42)).unwrap();
-    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
     let server_ip = lab.server_ip().to_string();
 
     // ping from the device side to the server side (ARP crosses the relay first).
@@ -150,7 +150,7 @@ fn namespaces_are_removed_even_when_the_test_panics() {
     let mut child = None;
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let mut lab = NetnsLab::new(LabConfig::symmetric(1.0, 0.0, 0.0, 1)).unwrap();
-        names = lab.namespaces().map(str::to_owned).to_vec();
+        names = lab.namespaces().into_iter().map(str::to_owned).collect();
         let mut sleeper = Command::new("sleep");
         sleeper.arg("600");
         child = Some(lab.spawn_in_server_ns(&sleeper).unwrap());
@@ -185,7 +185,7 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
     require_lab();
     let haptic_bin = role_binary("hapticserver").unwrap();
     let mut lab = NetnsLab::new(LabConfig::symmetric(50.0, 10.0, 0.05, 7)).unwrap();
-    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
     let csv_path =
         std::env::temp_dir().join(format!("sinew-netns-moderated-{}.csv", std::process::id()));
     let (mut server, tcp, udp) = start_lab_pad_server(&mut lab);
@@ -319,7 +319,7 @@ fn every_role_exits_promptly_on_sigterm_during_a_partition_the_device_at_zero_fo
     let haptic_bin = role_binary("hapticserver").unwrap();
     let viewer_bin = role_binary("sinew-viewer").unwrap();
     let mut lab = NetnsLab::new(LabConfig::symmetric(1.0, 0.0, 0.0, 11)).unwrap();
-    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
     let (mut server, tcp, udp) = start_lab_pad_server(&mut lab);
     let mut haptic = Command::new(&haptic_bin);
     haptic
@@ -399,7 +399,7 @@ fn a_router_server_and_a_device_in_two_namespaces_work_over_mutual_tls_and_refus
     let haptic_bin = role_binary("hapticserver").unwrap();
     let world = shipped_world("pad");
     let mut lab = NetnsLab::new(LabConfig::symmetric(10.0, 0.0, 0.0, 7)).unwrap();
-    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
     let server_ip = lab.server_ip().to_string();
     let certs_dir = std::env::temp_dir().join(format!("sinew-router-certs-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&certs_dir);
@@ -538,7 +538,7 @@ fn a_udp_link_left_half_open_leaves_the_device_deaf_no_longer_than_its_lease() {
     config.drops_to_server = vec![scripted("udp:1")];
     config.drops_to_device = vec![scripted("udp:2")];
     let mut lab = NetnsLab::new(config).unwrap();
-    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
     let (mut server, tcp, udp) = start_lab_pad_server(&mut lab);
     let mut haptic = Command::new(&haptic_bin);
     haptic

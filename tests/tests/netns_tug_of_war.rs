@@ -14,65 +14,19 @@
 use std::process::Command;
 use std::time::Duration;
 
-use hapticserver::{HandScript, TraceSample};
+use hapticserver::TraceSample;
 use sinew_server::world::load_world;
 use sinew_testkit::fidelity::{TUG_BEFORE_S, TUG_RUN_S, peak_and_rms, tug_felt_n, tug_scripts};
 use sinew_testkit::harness::serial;
 use sinew_testkit::lab_run::{
-    assert_namespaces_gone, final_line, read_trace, relay_loss, require_lab, shipped_world,
-    start_lab_server, status_number,
+    assert_namespaces_gone, final_line, grasp_pull_args, read_trace, relay_loss, require_lab,
+    shipped_world, start_lab_server, status_number, to_script_time,
 };
 use sinew_testkit::netns::{LabConfig, NetnsLab, role_binary, wait_output};
 
 /// How long after its process started each scripted hand begins its script, s: the sessions join over the
 /// slow path meanwhile (a device loop starts once its UDP link is up, or after 3 s without one).
 const START_DELAY_S: f64 = 3.5;
-
-/// The command-line form of a tug-of-war script (`hapticserver --script grasp-pull ...`).
-fn grasp_pull_args(script: &HandScript) -> Vec<String> {
-    let HandScript::GraspPull {
-        at_mm,
-        depth_mm,
-        approach_mm,
-        descend_s,
-        settle_s,
-        pull_mm,
-        pull_s,
-        hold_s,
-    } = script
-    else {
-        panic!("the tug of war's scripts are grasp-pulls: {script:?}");
-    };
-    assert_eq!(*pull_s, 1.0, "the command line's grasp-pull pulls over 1 s");
-    let vec3 = |v: &[f32; 3]| format!("{},{},{}", v[0], v[1], v[2]);
-    [
-        ("--script", "grasp-pull".to_owned()),
-        ("--at-mm", vec3(at_mm)),
-        ("--depth-mm", depth_mm.to_string()),
-        ("--approach-mm", approach_mm.to_string()),
-        ("--descend-s", descend_s.to_string()),
-        ("--settle-s", settle_s.to_string()),
-        ("--pull-mm", vec3(pull_mm)),
-        ("--hold-s", hold_s.to_string()),
-    ]
-    .into_iter()
-    .flat_map(|(flag, value)| [flag.to_owned(), value])
-    .collect()
-}
-
-/// Shift a trace's clock to script time: the hand holds exactly still at its start until the script begins,
-/// and the script's first tick moves it.
-fn to_script_time(trace: &mut [TraceSample]) {
-    let start_mm = trace.first().map(|s| s.position_mm).unwrap_or_default();
-    let moved = trace
-        .iter()
-        .position(|s| s.position_mm != start_mm)
-        .expect("the scripted hand never moved");
-    let t0_s = trace[moved].t_s - 0.001;
-    for sample in trace.iter_mut() {
-        sample.t_s -= t0_s;
-    }
-}
 
 /// One tug of war in a lab: per device (left, right), its closing status line and its trace in script time.
 struct LabTug {
@@ -87,7 +41,7 @@ fn run_lab_tug(config: LabConfig, tag: &str) -> LabTug {
     let (left, right) = tug_scripts(&world);
     let haptic_bin = role_binary("hapticserver").unwrap();
     let mut lab = NetnsLab::new(config).unwrap();
-    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
     let (mut server, tcp, udp) = start_lab_server(&mut lab, &world_path, &[]).unwrap();
     let run_s = START_DELAY_S + TUG_RUN_S + 0.3;
     let csv = |id: &str| {
@@ -134,7 +88,7 @@ fn run_lab_tug(config: LabConfig, tag: &str) -> LabTug {
             let path = csv(id);
             let mut trace = read_trace(&path).unwrap();
             let _ = std::fs::remove_file(&path);
-            to_script_time(&mut trace);
+            to_script_time(&mut trace).unwrap();
             trace
         })
         .to_vec();

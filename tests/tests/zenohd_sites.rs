@@ -7,15 +7,24 @@
 //! the observer's certificate, at the surgeons' site, replicate the scene and record both surgeons' poses and
 //! presence; the server killed and a new one started leaves the router and the hands running, their forces
 //! fade to zero and come back; the router killed and started again, likewise.
+//!
+//! Then two surgeons at two sites: the lab's second site has its own path to the hub (50 ms each way on each,
+//! no loss), one surgeon at each, in the tug of war. Each grasps the sheet and pulls; each feels the other's
+//! pull through the tissue, rendered by the local model (the devices pick moderated for themselves), with no
+//! silence while the scripts run. With 1% loss on each path the same run saw silences (docs/sites.md): not
+//! yet solved, so not asserted here.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
 use sinew_server::recording::survey;
+use sinew_server::world::load_world;
+use sinew_testkit::fidelity::{TUG_RUN_S, peak_and_rms, tug_felt_n, tug_scripts};
 use sinew_testkit::harness::serial;
 use sinew_testkit::lab_run::{
-    assert_namespaces_gone, relay_loss, require_lab, shipped_world, status_number,
+    assert_namespaces_gone, final_line, grasp_pull_args, read_trace, relay_loss, require_lab,
+    shipped_world, status_number, to_script_time,
 };
 use sinew_testkit::netns::{LabConfig, NetnsLab, Side, role_binary, wait_output};
 use sinew_testkit::zenohd::{tls_args, zenohd_binary};
@@ -28,7 +37,7 @@ fn start_router(lab: &mut NetnsLab, config: &std::path::Path) -> Child {
     let mut zenohd = Command::new(zenohd_binary());
     zenohd.arg("-c").arg(config);
     let child = lab.spawn_in(Side::Server, &zenohd).unwrap();
-    let namespace = lab.namespace(Side::Server).to_owned();
+    let namespace = lab.namespace(Side::Server).unwrap().to_owned();
     let bound = || {
         Command::new("ip")
             .args(["netns", "exec", &namespace, "ss", "-Hlun"])
@@ -64,7 +73,7 @@ fn through_zenohd_at_a_distance_both_surgeons_feel_are_watched_recorded_and_rejo
     let _serial = serial();
     require_lab();
     let mut lab = NetnsLab::new(LabConfig::symmetric(25.0, 5.0, 0.02, 11)).unwrap();
-    let namespaces: Vec<String> = lab.namespaces().map(str::to_owned).to_vec();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
     let hub_ip = lab.server_ip().to_string();
     let dir = std::env::temp_dir().join(format!("sinew-zenohd-sites-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -233,5 +242,137 @@ fn through_zenohd_at_a_distance_both_surgeons_feel_are_watched_recorded_and_rejo
     let (lost, forwarded) = relay_loss(&relay);
     println!("relay: lost {lost} of {} frames", lost + forwarded);
     assert!(lost > 0, "the path lost nothing: {relay}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// How long after its process started each scripted hand begins its script, s (the sessions join meanwhile).
+const TUG_START_DELAY_S: f64 = 3.5;
+
+#[test]
+#[cfg_attr(
+    not(netns_lab),
+    ignore = "needs root and iproute2 (`ip netns`), as CI has"
+)]
+fn through_zenohd_two_surgeons_at_two_sites_feel_each_others_pull() {
+    let _serial = serial();
+    require_lab();
+    let world_path = shipped_world("tug_of_war");
+    let world = load_world(&world_path).unwrap();
+    let (left_script, right_script) = tug_scripts(&world);
+    let mut lab =
+        NetnsLab::new(LabConfig::symmetric(50.0, 0.0, 0.0, 13).with_second_site()).unwrap();
+    let namespaces: Vec<String> = lab.namespaces().into_iter().map(str::to_owned).collect();
+    let hub_for = [
+        lab.server_ip().to_string(),
+        lab.server_ip_for_second_site().to_string(),
+    ];
+    let dir = std::env::temp_dir().join(format!("sinew-zenohd-two-sites-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let certs = sinew::certs::make_lab_certs(
+        &dir,
+        &world.scene,
+        &["left".into(), "right".into()],
+        &hub_for,
+    )
+    .unwrap();
+    let router_config =
+        sinew::certs::write_router_config(&dir, &[format!("quic/0.0.0.0:{ROUTER_PORT}")]).unwrap();
+    let role = |name: &str| tls_args(certs.role(name).unwrap());
+    let router_at = |hub_ip: &str| format!("quic/{hub_ip}:{ROUTER_PORT}");
+
+    let mut zenohd = start_router(&mut lab, &router_config);
+    let mut server = Command::new(role_binary("sinew-server").unwrap());
+    server
+        .arg("--world")
+        .arg(&world_path)
+        .args([
+            "--zenoh-mode",
+            "client",
+            "--connect",
+            &router_at(&hub_for[0]),
+        ])
+        .args(role("server"));
+    let mut server = lab.spawn_in(Side::Server, &server).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let run_s = TUG_START_DELAY_S + TUG_RUN_S + 0.3;
+    let csv = |id: &str| dir.join(format!("{id}.csv"));
+    let mut hands = Vec::new();
+    for (id, script, side, hub_ip) in [
+        ("left", &left_script, Side::Device, &hub_for[0]),
+        ("right", &right_script, Side::SecondDevice, &hub_for[1]),
+    ] {
+        let mut haptic = Command::new(role_binary("hapticserver").unwrap());
+        haptic
+            .args(["--id", id, "--scene", &world.scene])
+            .args(grasp_pull_args(script))
+            .args(["--hand", "nominal", "--mode", "auto"])
+            .args(["--zenoh-mode", "client", "--connect", &router_at(hub_ip)])
+            .args(role(&format!("device-{id}")))
+            .args(["--start-delay-s", &TUG_START_DELAY_S.to_string()])
+            .args(["--duration-s", &run_s.to_string()])
+            .arg("--trace-csv")
+            .arg(csv(id));
+        hands.push(lab.spawn_in(side, &haptic).unwrap());
+    }
+    let mut finals = Vec::new();
+    for hand in hands {
+        let output = wait_output(hand, Duration::from_secs(60)).unwrap();
+        let out = String::from_utf8_lossy(&output.stdout);
+        let line = final_line(&out).unwrap_or_else(|| {
+            panic!(
+                "no `final:` line ({}):\n{out}\n{}",
+                output.status,
+                String::from_utf8_lossy(&output.stderr)
+            )
+        });
+        println!("{line}");
+        finals.push(line.to_owned());
+    }
+    server.kill().unwrap();
+    zenohd.kill().unwrap();
+    let _ = (server.wait(), zenohd.wait());
+    let relay = lab.stop_relay().unwrap();
+    drop(lab);
+    assert_namespaces_gone(&namespaces);
+
+    let max_force_n = hapticserver::sim_device::sim_device_model().max_force_n;
+    for line in &finals {
+        assert!(line.contains(": moderated "), "not moderated: {line}");
+        let rtt_us = status_number(line, "rtt p50 ").unwrap();
+        // 100 ms to the hub and back, the router and the server's tick on the way.
+        assert!(
+            (100_000.0..160_000.0).contains(&rtt_us),
+            "round trip p50 {rtt_us} us: {line}"
+        );
+        for key in ["clamped ", "rejects "] {
+            assert_eq!(status_number(line, key), Some(0.0), "{key}in {line}");
+        }
+    }
+    let mut felt = Vec::new();
+    for id in ["left", "right"] {
+        let mut trace = read_trace(&csv(id)).unwrap();
+        to_script_time(&mut trace).unwrap();
+        let (peak, _) = peak_and_rms(&trace);
+        assert!(peak < max_force_n * 0.999, "{id}: {peak} N, at the clamp");
+        let silent = trace
+            .iter()
+            .find(|s| s.stale && (0.0..TUG_RUN_S).contains(&s.t_s));
+        assert!(silent.is_none(), "{id}: silence during the run: {silent:?}");
+        felt.push(tug_felt_n(&trace));
+    }
+    println!(
+        "through zenohd, two sites 100 ms from the hub: left feels the tug {:.4} N, right {:.4} N",
+        felt[0], felt[1]
+    );
+    // As the tug of war at zero delay on one site (netns_tug_of_war.rs): left feels its own pull, right
+    // feels left's through the sheet (about 0.06 N there).
+    assert!(felt[0] > 0.5, "left felt no pull: {felt:?}");
+    assert!(felt[1] > 0.03, "right did not feel left's pull: {felt:?}");
+    let (lost, forwarded) = relay_loss(&relay);
+    println!("relays: lost {lost} of {} frames", lost + forwarded);
+    assert!(
+        forwarded > 5000 && relay.matches("bridging").count() == 2,
+        "{relay}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

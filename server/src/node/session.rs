@@ -37,9 +37,8 @@ pub const SERVER_LINK_LEASE: std::time::Duration = std::time::Duration::from_sec
 
 /// How long a starting server waits for a live server of its scene to leave before refusing: a server that
 /// just died silently is still present until its lease ends.
-pub const DEPARTURE_WAIT: std::time::Duration = std::time::Duration::from_millis(
-    SERVER_LINK_LEASE.as_millis() as u64 + 1500,
-);
+pub const DEPARTURE_WAIT: std::time::Duration =
+    std::time::Duration::from_millis(SERVER_LINK_LEASE.as_millis() as u64 + 1500);
 
 /// How long a server waits for answers when it asks who else is live for its scene, ms.
 pub const LIVE_SERVER_QUERY_MS: u64 = 500;
