@@ -19,8 +19,8 @@ use sinew_server::world::load_world;
 use sinew_testkit::fidelity::{TUG_BEFORE_S, TUG_RUN_S, peak_and_rms, tug_felt_n, tug_scripts};
 use sinew_testkit::harness::serial;
 use sinew_testkit::lab_run::{
-    assert_namespaces_gone, final_line, grasp_pull_args, read_trace, relay_loss, require_lab,
-    shipped_world, start_lab_server, status_number, to_script_time,
+    assert_namespaces_gone, expect_final_line, grasp_pull_args, read_trace, relay_loss,
+    require_lab, shipped_world, start_lab_server, status_number, to_script_time,
 };
 use sinew_testkit::netns::{LabConfig, NetnsLab, role_binary, wait_output};
 
@@ -67,16 +67,9 @@ fn run_lab_tug(config: LabConfig, tag: &str) -> LabTug {
     let mut finals = Vec::new();
     for child in children {
         let output = wait_output(child, Duration::from_secs(60)).unwrap();
-        let out = String::from_utf8_lossy(&output.stdout);
-        let line = final_line(&out).unwrap_or_else(|| {
-            panic!(
-                "no `final:` line ({}):\n{out}\n{}",
-                output.status,
-                String::from_utf8_lossy(&output.stderr)
-            )
-        });
+        let line = expect_final_line(&output);
         println!("{tag}: {line}");
-        finals.push(line.to_owned());
+        finals.push(line);
     }
     let _ = server.kill();
     let _ = server.wait();
