@@ -178,13 +178,21 @@ where
     )
 }
 
-/// The process's subscriber for a role that runs a server: the log (`RUST_LOG`, else `default_filter`) and,
-/// beside it, the refusal counter (which needs zenoh's TRACE decisions the log filters out).
+/// What the default log leaves out of zenoh's access-control interceptor: its one WARN, `Transport returned
+/// multiple network interfaces, current ACL logic might incorrectly apply filters`, which a server with access
+/// rules prints for every QUIC link it dials (the link's socket is bound to every interface). Sinew's rules
+/// name no interface, so there is nothing to act on; the module's errors still show.
+pub const QUIET_ACCESS_CONTROL_WARNING: &str =
+    "zenoh::net::routing::interceptor::access_control=error";
+
+/// The process's subscriber for a role that runs a server: the log (`RUST_LOG`, else `default_filter` with
+/// [`QUIET_ACCESS_CONTROL_WARNING`]) and, beside it, the refusal counter (which needs zenoh's TRACE decisions
+/// the log filters out).
 pub fn init_log_with_counter(default_filter: &str) {
     use tracing_subscriber::layer::SubscriberExt;
     use tracing_subscriber::util::SubscriberInitExt;
     let env = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| default_filter.into());
+        .unwrap_or_else(|_| format!("{default_filter},{QUIET_ACCESS_CONTROL_WARNING}").into());
     tracing_subscriber::registry()
         .with(tracing_subscriber::fmt::layer().with_filter(env))
         .with(layer())
