@@ -29,6 +29,18 @@ fi
 if ! command -v zenohd >/dev/null 2>&1 && [ ! -x "${CARGO_HOME:-$HOME/.cargo}/bin/zenohd" ]; then
   cargo install zenohd --version 1.10.2 --locked --quiet
 fi
+# The instructor's page (tests/tests/web_browser.rs): Debian's chromium, node and npm, then the page's packages
+# (three.js, and playwright-core to drive chromium) exactly as viewer/web/package-lock.json pins them.
+if ! dpkg -s chromium >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  web_packages=(chromium)
+  command -v npm >/dev/null 2>&1 || web_packages+=(nodejs npm)
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${web_packages[@]}" >/dev/null
+fi
+if ! cmp -s viewer/web/package-lock.json viewer/web/node_modules/.sinew-installed-lock.json; then
+  npm ci --prefix viewer/web --no-audit --no-fund --loglevel=error
+  cp viewer/web/package-lock.json viewer/web/node_modules/.sinew-installed-lock.json
+fi
 # Mesa wants a runtime dir (else it prints a harmless error per render).
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/xdg-runtime-$(id -u)}"
 mkdir -p "$XDG_RUNTIME_DIR" && chmod 700 "$XDG_RUNTIME_DIR"

@@ -9,7 +9,8 @@
 //! path with delay, jitter and loss), [`lab_run`] (roles as processes in that lab, and reading what they print
 //! and trace), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
 //! [`fuzz`] (generated bad input for the decoders, the world loader and the recording reader) and [`hertz`] (a
-//! sphere pressed into a block, against Hertz's answer).
+//! sphere pressed into a block, against Hertz's answer), [`zenohd`] (zenoh's own router) and [`web_page`] (`sinew-web`
+//! and the instructor's page in headless chromium).
 //! Must not: contain role logic; everything here calls the role crates' and the application's public APIs.
 #![warn(missing_docs)]
 
@@ -22,4 +23,5 @@ pub mod lab_run;
 pub mod netem;
 pub mod netns;
 pub mod scenarios;
+pub mod web_page;
 pub mod zenohd;

@@ -3,7 +3,9 @@
 //! Owns: the scene replica and its delta rules ([`replica`]), the zenoh client that keeps it in sync
 //! ([`client`], with its shared state machine in `sync_state`), the viewer's counters ([`viewer_stats`]), and
 //! drawing: offscreen PNG ([`render`]) and an interactive window ([`window`]), both through [`scene_view`], with
-//! the instructor's overlay ([`instructor_overlay`]) over either.
+//! the instructor's overlay ([`instructor_overlay`]) over either; and the browser gateway `sinew-web`: the feed
+//! a page reads ([`web_feed`], tools as primitives from [`tool_parts`]) and its HTTP and WebSocket side
+//! ([`web_server`]).
 //!
 //! Must not: depend on the server crate, write to the scene, or run physics. The replica is plain data and is
 //! usable (and tested) without zenoh or a GPU.
@@ -26,7 +28,10 @@ mod sync_state;
 #[path = "../tests/common/fixtures.rs"]
 mod test_fixtures;
 pub mod thread_view;
+pub mod tool_parts;
 pub mod viewer_stats;
+pub mod web_feed;
+pub mod web_server;
 pub mod window;
 
 pub use camera_framing::{CameraFraming, frame_replica};

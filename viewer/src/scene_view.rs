@@ -1,4 +1,5 @@
-//! kiss3d scene nodes mirroring a [`SceneReplica`]: one mesh per object, one sphere or capsule per tool, the
+//! kiss3d scene nodes mirroring a [`SceneReplica`]: one mesh per object, one sphere or capsule per tool with its
+//! jaws, edges and shaft (their geometry from [`crate::tool_parts`]), the
 //! suture threads (in [`crate::thread_view`]) and their needles' punctures (in [`crate::hole_view`]).
 //!
 //! Owns: the look of the scene (colours, materials, lights, background) and keeping the nodes in step with the
@@ -22,25 +23,25 @@ use crate::camera_framing::{CameraFraming, FIELD_OF_VIEW_RAD};
 use crate::hole_view::HoleView;
 use crate::replica::{ReplicaObject, SceneReplica};
 use crate::thread_view::ThreadView;
+use crate::tool_parts::{
+    BLADE_STEEL_RGB, Rgb, Segment, TOOL_STEEL_RGB, body_rgb, edge_segments_in_tool,
+    jaw_segments_in_tool, needle_pose, shaft_segment_in_tool, world_from_tool,
+};
 
 /// Background, 8-bit RGB as it appears in the rendered image.
 pub const BACKGROUND_RGB: [u8; 3] = [28, 31, 38];
 /// Soft-tissue pink.
 const TISSUE: Color = Color::new(0.92, 0.46, 0.50, 1.0);
 /// Tool, free.
-const TOOL_STEEL: Color = Color::new(0.62, 0.65, 0.70, 1.0);
+const TOOL_STEEL: Color = colour(TOOL_STEEL_RGB);
 /// A scalpel's edge: bright steel, so it stands out against the blunt back.
-const BLADE_STEEL: Color = Color::new(0.90, 0.92, 0.95, 1.0);
-/// Tool touching tissue.
-const TOOL_CONTACT: Color = Color::new(0.90, 0.22, 0.16, 1.0);
+const BLADE_STEEL: Color = colour(BLADE_STEEL_RGB);
 /// Ambient light level (kiss3d default 0.2).
 const AMBIENT: f32 = 0.15;
 /// Key light intensity (kiss3d default 3.0 saturates the pale tissue colour).
 const KEY_LIGHT_INTENSITY: f32 = 1.5;
 /// Fill light intensity.
 const FILL_LIGHT_INTENSITY: f32 = 0.35;
-/// Tool with no device bound.
-const TOOL_INACTIVE: Color = Color::new(0.30, 0.31, 0.34, 1.0);
 
 /// Background as a kiss3d clear colour. kiss3d clears its linear HDR film with it and encodes the film with
 /// gamma 2.2 on output (`tonemap_ops.wgsl`), so the value is linearised here to come out as [`BACKGROUND_RGB`].
@@ -132,104 +133,44 @@ struct ToolNode {
     node: SceneNode3d,
     /// Rotation from the node's own frame to the tool frame (kiss3d capsules run along y, Sinew's along z).
     tool_from_node: Quat,
-    /// A grasper's two jaws, and where they hinge (tool frame, mm) and how long they are.
+    /// A grasper's or needle driver's jaws, or scissors' blades.
     jaws: Option<Jaws>,
-    /// A scalpel's edge.
-    blade: Option<Blade>,
+    /// A scalpel's edge, or a needle driver's needle as straight pieces along its arc.
+    edges: Vec<Blade>,
+    /// The edges are a needle's: they follow the needle's own pose when a server sends one.
+    edges_are_a_needle: bool,
     /// An instrument's shaft.
     shaft: Option<Blade>,
-    /// A needle driver's needle, as straight pieces along its arc (empty for other tools).
-    needle: Vec<Blade>,
 }
 
-/// A scalpel's edge or an instrument's shaft as drawn: a capsule from one point to another, in the tool frame.
+/// A straight piece of a tool as drawn (an edge, a piece of needle, a shaft): a capsule placed by a
+/// [`Segment`] of [`crate::tool_parts`], in the tool frame.
 struct Blade {
     node: SceneNode3d,
-    /// Middle of the edge, tool frame, mm.
+    /// Middle of the piece, tool frame, mm.
     centre_mm: Vec3,
-    /// Rotation from the capsule's own axis (kiss3d's y) to the edge, tool frame.
+    /// Rotation from the capsule's own axis (kiss3d's y) to the piece, tool frame.
     tool_from_node: Quat,
 }
 
 impl Blade {
-    /// Edge radius as drawn, mm.
-    const RADIUS_MM: f32 = 0.25;
-
-    /// A scalpel's edge.
-    fn add(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
-        let sinew_protocol::InstrumentInfo::Scalpel {
-            edge_from_mm,
-            edge_to_mm,
-        } = info.instrument
-        else {
-            return None;
-        };
-        Self::rod(
-            group,
-            Vec3::from(edge_from_mm),
-            Vec3::from(edge_to_mm),
-            Self::RADIUS_MM,
-            BLADE_STEEL,
-        )
-    }
-
-    /// Pieces a needle's arc is drawn in.
-    const NEEDLE_PIECES: usize = 12;
-
-    /// A needle driver's needle: its arc in pieces, placed in the tool frame by the protocol's own map.
-    fn needle(group: &mut SceneNode3d, info: &ToolInfo) -> Vec<Self> {
-        let sinew_protocol::InstrumentInfo::NeedleDriver {
-            needle_radius_mm,
-            needle_sweep_rad,
-            needle_diameter_mm,
-            grasp_at_rad,
-            ..
-        } = info.instrument
-        else {
-            return Vec::new();
-        };
-        let at = |k: usize| {
-            let theta = needle_sweep_rad * k as f32 / Self::NEEDLE_PIECES as f32;
-            Vec3::from(sinew_protocol::needle_point_in_tool_mm(
-                needle_radius_mm,
-                grasp_at_rad,
-                theta,
-            ))
-        };
-        (0..Self::NEEDLE_PIECES)
-            .filter_map(|k| {
-                Self::rod(
-                    group,
-                    at(k),
-                    at(k + 1),
-                    0.5 * needle_diameter_mm,
-                    BLADE_STEEL,
-                )
-            })
+    /// A tool's sharp and fine pieces: a scalpel's edge, a needle's arc.
+    fn edges(group: &mut SceneNode3d, info: &ToolInfo) -> Vec<Self> {
+        edge_segments_in_tool(info)
+            .iter()
+            .filter_map(|segment| Self::rod(group, segment, BLADE_STEEL))
             .collect()
     }
 
-    /// An instrument's shaft: from the tool origin up its local z.
+    /// An instrument's shaft.
     fn shaft(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
-        let shaft = info.shaft?;
-        Self::rod(
-            group,
-            Vec3::ZERO,
-            Vec3::new(0.0, 0.0, shaft.length_mm),
-            shaft.radius_mm,
-            TOOL_STEEL,
-        )
+        Self::rod(group, &shaft_segment_in_tool(info)?, TOOL_STEEL)
     }
 
-    fn rod(
-        group: &mut SceneNode3d,
-        from: Vec3,
-        to: Vec3,
-        radius_mm: f32,
-        colour: Color,
-    ) -> Option<Self> {
-        let along = to - from;
+    fn rod(group: &mut SceneNode3d, segment: &Segment, colour: Color) -> Option<Self> {
+        let along = segment.to_mm - segment.from_mm;
         let length_mm = along.length();
+        let radius_mm = segment.radius_mm;
         if !length_mm.is_finite() || length_mm <= 0.0 || radius_mm.is_nan() || radius_mm <= 0.0 {
             return None;
         }
@@ -241,15 +182,14 @@ impl Blade {
             .set_visible(false);
         Some(Self {
             node,
-            centre_mm: 0.5 * (from + to),
+            centre_mm: 0.5 * (segment.from_mm + segment.to_mm),
             tool_from_node: Quat::from_rotation_arc(Vec3::Y, along / length_mm),
         })
     }
 
-    /// Place the edge on a tool at `state` (world from tool).
+    /// Place the piece on a tool at `state` (world from tool).
     fn place(&mut self, state: &ToolState) {
-        let [x, y, z, w] = state.orientation_xyzw;
-        let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
+        let world_from_tool = world_from_tool(state);
         self.node
             .set_position(Vec3::from(state.position_mm) + world_from_tool * self.centre_mm)
             .set_rotation(world_from_tool * self.tool_from_node)
@@ -261,83 +201,49 @@ impl Blade {
     }
 }
 
-/// A grasper's jaws or scissors' blades as drawn: two capsules hinged about the tool's local x axis at
-/// `hinge_mm`, each running `length_mm` along the tool's -z, opened by +-half the jaw angle.
+/// A grasper's jaws or scissors' blades as drawn: two capsules laid along the segments
+/// [`jaw_segments_in_tool`] gives for the state's jaw angle.
 struct Jaws {
     nodes: [SceneNode3d; 2],
-    hinge_mm: Vec3,
-    length_mm: f32,
+    info: ToolInfo,
     /// Blades keep their steel; a grasper's jaws take the tool's colour.
     colour: Option<Color>,
 }
 
 impl Jaws {
-    /// Jaw radius as drawn, mm.
-    const RADIUS_MM: f32 = 0.8;
-    /// Blade radius as drawn, mm.
-    const BLADE_RADIUS_MM: f32 = 0.3;
-
     fn add(group: &mut SceneNode3d, info: &ToolInfo) -> Option<Self> {
-        let (hinge_mm, length_mm, radius_mm, colour) = match info.instrument {
-            sinew_protocol::InstrumentInfo::Grasper { jaw_length_mm, .. } => (
-                Vec3::new(0.0, 0.0, info.shape.bounding_radius_mm()),
-                jaw_length_mm,
-                Self::RADIUS_MM,
-                None,
-            ),
-            // Meeting at the tool origin, where they hold the needle (they open as its ratchet is let go).
-            sinew_protocol::InstrumentInfo::NeedleDriver { jaw_length_mm, .. } => (
-                Vec3::new(0.0, 0.0, jaw_length_mm),
-                jaw_length_mm,
-                Self::RADIUS_MM,
-                None,
-            ),
-            sinew_protocol::InstrumentInfo::Scissors {
-                hinge_mm,
-                blade_length_mm,
-                ..
-            } => (
-                Vec3::from(hinge_mm),
-                blade_length_mm,
-                Self::BLADE_RADIUS_MM,
-                Some(BLADE_STEEL),
-            ),
-            _ => return None,
-        };
-        let length_mm = length_mm.max(0.1);
-        let jaw = |group: &mut SceneNode3d| {
+        let ([jaw, _], steel) = jaw_segments_in_tool(info, 0.0)?;
+        let colour = steel.then_some(BLADE_STEEL);
+        let length_mm = (jaw.to_mm - jaw.from_mm).length();
+        let add = |group: &mut SceneNode3d| {
             group
-                .add_capsule(radius_mm, length_mm)
+                .add_capsule(jaw.radius_mm, length_mm)
                 .set_color(colour.unwrap_or(TOOL_STEEL))
                 .set_metallic(0.5)
                 .set_roughness(0.35)
                 .set_visible(false)
         };
         Some(Self {
-            nodes: [jaw(group), jaw(group)],
-            hinge_mm,
-            length_mm,
+            nodes: [add(group), add(group)],
+            info: info.clone(),
             colour,
         })
     }
 
     /// Place both jaws on a tool at `state` (world from tool), open by `state.jaw_angle_rad`.
     fn place(&mut self, state: &ToolState, colour: Color) {
-        let [x, y, z, w] = state.orientation_xyzw;
-        let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
-        let half = 0.5 * state.jaw_angle_rad.clamp(0.0, std::f32::consts::PI);
-        for (node, sign) in self.nodes.iter_mut().zip([1.0f32, -1.0]) {
-            let tool_from_jaw = Quat::from_rotation_x(sign * half);
-            let centre_tool =
-                self.hinge_mm + tool_from_jaw * Vec3::new(0.0, 0.0, -0.5 * self.length_mm);
-            node.set_position(Vec3::from(state.position_mm) + world_from_tool * centre_tool)
-                .set_rotation(
-                    world_from_tool
-                        * tool_from_jaw
-                        * Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
-                )
-                .set_color(self.colour.unwrap_or(colour))
-                .set_visible(true);
+        let Some((segments, _)) = jaw_segments_in_tool(&self.info, state.jaw_angle_rad) else {
+            return;
+        };
+        let world_from_tool = world_from_tool(state);
+        for (node, jaw) in self.nodes.iter_mut().zip(segments) {
+            let along = (jaw.to_mm - jaw.from_mm).normalize_or(Vec3::NEG_Z);
+            node.set_position(
+                Vec3::from(state.position_mm) + world_from_tool * (0.5 * (jaw.from_mm + jaw.to_mm)),
+            )
+            .set_rotation(world_from_tool * Quat::from_rotation_arc(Vec3::Y, along))
+            .set_color(self.colour.unwrap_or(colour))
+            .set_visible(true);
         }
     }
 
@@ -462,9 +368,12 @@ impl SceneView {
                 tool: info.tool,
                 node: add_tool_shape(&mut group, info),
                 jaws: Jaws::add(&mut group, info),
-                blade: Blade::add(&mut group, info),
+                edges: Blade::edges(&mut group, info),
+                edges_are_a_needle: matches!(
+                    info.instrument,
+                    sinew_protocol::InstrumentInfo::NeedleDriver { .. }
+                ),
                 shaft: Blade::shaft(&mut group, info),
-                needle: Blade::needle(&mut group, info),
                 tool_from_node: match info.shape {
                     ToolShape::Capsule { .. } => Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
                     ToolShape::Sphere { .. } | ToolShape::Mesh { .. } => Quat::IDENTITY,
@@ -525,23 +434,17 @@ impl SceneView {
                     if let Some(jaws) = &mut tool.jaws {
                         jaws.place(state, colour);
                     }
-                    if let Some(blade) = &mut tool.blade {
-                        blade.place(state);
-                    }
                     if let Some(shaft) = &mut tool.shaft {
                         shaft.place(state);
                     }
                     // Where the needle lies, whoever holds it (its driver's pose until a server says: protocol 15).
-                    let needle = needles
-                        .iter()
-                        .find(|n| n.tool == tool.tool)
-                        .map_or(*state, |n| ToolState {
-                            position_mm: n.position_mm,
-                            orientation_xyzw: n.orientation_xyzw,
-                            ..*state
-                        });
-                    for piece in &mut tool.needle {
-                        piece.place(&needle);
+                    let at = if tool.edges_are_a_needle {
+                        needle_pose(state, needles)
+                    } else {
+                        *state
+                    };
+                    for piece in &mut tool.edges {
+                        piece.place(&at);
                     }
                 }
                 None => {
@@ -552,10 +455,7 @@ impl SceneView {
                     if let Some(shaft) = &mut tool.shaft {
                         shaft.hide();
                     }
-                    if let Some(blade) = &mut tool.blade {
-                        blade.hide();
-                    }
-                    for piece in &mut tool.needle {
+                    for piece in &mut tool.edges {
                         piece.hide();
                     }
                 }
@@ -661,18 +561,14 @@ fn add_tool_shape(group: &mut SceneNode3d, info: &ToolInfo) -> SceneNode3d {
 
 /// Place a tool's node; returns the colour it was given (inactive, grasping or touching, free).
 fn place_tool(node: &mut SceneNode3d, tool_from_node: Quat, state: &ToolState) -> Color {
-    let [x, y, z, w] = state.orientation_xyzw;
-    let world_from_tool = Quat::from_xyzw(x, y, z, w).normalize();
-    let color = if !state.active {
-        TOOL_INACTIVE
-    } else if state.in_contact || state.attachments > 0 {
-        TOOL_CONTACT
-    } else {
-        TOOL_STEEL
-    };
+    let color = colour(body_rgb(state));
     node.set_position(Vec3::from(state.position_mm))
-        .set_rotation(world_from_tool * tool_from_node)
+        .set_rotation(world_from_tool(state) * tool_from_node)
         .set_color(color)
         .set_visible(true);
     color
+}
+
+const fn colour(rgb: Rgb) -> Color {
+    Color::new(rgb[0], rgb[1], rgb[2], 1.0)
 }

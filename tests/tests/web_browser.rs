@@ -1,0 +1,218 @@
+//! The instructor in a browser (issue "Sites for real"): `sinew-web` joins a live scene as a viewer and serves
+//! the page; headless chromium (Debian's, driven by playwright-core) opens it. Over real zenoh on loopback,
+//! a real WebSocket and real WebGL pixels:
+//!
+//! - the page's replica has the server's vertex count and topology epoch, before and after a scalpel cuts;
+//! - a screenshot shows the tissue, and each tool where the page projects it;
+//! - a page opened after the cut catches up in one go;
+//! - a recorded session replayed with `sinew replay --publish` plays in the same page.
+//!
+//! Shows as ignored where chromium, node or the page's npm packages are missing (tests/run.sh installs them).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
+
+use std::time::Duration;
+
+use serde_json::Value;
+use sinew_testkit::harness::{
+    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_server, start_sim_device,
+    surgeon_scripts_for, wait_until,
+};
+use sinew_testkit::web_page::{BrowserPage, WebGatewayProcess, count_near, is_tissue, is_tool};
+
+const SCENE: &str = "cut-under-tension";
+
+/// The pad as the page holds it: (vertex count, topology epoch, triangle count).
+fn pad_in_page(state: &Value) -> Option<(u64, u64, u64)> {
+    let pad = state["objects"]
+        .as_array()?
+        .iter()
+        .find(|o| o["name"] == "pad")?;
+    if pad["positionsReceived"].as_u64()? == 0 {
+        return None;
+    }
+    Some((
+        pad["vertexCount"].as_u64()?,
+        pad["topologyEpoch"].as_u64()?,
+        pad["triangleCount"].as_u64()?,
+    ))
+}
+
+/// The server's pad: (vertex count, topology epoch, triangle count).
+fn pad_in_server(server: &sinew_server::node::ServerHandle) -> (u64, u64, u64) {
+    let (epoch, triangles, vertices) = server.latest_topology(0).unwrap();
+    (vertices as u64, u64::from(epoch), triangles.len() as u64)
+}
+
+fn screenshot_dir() -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("sinew-web-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+#[cfg_attr(
+    not(web_browser),
+    ignore = "needs chromium, node and `npm ci --prefix viewer/web` (tests/run.sh installs them)"
+)]
+fn the_instructors_page_shows_the_live_scene_the_cut_as_it_happens_and_catches_up_when_opened_late()
+{
+    let _serial = serial();
+    let world = load_shipped_world("cut_under_tension.toml").unwrap();
+    let (left_script, right_script) = surgeon_scripts_for(&world);
+    let endpoint = free_loopback_endpoint().unwrap();
+    let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
+    let gateway = WebGatewayProcess::start(SCENE, std::slice::from_ref(&endpoint), &[]).unwrap();
+    let mut page = BrowserPage::open(&gateway.url, 1100, 700).unwrap();
+
+    // Before anyone touches it: the page holds the world's mesh, as the server has it.
+    let rest = pad_in_server(&server);
+    let state = page
+        .wait_for(Duration::from_secs(30), "the pad at rest", |s| {
+            pad_in_page(s) == Some(rest) && s["states"].as_u64() > Some(0)
+        })
+        .unwrap();
+    assert_eq!(state["scene"], SCENE);
+    assert_eq!(rest.1, 0, "the world's mesh has not been cut yet");
+    println!("page at rest: {rest:?} (vertices, epoch, triangles)");
+
+    // The scalpel cuts while the grasper pulls; wait until the cut stops growing.
+    let _left = start_sim_device(SCENE, "left", left_script, &endpoint, Pacing::Sleep).unwrap();
+    let _right = start_sim_device(SCENE, "right", right_script, &endpoint, Pacing::Sleep).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(20), || pad_in_server(&server).1 > 0),
+        "the scalpel never cut"
+    );
+    let mut last = pad_in_server(&server);
+    assert!(
+        wait_until(Duration::from_secs(15), || {
+            std::thread::sleep(Duration::from_millis(700));
+            let now = pad_in_server(&server);
+            let still = now == last;
+            last = now;
+            still
+        }),
+        "the cut never stopped growing"
+    );
+    let cut = pad_in_server(&server);
+    assert!(
+        cut.0 >= rest.0 + 20,
+        "the cut split {} vertices",
+        cut.0 - rest.0
+    );
+    println!("server after the cut: {cut:?}");
+    page.wait_for(Duration::from_secs(20), "the cut", |s| {
+        pad_in_page(s) == Some(cut)
+    })
+    .unwrap();
+
+    // A screenshot: tissue fills much of the view, and each active tool shows where the page projects it.
+    let dir = screenshot_dir();
+    // Paused, the page's picture holds still, so the tools are where its state says.
+    page.pause(true).unwrap();
+    let (state, problems) = page.state().unwrap();
+    let image = page.screenshot(&dir.join("live.png")).unwrap();
+    let (after, _) = page.state().unwrap();
+    assert_eq!(
+        state["lastStateFrame"], after["lastStateFrame"],
+        "the picture moved while paused"
+    );
+    page.pause(false).unwrap();
+    let tissue = image.pixels().filter(|p| is_tissue(p)).count();
+    let share = tissue as f64 / f64::from(image.width() * image.height());
+    println!("tissue covers {:.0}% of the page", 100.0 * share);
+    assert!(
+        share > 0.15,
+        "tissue covers {:.1}% of the page",
+        100.0 * share
+    );
+    let on_screen = state["toolsOnScreen"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
+    assert_eq!(on_screen.len(), 2, "both tools are placed: {state}");
+    for tool in &on_screen {
+        let (x, y) = (tool["x"].as_f64().unwrap(), tool["y"].as_f64().unwrap());
+        let steel = count_near(&image, x, y, 3, is_tool);
+        println!(
+            "{} at ({x:.0}, {y:.0}): {steel} of 49 pixels are tool",
+            tool["deviceId"]
+        );
+        assert!(
+            steel >= 20,
+            "tool {} at ({x:.0}, {y:.0}) on the page: only {steel} of 49 pixels look like a tool (screenshot {})",
+            tool["deviceId"],
+            dir.join("live.png").display()
+        );
+    }
+    assert!(
+        problems.is_empty(),
+        "the page reported errors: {problems:?}"
+    );
+
+    // A page opened now catches up at once: its first messages carry the cut mesh.
+    let mut late = BrowserPage::open(&gateway.url, 800, 600).unwrap();
+    let caught_up = late
+        .wait_for(Duration::from_secs(20), "the cut", |s| {
+            pad_in_page(s) == Some(cut)
+        })
+        .unwrap();
+    assert_eq!(caught_up["connections"], 1);
+    assert_eq!(caught_up["undecodable"], 0);
+    let stats = gateway.stats().unwrap();
+    println!("gateway: {stats}");
+    assert_eq!(stats["pagesOpen"], 2);
+    assert_eq!(stats["pageMessagesIgnored"], 0);
+    assert_eq!(server.stats().sim_faults, 0);
+}
+
+#[test]
+#[cfg_attr(
+    not(web_browser),
+    ignore = "needs chromium, node and `npm ci --prefix viewer/web` (tests/run.sh installs them)"
+)]
+fn a_replay_published_from_a_recording_plays_in_the_page() {
+    let _serial = serial();
+    let dir = screenshot_dir();
+    let path = dir.join("cut.mcap");
+    sinew_testkit::harness::record_two_surgeons_in(
+        "cut_under_tension.toml",
+        &path,
+        Duration::from_secs(4),
+    )
+    .unwrap();
+    let recording = sinew_server::recording::read_recording(&path).unwrap();
+    let world_dir = dir.join("world");
+    std::fs::create_dir_all(&world_dir).unwrap();
+    let world = recording.load_world(&world_dir).unwrap();
+    let endpoint = free_loopback_endpoint().unwrap();
+    let options = sinew::debrief::PublishOptions {
+        endpoint: endpoint.clone(),
+        speed: 1.0,
+        linger: Duration::from_secs(12),
+    };
+    let replay =
+        std::thread::spawn(move || sinew::debrief::publish(&recording, world, &options, |_, _| {}));
+    let gateway = WebGatewayProcess::start(SCENE, std::slice::from_ref(&endpoint), &[]).unwrap();
+    let mut page = BrowserPage::open(&gateway.url, 800, 600).unwrap();
+    // The recorded cut arrives in the page as the replay reaches it.
+    let state = page
+        .wait_for(Duration::from_secs(40), "the replayed cut", |s| {
+            pad_in_page(s).is_some_and(|(_, epoch, _)| epoch > 0)
+        })
+        .unwrap();
+    let frames_then = state["lastStateFrame"].as_u64().unwrap();
+    println!(
+        "replay in the page: pad {:?} at frame {frames_then}",
+        pad_in_page(&state)
+    );
+    assert_eq!(state["scene"], SCENE);
+    assert!(state["parts"].as_u64() > Some(0), "no tools drawn: {state}");
+    drop(page);
+    drop(gateway);
+    let done = replay.join().unwrap().unwrap();
+    assert!(done.finished);
+    assert_eq!(
+        done.force_mismatches, 0,
+        "the replay drifted from the recording: {done:?}"
+    );
+}

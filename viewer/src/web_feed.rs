@@ -1,0 +1,630 @@
+//! The browser feed: a replica (and the server's stats) encoded as the messages the instructor's page reads
+//! from its WebSocket, built once per feed tick and shared by every page.
+//!
+//! Owns: the feed's message layout (below; `viewer/web/static/feed.js` is its only reader), [`FeedBuilder`],
+//! which turns a replica into a [`FeedFrame`] and re-encodes only what changed, and [`FeedCursor`], one page's
+//! place in the feed (what it was sent), which picks the messages a page still lacks.
+//!
+//! Must not: touch sockets, zenoh or clocks. The page only reads: nothing in this file decodes anything a page
+//! sends.
+//!
+//! # Messages (binary WebSocket frames, little-endian)
+//! Every message starts with a 4-byte header: `kind: u8`, `flags: u8`, `object: u16`.
+//! - `1` SCENE, JSON after the header: `{"scene", "layout", "objects": [{"index", "name", "vertexCount",
+//!   "triangleCount", "topologyEpoch"}], "tools": [{"tool", "name", "deviceId", "instrument"}]}`. Sent first,
+//!   and again whenever an object's triangles or vertex count change (a cut, a tear, a new snapshot): the page
+//!   then drops its meshes and waits for MESH messages.
+//! - `2` MESH, one object's triangles: `topology_epoch: u32`, `vertex_count: u32`, `triangle_count: u32`, then
+//!   `triangle_count * 3` vertex indices (`u32`).
+//! - `3` POSITIONS, one object's vertices: `vertex_count: u32`, `min_mm: [f32; 3]`, `quantum_mm: [f32; 3]`,
+//!   then `vertex_count * 3` quantized coordinates (`u16`, position = min + q * quantum, exactly the server's
+//!   quantization), then, if `flags & 1`, `vertex_count` burn levels (`u8`, 0 untouched to 255 charred).
+//! - `4` STATE, JSON after the header: the tools as world-frame parts ([`crate::tool_parts`]), the suture
+//!   threads as polylines, each tool's force and its device's limit, and the instructor's overlay (text lines,
+//!   force arrows, target rings) as [`crate::InstructorOverlay`] builds it for the native viewer.
+
+use std::sync::Arc;
+
+use bytes::Bytes;
+use serde::Serialize;
+use sinew_protocol::{InstrumentInfo, ServerStats};
+
+use crate::instructor_overlay::{InstructorOverlay, Rgb};
+use crate::replica::{ReplicaObject, SceneReplica};
+use crate::tool_parts::{ToolPart, tool_parts};
+
+/// SCENE message kind.
+pub const KIND_SCENE: u8 = 1;
+/// MESH message kind.
+pub const KIND_MESH: u8 = 2;
+/// POSITIONS message kind.
+pub const KIND_POSITIONS: u8 = 3;
+/// STATE message kind.
+pub const KIND_STATE: u8 = 4;
+/// POSITIONS flag: burn levels follow the coordinates.
+pub const FLAG_BURN: u8 = 1;
+
+/// What identifies one object's positions as sent: the replica's snapshot, the object's frame and topology.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct PositionsKey {
+    snapshot_revision: u64,
+    frame: u64,
+    topology_epoch: u32,
+    vertex_count: usize,
+}
+
+impl PositionsKey {
+    fn of(replica: &SceneReplica, object: &ReplicaObject) -> Self {
+        Self {
+            snapshot_revision: replica.snapshot_revision(),
+            frame: object.frame(),
+            topology_epoch: object.topology_epoch(),
+            vertex_count: object.vertex_count(),
+        }
+    }
+}
+
+/// One object's encoded positions, with the key they were encoded for.
+#[derive(Debug, Clone)]
+struct EncodedPositions {
+    key: PositionsKey,
+    message: Bytes,
+}
+
+/// Everything a page needs at one feed tick, encoded once and shared by every page.
+#[derive(Debug, Clone)]
+pub struct FeedFrame {
+    /// Counts frames built (from 1).
+    pub seq: u64,
+    /// Changes whenever a mesh's triangles or vertex count change: a page resends SCENE and every MESH.
+    pub layout: u64,
+    scene: Bytes,
+    meshes: Vec<Bytes>,
+    positions: Vec<EncodedPositions>,
+    state: Bytes,
+    /// Vertices over all objects (for the gateway's log line).
+    pub vertices: usize,
+}
+
+impl FeedFrame {
+    /// The SCENE message.
+    pub fn scene_message(&self) -> &Bytes {
+        &self.scene
+    }
+
+    /// The STATE message.
+    pub fn state_message(&self) -> &Bytes {
+        &self.state
+    }
+}
+
+/// Builds feed frames from a replica, re-encoding only what changed since the last one.
+#[derive(Debug, Default)]
+pub struct FeedBuilder {
+    seq: u64,
+    last: Option<Arc<FeedFrame>>,
+    topology_revision: Option<u64>,
+}
+
+impl FeedBuilder {
+    /// A builder that has built nothing.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The frame for the replica now, or None if there is no snapshot yet or nothing changed since the last
+    /// frame.
+    pub fn build(
+        &mut self,
+        replica: &SceneReplica,
+        stats: Option<&ServerStats>,
+    ) -> Option<Arc<FeedFrame>> {
+        if !replica.has_snapshot() {
+            return None;
+        }
+        let layout_changed = self.topology_revision != Some(replica.topology_revision());
+        let previous = self.last.as_deref().filter(|_| !layout_changed);
+        let (layout, scene, meshes) = match previous {
+            Some(p) => (p.layout, p.scene.clone(), p.meshes.clone()),
+            None => {
+                let layout = self.last.as_ref().map_or(1, |p| p.layout + 1);
+                (
+                    layout,
+                    scene_message(replica, layout),
+                    replica.objects().iter().map(mesh_message).collect(),
+                )
+            }
+        };
+        let mut positions_changed = false;
+        let positions: Vec<EncodedPositions> = replica
+            .objects()
+            .iter()
+            .enumerate()
+            .map(|(i, object)| {
+                let key = PositionsKey::of(replica, object);
+                match previous.and_then(|p| p.positions.get(i)) {
+                    Some(old) if old.key == key => old.clone(),
+                    _ => {
+                        positions_changed = true;
+                        EncodedPositions {
+                            key,
+                            message: positions_message(object),
+                        }
+                    }
+                }
+            })
+            .collect();
+        let state = state_message(replica, stats);
+        if let Some(p) = previous
+            && !positions_changed
+            && p.state == state
+        {
+            return None;
+        }
+        self.seq += 1;
+        self.topology_revision = Some(replica.topology_revision());
+        let frame = Arc::new(FeedFrame {
+            seq: self.seq,
+            layout,
+            scene,
+            meshes,
+            positions,
+            state,
+            vertices: replica.objects().iter().map(|o| o.vertex_count()).sum(),
+        });
+        self.last = Some(Arc::clone(&frame));
+        Some(frame)
+    }
+}
+
+/// One page's place in the feed: the layout, positions and state it was last sent.
+#[derive(Debug, Default)]
+pub struct FeedCursor {
+    layout: Option<u64>,
+    positions: Vec<Option<PositionsKey>>,
+    state_seq: Option<u64>,
+}
+
+impl FeedCursor {
+    /// A page that has been sent nothing.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The messages this page lacks to be at `frame`, in the order to send them; the cursor then counts them
+    /// as sent.
+    pub fn messages_for(&mut self, frame: &FeedFrame) -> Vec<Bytes> {
+        let mut out = Vec::new();
+        if self.layout != Some(frame.layout) {
+            out.push(frame.scene.clone());
+            out.extend(frame.meshes.iter().cloned());
+            self.layout = Some(frame.layout);
+            self.positions = vec![None; frame.positions.len()];
+        }
+        for (sent, positions) in self.positions.iter_mut().zip(&frame.positions) {
+            if *sent != Some(positions.key) {
+                out.push(positions.message.clone());
+                *sent = Some(positions.key);
+            }
+        }
+        if self.state_seq != Some(frame.seq) {
+            out.push(frame.state.clone());
+            self.state_seq = Some(frame.seq);
+        }
+        out
+    }
+}
+
+fn header(kind: u8, flags: u8, object: u16, capacity: usize) -> Vec<u8> {
+    let mut out = Vec::with_capacity(4 + capacity);
+    out.push(kind);
+    out.push(flags);
+    out.extend_from_slice(&object.to_le_bytes());
+    out
+}
+
+fn json_message(kind: u8, value: &impl Serialize) -> Bytes {
+    let mut out = header(kind, 0, 0, 256);
+    // Serialising plain structs of numbers and strings into a Vec cannot fail; an empty body would be read
+    // by the page as a bad message and skipped.
+    if serde_json::to_writer(&mut out, value).is_err() {
+        out.truncate(4);
+    }
+    Bytes::from(out)
+}
+
+fn len_u32(n: usize) -> [u8; 4] {
+    u32::try_from(n).unwrap_or(u32::MAX).to_le_bytes()
+}
+
+/// The SCENE message: names and sizes of the objects, and the tools.
+fn scene_message(replica: &SceneReplica, layout: u64) -> Bytes {
+    #[derive(Serialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Object<'a> {
+        index: u16,
+        name: &'a str,
+        vertex_count: usize,
+        triangle_count: usize,
+        topology_epoch: u32,
+    }
+    #[derive(Serialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Tool<'a> {
+        tool: u16,
+        name: &'a str,
+        device_id: &'a str,
+        instrument: &'static str,
+    }
+    #[derive(Serialize)]
+    struct Scene<'a> {
+        scene: &'a str,
+        layout: u64,
+        objects: Vec<Object<'a>>,
+        tools: Vec<Tool<'a>>,
+    }
+    json_message(
+        KIND_SCENE,
+        &Scene {
+            scene: replica.scene(),
+            layout,
+            objects: replica
+                .objects()
+                .iter()
+                .map(|o| Object {
+                    index: o.index(),
+                    name: o.name(),
+                    vertex_count: o.vertex_count(),
+                    triangle_count: o.triangles().len(),
+                    topology_epoch: o.topology_epoch(),
+                })
+                .collect(),
+            tools: replica
+                .tools()
+                .iter()
+                .map(|t| Tool {
+                    tool: t.tool,
+                    name: &t.name,
+                    device_id: &t.device_id,
+                    instrument: instrument_name(&t.instrument),
+                })
+                .collect(),
+        },
+    )
+}
+
+fn instrument_name(instrument: &InstrumentInfo) -> &'static str {
+    match instrument {
+        InstrumentInfo::Probe => "probe",
+        InstrumentInfo::Grasper { .. } => "grasper",
+        InstrumentInfo::Cautery => "cautery",
+        InstrumentInfo::Scalpel { .. } => "scalpel",
+        InstrumentInfo::Scissors { .. } => "scissors",
+        InstrumentInfo::NeedleDriver { .. } => "needle driver",
+    }
+}
+
+/// The MESH message of one object.
+fn mesh_message(object: &ReplicaObject) -> Bytes {
+    let triangles = object.triangles();
+    let mut out = header(KIND_MESH, 0, object.index(), 12 + triangles.len() * 12);
+    out.extend_from_slice(&object.topology_epoch().to_le_bytes());
+    out.extend_from_slice(&len_u32(object.vertex_count()));
+    out.extend_from_slice(&len_u32(triangles.len()));
+    for t in triangles {
+        for v in t {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    Bytes::from(out)
+}
+
+/// The POSITIONS message of one object.
+fn positions_message(object: &ReplicaObject) -> Bytes {
+    let quantized = object.quantized();
+    let burn = object.burn();
+    let burnt = burn.len() == quantized.len() && burn.iter().any(|&b| b > 0);
+    let mut out = header(
+        KIND_POSITIONS,
+        if burnt { FLAG_BURN } else { 0 },
+        object.index(),
+        28 + quantized.len() * 7,
+    );
+    out.extend_from_slice(&len_u32(quantized.len()));
+    let bounds = object.bounds();
+    for value in bounds.min_mm.iter().chain(&bounds.quantum_mm()) {
+        out.extend_from_slice(&value.to_le_bytes());
+    }
+    for q in quantized {
+        for c in q {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    if burnt {
+        out.extend_from_slice(burn);
+    }
+    Bytes::from(out)
+}
+
+/// One tool part as the page draws it.
+#[derive(Serialize)]
+#[serde(tag = "kind", rename_all = "camelCase")]
+enum PartJson<'a> {
+    Sphere {
+        c: [f32; 3],
+        r: f32,
+        rgb: Rgb,
+    },
+    Capsule {
+        a: [f32; 3],
+        b: [f32; 3],
+        r: f32,
+        rgb: Rgb,
+    },
+    Mesh {
+        positions: &'a [[f32; 3]],
+        triangles: &'a [[u32; 3]],
+        rgb: Rgb,
+    },
+}
+
+impl<'a> From<&'a ToolPart> for PartJson<'a> {
+    fn from(part: &'a ToolPart) -> Self {
+        match part {
+            ToolPart::Sphere {
+                centre_mm,
+                radius_mm,
+                rgb,
+            } => Self::Sphere {
+                c: *centre_mm,
+                r: *radius_mm,
+                rgb: *rgb,
+            },
+            ToolPart::Capsule {
+                from_mm,
+                to_mm,
+                radius_mm,
+                rgb,
+            } => Self::Capsule {
+                a: *from_mm,
+                b: *to_mm,
+                r: *radius_mm,
+                rgb: *rgb,
+            },
+            ToolPart::Mesh {
+                positions_mm,
+                triangles,
+                rgb,
+            } => Self::Mesh {
+                positions: positions_mm,
+                triangles,
+                rgb: *rgb,
+            },
+        }
+    }
+}
+
+/// The STATE message: tools, threads, forces and the overlay.
+fn state_message(replica: &SceneReplica, stats: Option<&ServerStats>) -> Bytes {
+    #[derive(Serialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Tool<'a> {
+        tool: u16,
+        device_id: &'a str,
+        active: bool,
+        in_contact: bool,
+        force_n: f32,
+        /// The device's force limit, N (0: not known yet).
+        limit_n: f32,
+        parts: Vec<PartJson<'a>>,
+    }
+    #[derive(Serialize)]
+    struct Line<'a> {
+        text: &'a str,
+        rgb: Rgb,
+    }
+    #[derive(Serialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Arrow {
+        tool: u16,
+        from: [f32; 3],
+        to: [f32; 3],
+        force_n: f32,
+        rgb: Rgb,
+    }
+    #[derive(Serialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Ring {
+        centre: [f32; 3],
+        radius_mm: f32,
+        rgb: Rgb,
+    }
+    #[derive(Serialize)]
+    #[serde(rename_all = "camelCase")]
+    struct State<'a> {
+        frame: u64,
+        sim_time_s: f64,
+        tools: Vec<Tool<'a>>,
+        threads: Vec<Vec<[f32; 3]>>,
+        lines: Vec<Line<'a>>,
+        arrows: Vec<Arrow>,
+        targets: Vec<Ring>,
+    }
+    let overlay = InstructorOverlay::build(replica, stats);
+    let states = replica.tool_states();
+    let parts: Vec<(u16, Vec<ToolPart>)> = replica
+        .tools()
+        .iter()
+        .filter_map(|info| {
+            let state = states.tools.iter().find(|s| s.tool == info.tool)?;
+            Some((info.tool, tool_parts(info, state, &states.needles)))
+        })
+        .collect();
+    let tools = replica
+        .tools()
+        .iter()
+        .filter_map(|info| {
+            let state = states.tools.iter().find(|s| s.tool == info.tool)?;
+            let limit_n = stats
+                .and_then(|s| s.devices.iter().find(|d| d.device_id == info.device_id))
+                .map_or(0.0, |d| d.force_limit_n);
+            let force_n = state.force_n.iter().map(|c| c * c).sum::<f32>().sqrt();
+            Some(Tool {
+                tool: info.tool,
+                device_id: &info.device_id,
+                active: state.active,
+                in_contact: state.in_contact,
+                force_n: if force_n.is_finite() { force_n } else { 0.0 },
+                limit_n,
+                parts: parts
+                    .iter()
+                    .find(|(tool, _)| *tool == info.tool)
+                    .map(|(_, p)| p.iter().map(PartJson::from).collect())
+                    .unwrap_or_default(),
+            })
+        })
+        .collect();
+    let threads = states
+        .threads
+        .iter()
+        .map(|t| t.nodes_q.iter().map(|q| t.bounds.dequantize(*q)).collect())
+        .collect();
+    json_message(
+        KIND_STATE,
+        &State {
+            frame: states.frame,
+            sim_time_s: states.sim_time_s,
+            tools,
+            threads,
+            lines: overlay
+                .lines
+                .iter()
+                .map(|l| Line {
+                    text: &l.text,
+                    rgb: l.rgb,
+                })
+                .collect(),
+            arrows: overlay
+                .arrows
+                .iter()
+                .map(|a| Arrow {
+                    tool: a.tool,
+                    from: a.from_mm,
+                    to: a.to_mm,
+                    force_n: a.force_n,
+                    rgb: a.rgb,
+                })
+                .collect(),
+            targets: overlay
+                .targets
+                .iter()
+                .map(|t| Ring {
+                    centre: t.centre_mm,
+                    radius_mm: t.radius_mm,
+                    rgb: t.rgb,
+                })
+                .collect(),
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_fixtures::{PROBE_ABOVE_MM, quantize_all, sheet_positions_mm, sheet_snapshot};
+
+    fn replica() -> SceneReplica {
+        let n = 4;
+        SceneReplica::from_snapshot(sheet_snapshot(
+            quantize_all(&sheet_positions_mm(n)),
+            n,
+            5,
+            PROBE_ABOVE_MM,
+        ))
+    }
+
+    fn kinds(messages: &[Bytes]) -> Vec<u8> {
+        messages.iter().map(|m| m[0]).collect()
+    }
+
+    #[test]
+    fn a_new_page_gets_the_scene_its_meshes_positions_and_state_then_only_what_changed() {
+        let mut replica = replica();
+        let mut builder = FeedBuilder::new();
+        let first = builder.build(&replica, None).unwrap();
+        let mut page = FeedCursor::new();
+        let messages = page.messages_for(&first);
+        assert_eq!(
+            kinds(&messages),
+            [KIND_SCENE, KIND_MESH, KIND_POSITIONS, KIND_STATE]
+        );
+        // MESH: header, epoch, vertex and triangle counts, then the triangles.
+        let object = &replica.objects()[0];
+        let mesh = &messages[1];
+        assert_eq!(
+            u32::from_le_bytes(mesh[8..12].try_into().unwrap()) as usize,
+            16
+        );
+        assert_eq!(mesh.len(), 16 + object.triangles().len() * 12);
+        // POSITIONS: the server's own quantized values, and min + q * quantum is the replica's position.
+        let positions = &messages[2];
+        let q0 = u16::from_le_bytes(positions[32..34].try_into().unwrap());
+        let min_x = f32::from_le_bytes(positions[8..12].try_into().unwrap());
+        let quantum_x = f32::from_le_bytes(positions[20..24].try_into().unwrap());
+        assert_eq!(q0, object.quantized()[0][0]);
+        assert!((min_x + f32::from(q0) * quantum_x - object.positions_mm()[0][0]).abs() < 1e-3);
+        assert_eq!(positions.len(), 32 + 16 * 6);
+        // Nothing changed: no frame; a page already there is sent nothing more.
+        assert!(builder.build(&replica, None).is_none());
+        assert!(page.messages_for(&first).is_empty());
+        // The tool moves: only the state.
+        let mut states = replica.tool_states().clone();
+        states.frame += 1;
+        states.tools[0].position_mm[2] -= 1.0;
+        replica.apply_tools(states);
+        let second = builder.build(&replica, None).unwrap();
+        assert_eq!(second.layout, first.layout);
+        assert_eq!(kinds(&page.messages_for(&second)), [KIND_STATE]);
+        // A page opened late catches up in one go.
+        assert_eq!(
+            kinds(&FeedCursor::new().messages_for(&second)),
+            [KIND_SCENE, KIND_MESH, KIND_POSITIONS, KIND_STATE]
+        );
+    }
+
+    #[test]
+    fn a_new_snapshot_resends_the_layout() {
+        let mut replica = replica();
+        let mut builder = FeedBuilder::new();
+        let mut page = FeedCursor::new();
+        let first = builder.build(&replica, None).unwrap();
+        page.messages_for(&first);
+        replica.apply_snapshot(replica.to_snapshot());
+        let second = builder.build(&replica, None).unwrap();
+        assert_ne!(second.layout, first.layout);
+        assert_eq!(
+            kinds(&page.messages_for(&second)),
+            [KIND_SCENE, KIND_MESH, KIND_POSITIONS, KIND_STATE]
+        );
+    }
+
+    #[test]
+    fn the_state_names_the_tools_and_carries_the_overlay() {
+        let replica = replica();
+        let frame = FeedBuilder::new().build(&replica, None).unwrap();
+        let state: serde_json::Value = serde_json::from_slice(&frame.state_message()[4..]).unwrap();
+        assert_eq!(
+            state["tools"].as_array().unwrap().len(),
+            replica.tools().len()
+        );
+        assert!(!state["tools"][0]["parts"].as_array().unwrap().is_empty());
+        assert!(
+            state["lines"][0]["text"]
+                .as_str()
+                .unwrap()
+                .contains("no server stats yet")
+        );
+        let scene: serde_json::Value = serde_json::from_slice(&frame.scene_message()[4..]).unwrap();
+        assert_eq!(scene["objects"][0]["vertexCount"], 16);
+    }
+}
