@@ -2,7 +2,8 @@
 //! the page; headless chromium (Debian's, driven by playwright-core) opens it. Over real zenoh on loopback,
 //! a real WebSocket and real WebGL pixels:
 //!
-//! - the page's replica has the server's vertex count and topology epoch, before and after a scalpel cuts;
+//! - the page's replica has the server's vertex and triangle counts, and a viewer's topology epoch, before and
+//!   after a scalpel cuts;
 //! - a screenshot shows the tissue, and each tool where the page projects it;
 //! - a page opened after the cut catches up in one go;
 //! - a recorded session replayed with `sinew replay --publish` plays in the same page.
@@ -15,7 +16,7 @@ use std::time::Duration;
 use serde_json::Value;
 use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, serial, start_server, start_sim_device,
-    surgeon_scripts_for, wait_until,
+    start_viewer, surgeon_scripts_for, wait_until,
 };
 use sinew_testkit::web_page::{BrowserPage, WebGatewayProcess, count_near, is_tissue, is_tool};
 
@@ -37,10 +38,35 @@ fn pad_in_page(state: &Value) -> Option<(u64, u64, u64)> {
     ))
 }
 
-/// The server's pad: (vertex count, topology epoch, triangle count).
+/// The server's pad: (vertex count, topology version, triangle count). The version counts the sim's topology
+/// changes; the wire's epoch counts the deltas that carried them (one delta may carry several), so the page's
+/// epoch is checked against a viewer's replica, which follows the same wire.
 fn pad_in_server(server: &sinew_server::node::ServerHandle) -> (u64, u64, u64) {
-    let (epoch, triangles, vertices) = server.latest_topology(0).unwrap();
-    (vertices as u64, u64::from(epoch), triangles.len() as u64)
+    let (version, triangles, vertices) = server.latest_topology(0).unwrap();
+    (vertices as u64, u64::from(version), triangles.len() as u64)
+}
+
+/// The pad as the in-process reference viewer holds it: (vertex count, topology epoch, triangle count).
+fn pad_in_viewer(viewer: &sinew_viewer::ViewerHandle) -> (u64, u64, u64) {
+    viewer.with_replica(|r| {
+        let pad = r.object_by_name("pad").expect("the pad");
+        (
+            pad.vertex_count() as u64,
+            u64::from(pad.topology_epoch()),
+            pad.triangles().len() as u64,
+        )
+    })
+}
+
+/// The page, the reference viewer and the server hold the same pad.
+fn all_agree(
+    page: &Value,
+    viewer: &sinew_viewer::ViewerHandle,
+    server: &sinew_server::node::ServerHandle,
+) -> bool {
+    let (vertices, _, triangles) = pad_in_server(server);
+    let reference = pad_in_viewer(viewer);
+    reference.0 == vertices && reference.2 == triangles && pad_in_page(page) == Some(reference)
 }
 
 fn screenshot_dir() -> std::path::PathBuf {
@@ -61,16 +87,17 @@ fn the_instructors_page_shows_the_live_scene_the_cut_as_it_happens_and_catches_u
     let (left_script, right_script) = surgeon_scripts_for(&world);
     let endpoint = free_loopback_endpoint().unwrap();
     let server = start_server(world, &endpoint, Pacing::Sleep).unwrap();
+    let reference = start_viewer(SCENE, "reference", &endpoint).unwrap();
     let gateway = WebGatewayProcess::start(SCENE, std::slice::from_ref(&endpoint), &[]).unwrap();
     let mut page = BrowserPage::open(&gateway.url, 1100, 700).unwrap();
 
     // Before anyone touches it: the page holds the world's mesh, as the server has it.
-    let rest = pad_in_server(&server);
     let state = page
         .wait_for(Duration::from_secs(30), "the pad at rest", |s| {
-            pad_in_page(s) == Some(rest) && s["states"].as_u64() > Some(0)
+            all_agree(s, &reference, &server) && s["states"].as_u64() > Some(0)
         })
         .unwrap();
+    let rest = pad_in_page(&state).unwrap();
     assert_eq!(state["scene"], SCENE);
     assert_eq!(rest.1, 0, "the world's mesh has not been cut yet");
     println!("page at rest: {rest:?} (vertices, epoch, triangles)");
@@ -100,10 +127,19 @@ fn the_instructors_page_shows_the_live_scene_the_cut_as_it_happens_and_catches_u
         cut.0 - rest.0
     );
     println!("server after the cut: {cut:?}");
-    page.wait_for(Duration::from_secs(20), "the cut", |s| {
-        pad_in_page(s) == Some(cut)
-    })
-    .unwrap();
+    // The page converges on the server's mesh as it is now (a last split may land after the pause above).
+    let converged = page.wait_for(Duration::from_secs(20), "the server's cut mesh", |s| {
+        all_agree(s, &reference, &server)
+    });
+    let cut = pad_in_viewer(&reference);
+    converged.unwrap_or_else(|e| {
+        panic!(
+            "the server holds {:?}, the reference viewer {cut:?}: {e}",
+            pad_in_server(&server)
+        )
+    });
+    assert!(cut.1 > 0, "the cut reached no viewer");
+    println!("page after the cut: {cut:?} (vertices, epoch, triangles)");
 
     // A screenshot: tissue fills much of the view, and each active tool shows where the page projects it.
     let dir = screenshot_dir();
@@ -153,7 +189,7 @@ fn the_instructors_page_shows_the_live_scene_the_cut_as_it_happens_and_catches_u
     let mut late = BrowserPage::open(&gateway.url, 800, 600).unwrap();
     let caught_up = late
         .wait_for(Duration::from_secs(20), "the cut", |s| {
-            pad_in_page(s) == Some(cut)
+            all_agree(s, &reference, &server) && pad_in_page(s).is_some_and(|pad| pad.1 >= cut.1)
         })
         .unwrap();
     assert_eq!(caught_up["connections"], 1);
