@@ -6,6 +6,7 @@
 //!   after a scalpel cuts;
 //! - a screenshot shows the tissue, and each tool where the page projects it;
 //! - a page opened after the cut catches up in one go;
+//! - as a probe dents the pad, the page, sent only the vertices that moved, draws the viewer's replica;
 //! - a recorded session replayed with `sinew replay --publish` plays in the same page.
 //!
 //! Shows as ignored where chromium, node or the page's npm packages are missing (tests/run.sh installs them).
@@ -15,8 +16,8 @@ use std::time::Duration;
 
 use serde_json::Value;
 use sinew_testkit::harness::{
-    Pacing, free_loopback_endpoint, load_shipped_world, serial, start_server, start_sim_device,
-    start_viewer, surgeon_scripts_for, wait_until,
+    Pacing, deepest_dent_mm, free_loopback_endpoint, load_shipped_world, serial, start_server,
+    start_sim_device, start_viewer, surgeon_scripts_for, wait_until,
 };
 use sinew_testkit::web_page::{BrowserPage, WebGatewayProcess, count_near, is_tissue, is_tool};
 
@@ -139,6 +140,32 @@ fn the_instructors_page_shows_the_live_scene_the_cut_as_it_happens_and_catches_u
         )
     });
     assert!(cut.1 > 0, "the cut reached no viewer");
+    // What the page draws is the viewer's replica: its deepest point and mean height, within a quantum, once
+    // the page has caught up with a frame (the page takes whole positions, then only the vertices that moved).
+    let drawn = |s: &Value| {
+        let pad = &s["objects"][0];
+        (pad["drawnMinZ"].as_f64(), pad["drawnMeanZ"].as_f64())
+    };
+    let replica_z = || {
+        reference.with_replica(|r| {
+            let p = r.object_by_name("pad").unwrap().positions_mm();
+            let min = p
+                .iter()
+                .map(|v| f64::from(v[2]))
+                .fold(f64::INFINITY, f64::min);
+            (
+                min,
+                p.iter().map(|v| f64::from(v[2])).sum::<f64>() / p.len() as f64,
+            )
+        })
+    };
+    let same_heights = page.wait_for(Duration::from_secs(20), "the replica's heights", |s| {
+        let (min, mean) = replica_z();
+        matches!(drawn(s), (Some(a), Some(b)) if (a - min).abs() < 0.01 && (b - mean).abs() < 0.001)
+    });
+    let (min, mean) = replica_z();
+    same_heights
+        .unwrap_or_else(|e| panic!("the viewer's pad: deepest {min} mm, mean {mean} mm: {e}"));
     println!("page after the cut: {cut:?} (vertices, epoch, triangles)");
 
     // A screenshot: tissue fills much of the view, and each active tool shows where the page projects it.
@@ -194,11 +221,99 @@ fn the_instructors_page_shows_the_live_scene_the_cut_as_it_happens_and_catches_u
         .unwrap();
     assert_eq!(caught_up["connections"], 1);
     assert_eq!(caught_up["undecodable"], 0);
+    assert_eq!(caught_up["unapplied"], 0);
+    let (state, _) = page.state().unwrap();
+    assert_eq!(
+        state["unapplied"], 0,
+        "a change the page could not apply: {state}"
+    );
     let stats = gateway.stats().unwrap();
     println!("gateway: {stats}");
     assert_eq!(stats["pagesOpen"], 2);
     assert_eq!(stats["pageMessagesIgnored"], 0);
     assert_eq!(server.stats().sim_faults, 0);
+}
+
+/// The page's pad as drawn: (deepest point, mean height), mm.
+fn drawn_heights(state: &Value) -> Option<(f64, f64)> {
+    let pad = state["objects"]
+        .as_array()?
+        .iter()
+        .find(|o| o["name"] == "pad")?;
+    Some((pad["drawnMinZ"].as_f64()?, pad["drawnMeanZ"].as_f64()?))
+}
+
+/// The reference viewer's pad: (deepest point, mean height), mm.
+fn replica_heights(viewer: &sinew_viewer::ViewerHandle) -> (f64, f64) {
+    viewer.with_replica(|r| {
+        let p = r.object_by_name("pad").expect("the pad").positions_mm();
+        let min = p
+            .iter()
+            .map(|v| f64::from(v[2]))
+            .fold(f64::INFINITY, f64::min);
+        (
+            min,
+            p.iter().map(|v| f64::from(v[2])).sum::<f64>() / p.len() as f64,
+        )
+    })
+}
+
+#[test]
+#[cfg_attr(
+    not(web_browser),
+    ignore = "needs chromium, node and `npm ci --prefix viewer/web` (tests/run.sh installs them)"
+)]
+fn the_page_draws_what_a_viewer_replicates_through_the_changes_it_is_sent() {
+    let _serial = serial();
+    let endpoint = free_loopback_endpoint().unwrap();
+    let server = start_server(
+        load_shipped_world("pad.toml").unwrap(),
+        &endpoint,
+        Pacing::Sleep,
+    )
+    .unwrap();
+    let reference = start_viewer("pad", "reference", &endpoint).unwrap();
+    let gateway = WebGatewayProcess::start("pad", std::slice::from_ref(&endpoint), &[]).unwrap();
+    let mut page = BrowserPage::open(&gateway.url, 800, 600).unwrap();
+    page.wait_for(Duration::from_secs(30), "the pad", |s| {
+        pad_in_page(s).is_some()
+    })
+    .unwrap();
+    // A probe presses 5 mm into the pad and holds: the page takes the dent and its settling as changes from
+    // frame to frame (POSITIONS_DELTA), never the whole pad again.
+    let _left = start_sim_device(
+        "pad",
+        "left",
+        hapticserver::HandScript::Hold {
+            position_mm: [0.0, 0.0, -5.0],
+        },
+        &endpoint,
+        Pacing::Sleep,
+    )
+    .unwrap();
+    assert!(
+        wait_until(Duration::from_secs(15), || deepest_dent_mm(&server) > 2.0),
+        "the probe never pressed"
+    );
+    let same = page.wait_for(Duration::from_secs(30), "the viewer's heights", |s| {
+        let (min, mean) = replica_heights(&reference);
+        drawn_heights(s).is_some_and(|(a, b)| (a - min).abs() < 0.01 && (b - mean).abs() < 0.001)
+    });
+    let (min, mean) = replica_heights(&reference);
+    let state = same.unwrap_or_else(|e| {
+        panic!("the viewer's pad: deepest {min:.3} mm, mean {mean:.4} mm: {e}")
+    });
+    let deltas = state["objects"][0]["deltasReceived"].as_u64().unwrap_or(0);
+    println!(
+        "the page draws the dent {:.2} mm deep after {deltas} changes",
+        -min
+    );
+    assert!(min < -2.0, "the viewer's pad is dented only {min} mm");
+    assert!(
+        deltas >= 10,
+        "the page took {deltas} changes: the dent came whole"
+    );
+    assert_eq!(state["unapplied"], 0);
 }
 
 #[test]

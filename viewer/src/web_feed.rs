@@ -19,6 +19,10 @@
 //! - `3` POSITIONS, one object's vertices: `vertex_count: u32`, `min_mm: [f32; 3]`, `quantum_mm: [f32; 3]`,
 //!   then `vertex_count * 3` quantized coordinates (`u16`, position = min + q * quantum, exactly the server's
 //!   quantization), then, if `flags & 1`, `vertex_count` burn levels (`u8`, 0 untouched to 255 charred).
+//! - `5` POSITIONS_DELTA, the vertices of one object that changed since the previous frame, sent instead of
+//!   POSITIONS to a page that holds that frame's: `vertex_count: u32` (the object's, to check), `changed: u32`,
+//!   `min_mm: [f32; 3]`, `quantum_mm: [f32; 3]`, `changed` vertex indices (`u32`), then their quantized
+//!   coordinates (`changed * 3` `u16`), then, if `flags & 1`, their burn levels (`changed` `u8`).
 //! - `4` STATE, JSON after the header: the tools as world-frame parts ([`crate::tool_parts`]), the suture
 //!   threads as polylines, each tool's force and its device's limit, and the instructor's overlay (text lines,
 //!   force arrows, target rings) as [`crate::InstructorOverlay`] builds it for the native viewer.
@@ -41,6 +45,8 @@ pub const KIND_MESH: u8 = 2;
 pub const KIND_POSITIONS: u8 = 3;
 /// STATE message kind.
 pub const KIND_STATE: u8 = 4;
+/// POSITIONS_DELTA message kind.
+pub const KIND_POSITIONS_DELTA: u8 = 5;
 /// POSITIONS flag: burn levels follow the coordinates.
 pub const FLAG_BURN: u8 = 1;
 
@@ -69,6 +75,8 @@ impl PositionsKey {
 struct EncodedPositions {
     key: PositionsKey,
     message: Bytes,
+    /// The same positions as a change from the previous frame's (the key a page must hold to take it).
+    delta: Option<(PositionsKey, Bytes)>,
 }
 
 /// Everything a page needs at one feed tick, encoded once and shared by every page.
@@ -104,6 +112,9 @@ pub struct FeedBuilder {
     seq: u64,
     last: Option<Arc<FeedFrame>>,
     topology_revision: Option<u64>,
+    /// Per object, the quantized positions and burn levels last encoded (what a page at the last frame has).
+    encoded_q: Vec<Vec<[u16; 3]>>,
+    encoded_burn: Vec<Vec<u8>>,
 }
 
 impl FeedBuilder {
@@ -135,6 +146,10 @@ impl FeedBuilder {
                 )
             }
         };
+        if previous.is_none() {
+            self.encoded_q = vec![Vec::new(); replica.objects().len()];
+            self.encoded_burn = vec![Vec::new(); replica.objects().len()];
+        }
         let mut positions_changed = false;
         let positions: Vec<EncodedPositions> = replica
             .objects()
@@ -142,15 +157,29 @@ impl FeedBuilder {
             .enumerate()
             .map(|(i, object)| {
                 let key = PositionsKey::of(replica, object);
-                match previous.and_then(|p| p.positions.get(i)) {
-                    Some(old) if old.key == key => old.clone(),
-                    _ => {
-                        positions_changed = true;
-                        EncodedPositions {
-                            key,
-                            message: positions_message(object),
-                        }
-                    }
+                let old = previous.and_then(|p| p.positions.get(i));
+                if let Some(old) = old
+                    && old.key == key
+                {
+                    return old.clone();
+                }
+                positions_changed = true;
+                let delta = old.zip(self.encoded_q.get(i)).and_then(|(old, q)| {
+                    let burn = self.encoded_burn.get(i).map_or(&[][..], Vec::as_slice);
+                    positions_delta_message(object, q, burn).map(|m| (old.key, m))
+                });
+                if let Some(q) = self.encoded_q.get_mut(i) {
+                    q.clear();
+                    q.extend_from_slice(object.quantized());
+                }
+                if let Some(b) = self.encoded_burn.get_mut(i) {
+                    b.clear();
+                    b.extend_from_slice(object.burn());
+                }
+                EncodedPositions {
+                    key,
+                    message: positions_message(object),
+                    delta,
                 }
             })
             .collect();
@@ -202,10 +231,15 @@ impl FeedCursor {
             self.positions = vec![None; frame.positions.len()];
         }
         for (sent, positions) in self.positions.iter_mut().zip(&frame.positions) {
-            if *sent != Some(positions.key) {
-                out.push(positions.message.clone());
-                *sent = Some(positions.key);
+            if *sent == Some(positions.key) {
+                continue;
             }
+            // The change from the previous frame if this page holds it, else everything.
+            match &positions.delta {
+                Some((from, delta)) if *sent == Some(*from) => out.push(delta.clone()),
+                _ => out.push(positions.message.clone()),
+            }
+            *sent = Some(positions.key);
         }
         if self.state_seq != Some(frame.seq) {
             out.push(frame.state.clone());
@@ -344,6 +378,51 @@ fn positions_message(object: &ReplicaObject) -> Bytes {
         out.extend_from_slice(burn);
     }
     Bytes::from(out)
+}
+
+/// The POSITIONS_DELTA message of one object against what was last encoded (`q`, `burn`): the vertices whose
+/// quantized position or burn level changed. None when the vertex counts differ (a page then takes the whole
+/// POSITIONS), or when the change is no smaller than the whole.
+fn positions_delta_message(object: &ReplicaObject, q: &[[u16; 3]], burn: &[u8]) -> Option<Bytes> {
+    let now_q = object.quantized();
+    let now_burn = object.burn();
+    if q.len() != now_q.len() {
+        return None;
+    }
+    let burn_of = |b: &[u8], i: usize| b.get(i).copied().unwrap_or(0);
+    let changed: Vec<u32> = (0..now_q.len())
+        .filter(|&i| now_q[i] != q[i] || burn_of(now_burn, i) != burn_of(burn, i))
+        .filter_map(|i| u32::try_from(i).ok())
+        .collect();
+    let burnt = now_burn.iter().any(|&b| b > 0);
+    let per_vertex = if burnt { 11 } else { 10 };
+    if changed.len() * per_vertex >= now_q.len() * if burnt { 7 } else { 6 } {
+        return None;
+    }
+    let mut out = header(
+        KIND_POSITIONS_DELTA,
+        if burnt { FLAG_BURN } else { 0 },
+        object.index(),
+        32 + changed.len() * per_vertex,
+    );
+    out.extend_from_slice(&len_u32(now_q.len()));
+    out.extend_from_slice(&len_u32(changed.len()));
+    let bounds = object.bounds();
+    for value in bounds.min_mm.iter().chain(&bounds.quantum_mm()) {
+        out.extend_from_slice(&value.to_le_bytes());
+    }
+    for i in &changed {
+        out.extend_from_slice(&i.to_le_bytes());
+    }
+    for &i in &changed {
+        for c in now_q[i as usize] {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    if burnt {
+        out.extend(changed.iter().map(|&i| burn_of(now_burn, i as usize)));
+    }
+    Some(Bytes::from(out))
 }
 
 /// One tool part as the page draws it.
@@ -531,7 +610,9 @@ fn state_message(replica: &SceneReplica, stats: Option<&ServerStats>) -> Bytes {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_fixtures::{PROBE_ABOVE_MM, quantize_all, sheet_positions_mm, sheet_snapshot};
+    use crate::test_fixtures::{
+        PROBE_ABOVE_MM, diff_delta, quantize_all, sheet_positions_mm, sheet_snapshot,
+    };
 
     fn replica() -> SceneReplica {
         let n = 4;
@@ -589,6 +670,46 @@ mod tests {
         assert_eq!(
             kinds(&FeedCursor::new().messages_for(&second)),
             [KIND_SCENE, KIND_MESH, KIND_POSITIONS, KIND_STATE]
+        );
+    }
+
+    #[test]
+    fn a_page_at_the_previous_frame_gets_only_the_vertices_that_moved_and_a_page_behind_gets_them_all()
+     {
+        let mut replica = replica();
+        let mut builder = FeedBuilder::new();
+        let (mut current, mut behind) = (FeedCursor::new(), FeedCursor::new());
+        let first = builder.build(&replica, None).unwrap();
+        current.messages_for(&first);
+        behind.messages_for(&first);
+        let step = |replica: &mut SceneReplica, vertex: usize, q: [u16; 3]| {
+            let before = replica.objects()[0].quantized().to_vec();
+            let mut after = before.clone();
+            after[vertex] = q;
+            let frame = replica.objects()[0].frame();
+            replica
+                .apply_delta(&diff_delta(&before, &after, frame, frame + 1))
+                .unwrap();
+        };
+        step(&mut replica, 5, [1, 2, 3]);
+        let second = builder.build(&replica, None).unwrap();
+        let messages = current.messages_for(&second);
+        assert_eq!(kinds(&messages), [KIND_POSITIONS_DELTA, KIND_STATE]);
+        // One vertex: header, counts, bounds, its index, its three coordinates.
+        let delta = &messages[0];
+        assert_eq!(delta.len(), 4 + 8 + 24 + 4 + 6);
+        assert_eq!(u32::from_le_bytes(delta[36..40].try_into().unwrap()), 5);
+        assert_eq!(u16::from_le_bytes(delta[40..42].try_into().unwrap()), 1);
+        step(&mut replica, 6, [4, 5, 6]);
+        let third = builder.build(&replica, None).unwrap();
+        assert_eq!(
+            kinds(&current.messages_for(&third)),
+            [KIND_POSITIONS_DELTA, KIND_STATE]
+        );
+        // A page that skipped the second frame cannot take the third's change: it gets every position.
+        assert_eq!(
+            kinds(&behind.messages_for(&third)),
+            [KIND_POSITIONS, KIND_STATE]
         );
     }
 

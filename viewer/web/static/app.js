@@ -3,7 +3,7 @@
 //
 // `window.sinew` holds what the page has replicated (scene, objects with their vertex counts and topology
 // epochs, messages and bytes received): for the browser test and for anyone debugging from the console.
-import { decode, KIND_SCENE, KIND_MESH, KIND_POSITIONS, KIND_STATE } from './feed.js';
+import { decode, KIND_SCENE, KIND_MESH, KIND_POSITIONS, KIND_POSITIONS_DELTA, KIND_STATE } from './feed.js';
 import { SceneView } from './scene.js';
 import { Panel } from './panel.js';
 
@@ -14,7 +14,7 @@ const feedStats = document.getElementById('feed-stats');
 
 const sinew = {
   connected: false, connections: 0, scene: null, layout: null, objects: [], tools: [],
-  paused: false, messages: 0, bytes: 0, undecodable: 0, states: 0, lastStateFrame: 0, parts: 0, arrows: 0, rendered: 0,
+  paused: false, messages: 0, bytes: 0, undecodable: 0, unapplied: 0, states: 0, lastStateFrame: 0, parts: 0, arrows: 0, rendered: 0,
 };
 window.sinew = sinew;
 
@@ -23,6 +23,7 @@ function objectsSummary() {
     index, name: sinew.sceneObjects?.find((s) => s.index === index)?.name ?? '',
     vertexCount: o.vertexCount, topologyEpoch: o.topologyEpoch,
     triangleCount: o.geometry.index ? o.geometry.index.count / 3 : 0, positionsReceived: o.positionsReceived,
+    deltasReceived: o.deltasReceived, drawnMinZ: o.drawnMinZ, drawnMeanZ: o.drawnMeanZ,
   }));
 }
 
@@ -40,15 +41,16 @@ function onMessage(buffer) {
       sinew.tools = m.body.tools;
       document.title = `Sinew: watching ${m.body.scene}`;
       break;
-    case KIND_MESH: pendingPositions.delete(m.object); view.setMesh(m); break;
-    // Latest-value mailboxes: a page that draws slower than the feed skips to the newest positions and state.
-    case KIND_POSITIONS: pendingPositions.set(m.object, m); break;
+    case KIND_MESH: view.setMesh(m); break;
+    // Positions go into the page's copy of each object at once (a change applies to the one before it);
+    // the GPU takes them once per drawn frame. The state is a latest-value mailbox.
+    case KIND_POSITIONS: if (!view.takePositions(m)) sinew.unapplied += 1; break;
+    case KIND_POSITIONS_DELTA: if (!view.takeDelta(m)) sinew.unapplied += 1; break;
     case KIND_STATE: pendingState = m.body; break;
   }
   objectsSummary();
 }
 
-const pendingPositions = new Map();
 let pendingState = null;
 
 /** Hold the picture (the newest positions and state wait in the mailboxes) or let it go on. */
@@ -64,9 +66,7 @@ document.getElementById('pause').addEventListener('click', () => setPaused(!sine
 /** Apply what arrived since the last frame (unless paused); returns whether anything did. */
 function applyPending() {
   if (sinew.paused) return false;
-  let changed = false;
-  for (const m of pendingPositions.values()) changed = view.setPositions(m) || changed;
-  pendingPositions.clear();
+  let changed = view.flush();
   if (pendingState) {
     const state = pendingState;
     pendingState = null;

@@ -5,6 +5,7 @@ export const KIND_SCENE = 1;
 export const KIND_MESH = 2;
 export const KIND_POSITIONS = 3;
 export const KIND_STATE = 4;
+export const KIND_POSITIONS_DELTA = 5;
 const FLAG_BURN = 1;
 const text = new TextDecoder();
 
@@ -40,6 +41,22 @@ export function decode(buffer) {
         }
         const burn = burnt ? new Uint8Array(buffer, 32 + vertexCount * 6, vertexCount) : null;
         return { kind, object, vertexCount, positions, burn };
+      }
+      case KIND_POSITIONS_DELTA: {
+        const vertexCount = view.getUint32(4, true);
+        const changed = view.getUint32(8, true);
+        const min = [0, 1, 2].map((a) => view.getFloat32(12 + 4 * a, true));
+        const quantum = [0, 1, 2].map((a) => view.getFloat32(24 + 4 * a, true));
+        const burnt = (flags & FLAG_BURN) !== 0;
+        if (buffer.byteLength !== 36 + changed * (burnt ? 11 : 10)) return null;
+        const indices = new Uint32Array(buffer, 36, changed);
+        const q = new Uint16Array(buffer, 36 + 4 * changed, changed * 3);
+        const positions = new Float32Array(changed * 3);
+        for (let k = 0; k < changed; k++) {
+          for (let a = 0; a < 3; a++) positions[3 * k + a] = min[a] + q[3 * k + a] * quantum[a];
+        }
+        const burn = burnt ? new Uint8Array(buffer, 36 + 10 * changed, changed) : null;
+        return { kind, object, vertexCount, indices, positions, burn };
       }
       default:
         return null;

@@ -91,7 +91,11 @@ export class SceneView {
       clearcoat: 0.7, clearcoatRoughness: 0.18, sheen: 0.3, sheenColor: new THREE.Color(0xffc0c8),
       side: THREE.DoubleSide,
     });
-    this.objects = new Map(); // object index -> { mesh, geometry, vertexCount, topologyEpoch, uvDone }
+    // object index -> { mesh, geometry, vertexCount, topologyEpoch, positions and burn (the copy the feed
+    // updates), dirty (not yet on the GPU) }
+    this.objects = new Map();
+    this.tissueColour = srgb(TISSUE_RGB);
+    this.burnColours = BURN.map(([level, rgb]) => [level, srgb(rgb)]);
     this.tools = new THREE.Group();
     this.overlay = new THREE.Group();
     this.scene.add(this.tools, this.overlay);
@@ -131,42 +135,80 @@ export class SceneView {
     this.scene.add(mesh);
     this.objects.set(message.object, {
       mesh, geometry, vertexCount: n, topologyEpoch: message.topologyEpoch, uvDone: false, positionsReceived: 0,
+      deltasReceived: 0, positions: new Float32Array(n * 3), burn: new Uint8Array(n), hasPositions: false,
+      dirty: false,
     });
   }
 
-  setPositions(message) {
+  /** Every position of an object (a POSITIONS message), into its copy here; drawn at the next flush. */
+  takePositions(message) {
     const o = this.objects.get(message.object);
     if (!o || o.vertexCount !== message.vertexCount) return false;
-    const position = o.geometry.getAttribute('position');
-    position.array.set(message.positions);
-    position.needsUpdate = true;
-    if (!o.uvDone) {
-      // Texture coordinates from where the vertices first are (planar, 1 repeat per 40 mm): the pattern
-      // then moves with the tissue as it deforms.
-      const uv = o.geometry.getAttribute('uv');
-      for (let i = 0; i < message.vertexCount; i++) {
-        uv.array[2 * i] = message.positions[3 * i] / 40;
-        uv.array[2 * i + 1] = (message.positions[3 * i + 1] + 0.35 * message.positions[3 * i + 2]) / 40;
-      }
-      uv.needsUpdate = true;
-      o.uvDone = true;
-    }
-    const colour = o.geometry.getAttribute('color');
-    const base = srgb(TISSUE_RGB);
-    const burnColours = BURN.map(([level, rgb]) => [level, srgb(rgb)]);
-    for (let i = 0; i < message.vertexCount; i++) {
-      let c = base;
-      const level = message.burn ? message.burn[i] : 0;
-      for (const [from, burnt] of burnColours) if (level >= from) c = burnt;
-      colour.array[3 * i] = c.r; colour.array[3 * i + 1] = c.g; colour.array[3 * i + 2] = c.b;
-    }
-    colour.needsUpdate = true;
-    o.geometry.computeVertexNormals();
-    o.geometry.computeBoundingSphere();
-    o.mesh.visible = true;
+    o.positions.set(message.positions);
+    if (message.burn) o.burn.set(message.burn); else o.burn.fill(0);
+    o.hasPositions = true;
+    o.dirty = true;
     o.positionsReceived += 1;
-    if (!this.framed) this.frame();
     return true;
+  }
+
+  /** The vertices that moved (a POSITIONS_DELTA message), into the copy here; false if it does not fit. */
+  takeDelta(message) {
+    const o = this.objects.get(message.object);
+    if (!o || !o.hasPositions || o.vertexCount !== message.vertexCount) return false;
+    for (let k = 0; k < message.indices.length; k++) {
+      const i = message.indices[k];
+      if (i >= o.vertexCount) return false;
+      o.positions[3 * i] = message.positions[3 * k];
+      o.positions[3 * i + 1] = message.positions[3 * k + 1];
+      o.positions[3 * i + 2] = message.positions[3 * k + 2];
+      if (message.burn) o.burn[i] = message.burn[k];
+    }
+    o.dirty = true;
+    o.positionsReceived += 1;
+    o.deltasReceived += 1;
+    return true;
+  }
+
+  /** Write every changed object to the GPU (positions, burn colours, normals); returns whether any changed. */
+  flush() {
+    let any = false;
+    for (const o of this.objects.values()) {
+      if (!o.dirty) continue;
+      o.dirty = false;
+      any = true;
+      const position = o.geometry.getAttribute('position');
+      position.array.set(o.positions);
+      position.needsUpdate = true;
+      if (!o.uvDone) {
+        // Texture coordinates from where the vertices first are (planar, 1 repeat per 40 mm): the pattern
+        // then moves with the tissue as it deforms.
+        const uv = o.geometry.getAttribute('uv');
+        for (let i = 0; i < o.vertexCount; i++) {
+          uv.array[2 * i] = o.positions[3 * i] / 40;
+          uv.array[2 * i + 1] = (o.positions[3 * i + 1] + 0.35 * o.positions[3 * i + 2]) / 40;
+        }
+        uv.needsUpdate = true;
+        o.uvDone = true;
+      }
+      const colour = o.geometry.getAttribute('color');
+      for (let i = 0; i < o.vertexCount; i++) {
+        let c = this.tissueColour;
+        for (const [from, burnt] of this.burnColours) if (o.burn[i] >= from) c = burnt;
+        colour.array[3 * i] = c.r; colour.array[3 * i + 1] = c.g; colour.array[3 * i + 2] = c.b;
+      }
+      colour.needsUpdate = true;
+      o.geometry.computeVertexNormals();
+      o.geometry.computeBoundingSphere();
+      o.mesh.visible = true;
+      // What is drawn, summed up: for the browser test, to compare with a viewer's replica.
+      let minZ = Infinity, sumZ = 0;
+      for (let i = 0; i < o.vertexCount; i++) { const z = o.positions[3 * i + 2]; minZ = Math.min(minZ, z); sumZ += z; }
+      o.drawnMinZ = minZ;
+      o.drawnMeanZ = sumZ / Math.max(1, o.vertexCount);
+    }
+    if (any && !this.framed) this.frame();
+    return any;
   }
 
   bounds() {
