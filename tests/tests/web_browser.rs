@@ -142,28 +142,10 @@ fn the_instructors_page_shows_the_live_scene_the_cut_as_it_happens_and_catches_u
     assert!(cut.1 > 0, "the cut reached no viewer");
     // What the page draws is the viewer's replica: its deepest point and mean height, within a quantum, once
     // the page has caught up with a frame (the page takes whole positions, then only the vertices that moved).
-    let drawn = |s: &Value| {
-        let pad = &s["objects"][0];
-        (pad["drawnMinZ"].as_f64(), pad["drawnMeanZ"].as_f64())
-    };
-    let replica_z = || {
-        reference.with_replica(|r| {
-            let p = r.object_by_name("pad").unwrap().positions_mm();
-            let min = p
-                .iter()
-                .map(|v| f64::from(v[2]))
-                .fold(f64::INFINITY, f64::min);
-            (
-                min,
-                p.iter().map(|v| f64::from(v[2])).sum::<f64>() / p.len() as f64,
-            )
-        })
-    };
     let same_heights = page.wait_for(Duration::from_secs(20), "the replica's heights", |s| {
-        let (min, mean) = replica_z();
-        matches!(drawn(s), (Some(a), Some(b)) if (a - min).abs() < 0.01 && (b - mean).abs() < 0.001)
+        same_heights(s, &reference)
     });
-    let (min, mean) = replica_z();
+    let (min, mean) = replica_heights(&reference);
     same_heights
         .unwrap_or_else(|e| panic!("the viewer's pad: deepest {min} mm, mean {mean} mm: {e}"));
     println!("page after the cut: {cut:?} (vertices, epoch, triangles)");
@@ -258,6 +240,12 @@ fn replica_heights(viewer: &sinew_viewer::ViewerHandle) -> (f64, f64) {
     })
 }
 
+/// The page draws the viewer's pad: its deepest point within 0.01 mm, its mean height within 0.001 mm.
+fn same_heights(state: &Value, viewer: &sinew_viewer::ViewerHandle) -> bool {
+    let (min, mean) = replica_heights(viewer);
+    drawn_heights(state).is_some_and(|(a, b)| (a - min).abs() < 0.01 && (b - mean).abs() < 0.001)
+}
+
 #[test]
 #[cfg_attr(
     not(web_browser),
@@ -296,8 +284,7 @@ fn the_page_draws_what_a_viewer_replicates_through_the_changes_it_is_sent() {
         "the probe never pressed"
     );
     let same = page.wait_for(Duration::from_secs(30), "the viewer's heights", |s| {
-        let (min, mean) = replica_heights(&reference);
-        drawn_heights(s).is_some_and(|(a, b)| (a - min).abs() < 0.01 && (b - mean).abs() < 0.001)
+        same_heights(s, &reference)
     });
     let (min, mean) = replica_heights(&reference);
     let state = same.unwrap_or_else(|e| {
