@@ -11,79 +11,33 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
 
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use sinew_protocol::DevicePose;
-use sinew_protocol::codec::encode_to_vec;
 use sinew_protocol::network::NetworkOptions;
-use sinew_protocol::rt::{LatencyHistogram, Pacer};
+use sinew_protocol::rt::LatencyHistogram;
+use sinew_testkit::bench_support::{self, arg, encoded_pose_len, us};
 use sinew_testkit::harness::{
     Pacing, SimDeviceSetup, free_loopback_endpoint, load_shipped_world, start_server,
     start_sim_device_emulated, surgeon_scripts,
 };
-use zenoh::Wait;
-use zenoh::qos::CongestionControl;
-
-fn us(h: &LatencyHistogram, p: f64) -> f64 {
-    h.percentile_ns(p) as f64 / 1000.0
-}
 
 fn ping_pong(seconds: f64, payload_len: usize) -> LatencyHistogram {
     let endpoint = free_loopback_endpoint().unwrap();
-    let a = sinew_server::node::open_session(&NetworkOptions {
-        listen: vec![endpoint.clone()],
-        ..NetworkOptions::default()
-    })
-    .unwrap();
-    let b = sinew_server::node::open_session(&NetworkOptions {
-        connect: vec![endpoint],
-        ..NetworkOptions::default()
-    })
-    .unwrap();
-    let pong = b
-        .declare_publisher("bench/pong")
-        .congestion_control(CongestionControl::Drop)
-        .express(true)
-        .wait()
-        .unwrap();
-    let _echo = b
-        .declare_subscriber("bench/ping")
-        .callback(move |sample| {
-            let _ = pong.put(sample.payload().to_bytes().as_ref()).wait();
-        })
-        .wait()
-        .unwrap();
-    let start = Instant::now();
-    let histogram = Arc::new(Mutex::new(LatencyHistogram::new()));
-    let h = histogram.clone();
-    let _receiver = a
-        .declare_subscriber("bench/pong")
-        .callback(move |sample| {
-            let bytes = sample.payload().to_bytes();
-            let sent_ns = u64::from_le_bytes(bytes[..8].try_into().unwrap());
-            let now_ns = start.elapsed().as_nanos() as u64;
-            h.lock().unwrap().record_ns(now_ns - sent_ns);
-        })
-        .wait()
-        .unwrap();
-    let ping = a
-        .declare_publisher("bench/ping")
-        .congestion_control(CongestionControl::Drop)
-        .express(true)
-        .wait()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(500)); // routes established
-    histogram.lock().unwrap().reset();
-    let mut pacer = Pacer::new(Duration::from_millis(1), 100_000);
-    let mut payload = vec![0u8; payload_len.max(8)];
-    while start.elapsed().as_secs_f64() < seconds + 0.5 {
-        pacer.wait();
-        payload[..8].copy_from_slice(&(start.elapsed().as_nanos() as u64).to_le_bytes());
-        ping.put(payload.as_slice()).wait().unwrap();
-    }
-    std::thread::sleep(Duration::from_millis(50));
-    histogram.lock().unwrap().clone()
+    bench_support::ping_pong(
+        seconds,
+        &NetworkOptions {
+            listen: vec![endpoint.clone()],
+            ..NetworkOptions::default()
+        },
+        &NetworkOptions {
+            connect: vec![endpoint],
+            ..NetworkOptions::default()
+        },
+        ("bench/ping", "bench/pong"),
+        payload_len,
+        Duration::from_millis(500),
+    )
+    .unwrap()
 }
 
 /// One run of the live system: server + two simulated hapticservers, `phase_align` on or off. Prints its
@@ -182,23 +136,8 @@ fn run_system(
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let seconds: f64 = args
-        .iter()
-        .position(|a| a == "--seconds")
-        .and_then(|i| args.get(i + 1))
-        .map_or(10.0, |s| s.parse().unwrap());
-    let pose_len = encode_to_vec(
-        sinew_protocol::InstanceId(1),
-        &DevicePose {
-            seq: 123_456,
-            device_time_ns: 12_345_678_901,
-            orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
-            round_trip_us: 1500,
-            ..DevicePose::default()
-        },
-    )
-    .len();
+    let seconds = arg("--seconds", 10.0);
+    let pose_len = encoded_pose_len();
 
     let baseline = ping_pong(seconds, pose_len);
 

@@ -12,22 +12,11 @@
 use std::time::Duration;
 
 use sinew_protocol::rt::LatencyHistogram;
+use sinew_testkit::bench_support::{arg, us};
 use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
     start_viewer, surgeon_scripts,
 };
-
-fn arg(name: &str, default: f64) -> f64 {
-    let args: Vec<String> = std::env::args().collect();
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .map_or(default, |s| s.parse().unwrap())
-}
-
-fn us(h: &LatencyHistogram, p: f64) -> f64 {
-    h.percentile_ns(p) as f64 / 1000.0
-}
 
 struct Phase {
     /// Per device: id, rendered round trip, wire round trip, loop overruns.

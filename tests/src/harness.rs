@@ -16,8 +16,8 @@ use sinew_server::world::{World, load_world};
 
 pub use sinew::loopback::{
     Pacing, ReplicaError, SimDeviceSetup, replica_error, start_server, start_server_emulated,
-    start_server_recording, start_sim_device, start_sim_device_emulated, start_viewer,
-    surgeon_scripts, surgeon_scripts_for,
+    start_server_networked, start_server_recording, start_sim_device, start_sim_device_emulated,
+    start_sim_device_networked, start_viewer, surgeon_scripts, surgeon_scripts_for,
 };
 
 /// The repository's `worlds/` directory (from this crate's manifest, so tests work from any directory).

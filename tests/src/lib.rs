@@ -9,12 +9,14 @@
 //! path with delay, jitter and loss), [`lab_run`] (roles as processes in that lab, and reading what they print
 //! and trace), [`netem`] (the packet bridge on that path, the `sinew-netem` binary),
 //! [`fuzz`] (generated bad input for the decoders, the world loader and the recording reader) and [`hertz`] (a
-//! sphere pressed into a block, against Hertz's answer), [`zenohd`] (zenoh's own router) and [`web_page`] (`sinew-web`
+//! sphere pressed into a block, against Hertz's answer), [`zenohd`] (zenoh's own router), [`bench_support`] (what the system
+//! benches share) and [`web_page`] (`sinew-web`
 //! and the instructor's page in headless chromium).
 //! Must not: contain role logic; everything here calls the role crates' and the application's public APIs.
 #![warn(missing_docs)]
 
 pub use sinew::drill;
+pub mod bench_support;
 pub mod fidelity;
 pub mod fuzz;
 pub mod harness;

@@ -1,10 +1,15 @@
-//! zenoh's own router (`zenohd` 1.10.2) for the tests that run a site's backbone: where its binary is, and the
-//! `--tls-*` flags a role process is given for its certificate.
+//! zenoh's own router (`zenohd` 1.10.2) for the tests and benches that run a site's backbone: where its binary
+//! is, starting it on loopback (plain, or with a lab's configuration), and the `--tls-*` flags a role process
+//! is given for its certificate.
 //!
-//! Owns: [`zenohd_binary`], [`tls_args`]. Must not: start or stop processes (the tests do, on loopback or in a
-//! [`crate::netns::NetnsLab`]).
+//! Owns: [`zenohd_binary`], [`start_plain_router`], [`start_lab_router`], [`tls_args`]. Must not: start
+//! routers inside a [`crate::netns::NetnsLab`] (its tests place them in their namespaces themselves).
 
 use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
 
 use sinew_protocol::security::TlsFiles;
 
@@ -38,4 +43,58 @@ pub fn tls_args(files: &TlsFiles) -> Vec<String> {
     .into_iter()
     .flat_map(|(flag, path)| [flag.to_owned(), path.display().to_string()])
     .collect()
+}
+
+/// `zenohd` listening on `endpoint` (TCP on loopback), no multicast scouting; returned once it accepts
+/// connections (a client's session opened before then fails). Killed when dropped.
+pub fn start_plain_router(endpoint: &str) -> Result<crate::harness::KillOnDrop> {
+    let router = crate::harness::KillOnDrop(
+        Command::new(zenohd_binary())
+            .args(["--listen", endpoint, "--no-multicast-scouting"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .context("starting zenohd")?,
+    );
+    let address = endpoint
+        .strip_prefix("tcp/")
+        .with_context(|| format!("{endpoint} is not a tcp/ endpoint"))?;
+    if !crate::harness::wait_until(Duration::from_secs(10), || {
+        std::net::TcpStream::connect(address).is_ok()
+    }) {
+        bail!("zenohd never listened on {endpoint}");
+    }
+    Ok(router)
+}
+
+/// The lab's `zenohd`: the configuration `sinew certs` writes (`write_router_config`: mode router, listening on
+/// `endpoint` with QUIC's mixed reliability, mutual TLS with the lab's `router` certificate, QUIC only, the
+/// lab's access rules for every scene in it), loaded with `zenohd -c`. Killed when dropped.
+pub fn start_lab_router(
+    certs: &sinew::certs::LabCerts,
+    endpoint: &str,
+) -> Result<crate::harness::KillOnDrop> {
+    let config = sinew::certs::write_router_config(&certs.dir, &[endpoint.to_owned()])?;
+    let router = crate::harness::KillOnDrop(
+        Command::new(zenohd_binary())
+            .arg("-c")
+            .arg(&config)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .context("starting zenohd")?,
+    );
+    // QUIC is UDP: wait until the router's process is up and has bound its port (a UDP bind on it fails).
+    let address = endpoint
+        .strip_prefix("quic/")
+        .with_context(|| format!("{endpoint} is not a quic/ endpoint"))?;
+    if !crate::harness::wait_until(Duration::from_secs(10), || {
+        std::net::UdpSocket::bind(address).is_err()
+    }) {
+        bail!(
+            "zenohd never bound {endpoint} (its config: {})",
+            config.display()
+        );
+    }
+    Ok(router)
 }

@@ -31,60 +31,14 @@ use sinew_testkit::harness::{
 };
 use sinew_testkit::netns::role_binary;
 use sinew_testkit::scenarios::press;
-use sinew_testkit::zenohd::{tls_args, zenohd_binary};
+use sinew_testkit::zenohd::{start_plain_router, tls_args};
 
-/// `zenohd` listening on `endpoint` (TCP on loopback), no multicast scouting; returned once it accepts
-/// connections (a client's session opened before then fails).
 fn start_router(endpoint: &str) -> KillOnDrop {
-    let router = KillOnDrop(
-        Command::new(zenohd_binary())
-            .args(["--listen", endpoint, "--no-multicast-scouting"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("starting zenohd"),
-    );
-    wait_listening(endpoint);
-    router
+    start_plain_router(endpoint).unwrap()
 }
 
-/// The lab's `zenohd`: the configuration `sinew certs` writes (`write_router_config`: mode router, listening on
-/// `endpoint` with QUIC's mixed reliability, mutual TLS with the lab's `router` certificate, QUIC only, the
-/// lab's access rules for the pad's `left` and `right`), loaded with `zenohd -c`.
 fn start_lab_router(certs: &sinew::certs::LabCerts, endpoint: &str) -> KillOnDrop {
-    let config = sinew::certs::write_router_config(&certs.dir, &[endpoint.to_owned()]).unwrap();
-    let router = KillOnDrop(
-        Command::new(zenohd_binary())
-            .arg("-c")
-            .arg(&config)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("starting zenohd"),
-    );
-    // QUIC is UDP: wait until the router's process is up and has bound its port (a UDP bind on it fails).
-    let address = endpoint.strip_prefix("quic/").expect("a quic/ endpoint");
-    assert!(
-        wait_until(Duration::from_secs(10), || std::net::UdpSocket::bind(
-            address
-        )
-        .is_err()),
-        "zenohd never bound {endpoint} (its config: {})",
-        config.display()
-    );
-    router
-}
-
-/// Wait until something accepts TCP connections at `endpoint` (`tcp/HOST:PORT`).
-fn wait_listening(endpoint: &str) {
-    let address = endpoint.strip_prefix("tcp/").expect("a tcp/ endpoint");
-    assert!(
-        wait_until(Duration::from_secs(10), || std::net::TcpStream::connect(
-            address
-        )
-        .is_ok()),
-        "zenohd never listened on {endpoint}"
-    );
+    sinew_testkit::zenohd::start_lab_router(certs, endpoint).unwrap()
 }
 
 /// The `sinew-server` process on `worlds/pad.toml`, a client of the router at `router`.

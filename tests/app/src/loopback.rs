@@ -67,13 +67,26 @@ pub fn start_server_recording(
     emulation: sinew_protocol::rt::EmulationConfig,
     record: Option<std::path::PathBuf>,
 ) -> anyhow::Result<ServerHandle> {
+    let network = NetworkOptions {
+        listen: with_udp_twin(endpoint),
+        ..NetworkOptions::default()
+    };
+    start_server_networked(world, network, pacing, emulation, record)
+}
+
+/// A server on any network layout: `network` says its mode, endpoints and certificate (a router's client,
+/// the site's router itself, mutual TLS). [`start_server_recording`] is this listening on loopback.
+pub fn start_server_networked(
+    world: World,
+    network: NetworkOptions,
+    pacing: Pacing,
+    emulation: sinew_protocol::rt::EmulationConfig,
+    record: Option<std::path::PathBuf>,
+) -> anyhow::Result<ServerHandle> {
     let config = ServerConfig {
         emulation,
         record,
-        network: NetworkOptions {
-            listen: with_udp_twin(endpoint),
-            ..NetworkOptions::default()
-        },
+        network,
         server_id: "server".into(),
         spin_native_accuracy_ns: pacing.native_accuracy_ns(),
         realtime: pacing.realtime(),
@@ -134,12 +147,26 @@ pub fn start_sim_device_emulated(
     pacing: Pacing,
     setup: SimDeviceSetup,
 ) -> anyhow::Result<HapticHandle> {
-    let device = SimDevice::with_params(script, setup.hand.params(), sim_device_model());
-    let mut config = HapticConfig::new(scene, id, Box::new(device));
-    config.network = NetworkOptions {
+    let network = NetworkOptions {
         connect: with_udp_twin(endpoint),
         ..NetworkOptions::default()
     };
+    start_sim_device_networked(scene, id, script, network, pacing, setup)
+}
+
+/// A simulated hapticserver on any network layout (`network`: its mode, endpoints and certificate).
+/// [`start_sim_device_emulated`] is this connecting to a server on loopback.
+pub fn start_sim_device_networked(
+    scene: &str,
+    id: &str,
+    script: HandScript,
+    network: NetworkOptions,
+    pacing: Pacing,
+    setup: SimDeviceSetup,
+) -> anyhow::Result<HapticHandle> {
+    let device = SimDevice::with_params(script, setup.hand.params(), sim_device_model());
+    let mut config = HapticConfig::new(scene, id, Box::new(device));
+    config.network = network;
     config.spin_accuracy_ns = pacing.native_accuracy_ns();
     config.realtime = pacing.realtime();
     config.mode = setup.mode;
