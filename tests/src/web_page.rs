@@ -60,9 +60,14 @@ impl WebGatewayProcess {
     /// Start `sinew-web` for `scene`, connecting to `connect` (zenoh endpoints), on a free port; `extra` goes
     /// on its command line. Returns once it printed its address.
     pub fn start(scene: &str, connect: &[String], extra: &[&str]) -> Result<Self> {
+        Self::start_on(scene, connect, "127.0.0.1:0", extra)
+    }
+
+    /// [`Self::start`] on `http` (`ADDR:PORT`): a restarted gateway on the same port as before.
+    pub fn start_on(scene: &str, connect: &[String], http: &str, extra: &[&str]) -> Result<Self> {
         let mut command = Command::new(role_binary("sinew-web")?);
         command
-            .args(["--scene", scene, "--http", "127.0.0.1:0"])
+            .args(["--scene", scene, "--http", http])
             .args(connect.iter().flat_map(|e| ["--connect", e.as_str()]))
             .args(extra)
             .stdout(Stdio::piped())
@@ -100,6 +105,13 @@ impl WebGatewayProcess {
     }
 }
 
+impl WebGatewayProcess {
+    /// The `ADDR:PORT` it serves on.
+    pub fn http_addr(&self) -> &str {
+        self.url.trim_start_matches("http://").trim_end_matches('/')
+    }
+}
+
 /// One browser tab on the page.
 pub struct BrowserPage {
     child: Child,
@@ -126,7 +138,7 @@ impl BrowserPage {
             stdin,
             lines,
         };
-        let ready = page.answer(Duration::from_secs(60))?;
+        let ready = page.answer(Duration::from_secs(150))?;
         anyhow::ensure!(ready["ready"] == true, "the page did not open: {ready}");
         Ok(page)
     }
@@ -186,6 +198,15 @@ impl BrowserPage {
             Duration::from_secs(30),
         )?;
         Ok(())
+    }
+
+    /// From the page's origin, open a socket of its own to the feed and send `count` messages (text and
+    /// binary) into it; returns how many were sent.
+    pub fn write_to_feed(&mut self, count: u32) -> Result<u64> {
+        let answer = self.ask(&format!("write {count}"), Duration::from_secs(30))?;
+        answer["write"]
+            .as_u64()
+            .context("the driver's answer to write")
     }
 
     /// A PNG screenshot of the page.
