@@ -44,6 +44,11 @@ fn bad_poses_are_dropped_and_counted_and_the_server_keeps_running() {
             encode_to_vec(sinew_protocol::InstanceId(1), &nan),
         ),
         (keys.device_pose("ghost").unwrap(), encoded.clone()),
+        // A zero sender: an envelope check, counted as `invalid` (WIRE.md's table of counters).
+        (
+            left.clone(),
+            encode_to_vec(sinew_protocol::InstanceId(0), &good),
+        ),
     ];
     let ticks_before = wait_until(Duration::from_secs(5), || server.stats().ticks > 100);
     assert!(ticks_before);
@@ -53,7 +58,7 @@ fn bad_poses_are_dropped_and_counted_and_the_server_keeps_running() {
             session.put(key.as_str(), bytes.clone()).wait().unwrap();
         }
         let r = server.stats().rejected;
-        r.malformed >= 3 && r.wrong_version >= 1 && r.invalid >= 1 && r.unknown_device >= 1
+        r.malformed >= 3 && r.wrong_version >= 1 && r.invalid >= 2 && r.unknown_device >= 1
     });
     let stats = server.stats();
     assert!(counted, "rejections not all counted: {:?}", stats.rejected);

@@ -25,6 +25,11 @@ struct RawDevice {
 
 impl RawDevice {
     fn start(endpoint: &str, tool: &str, token: bool) -> Self {
+        Self::start_numbering(endpoint, tool, token, |n| n)
+    }
+
+    /// [`Self::start`], sending its `n`-th pose (from 1) with `seq = seq_of(n)`.
+    fn start_numbering(endpoint: &str, tool: &str, token: bool, seq_of: fn(u64) -> u64) -> Self {
         let instance = InstanceId::random();
         let session = open_session(&NetworkOptions {
             connect: vec![endpoint.to_owned()],
@@ -85,7 +90,7 @@ impl RawDevice {
                 }
                 seq += 1;
                 let pose = DevicePose {
-                    seq,
+                    seq: seq_of(seq),
                     device_time_ns: start.elapsed().as_nanos() as u64,
                     position_mm: [0.0, 0.0, 1.0],
                     orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
@@ -202,4 +207,40 @@ fn device_stats_active_means_a_tool_driven_by_fresh_poses() {
         left(&server)
     );
     server.stop();
+}
+
+/// WIRE.md, "Sequence numbers" and DeviceStats: the server never checks `seq`. A device whose poses count
+/// down is answered (each command echoes the lower `seq`), presses the pad, and nothing is counted as a reject;
+/// `poses_received` goes on counting across the instances that hold the id (it is never reset).
+#[test]
+fn poses_counting_down_are_answered_and_refused_nowhere_and_poses_received_spans_instances() {
+    let _serial = serial();
+    let (endpoint, server) = start_pad_server(Pacing::Sleep).unwrap();
+    let down = RawDevice::start_numbering(&endpoint, "left-probe", true, |n| 1_000_000 - n);
+    assert!(feels_the_pad(&down), "a device counting down got no force");
+    let echoed = down
+        .last_force
+        .lock()
+        .unwrap()
+        .map(|c| c.echo_pose_seq)
+        .unwrap();
+    assert!(echoed < 1_000_000 && echoed > 900_000, "echoed {echoed}");
+    assert_eq!(
+        server.stats().rejected,
+        Default::default(),
+        "a reject was counted"
+    );
+    down.stop();
+    assert!(wait_until(Duration::from_secs(5), || !left(&server).active));
+    let first = left(&server).poses_received;
+    assert!(first > 100, "{first} poses received");
+
+    let next = RawDevice::start(&endpoint, "left-probe", true);
+    assert!(feels_the_pad(&next), "the next instance got no force");
+    let now = left(&server).poses_received;
+    assert!(
+        now > first + 200,
+        "poses_received restarted with the new instance: {first} then {now}"
+    );
+    next.stop();
 }
