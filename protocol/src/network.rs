@@ -25,6 +25,15 @@ pub const LINK_TIMEOUT_MS: u64 = 1000;
 /// failed to start that way (`Unable to connect to any of [quic/...]`); retried, it joins.
 pub const CLIENT_CONNECT_TIMEOUT_MS: u64 = 10_000;
 
+/// The link lease a device, a server and a lab's router announce, ms (zenoh's default: 10 s): whoever is at
+/// the other end of a link drops it (and a session that has no link left, with its presence tokens) once it has
+/// carried nothing this long. Each role inserts it for its own reason (a device's half-open UDP link, a server
+/// or a router killed silently on QUIC: see `hapticserver::process::zenoh_session`, the server's `node::session`
+/// and [`crate::zenoh_config_file::lab_router_config`]); one value, so the three stay equal. A link with
+/// nothing to send carries a keep-alive every quarter lease; over a 100 ms path with 5% loss a TCP link stalls
+/// this long only if one segment is lost four times running (retransmits after about 0.3, 0.6, 1.2 s).
+pub const LINK_LEASE_MS: u64 = 3000;
+
 /// First retry period of a lost connect endpoint, ms (doubling up to [`RETRY_MAX_MS`]).
 pub const RETRY_INIT_MS: u64 = 50;
 

@@ -7,7 +7,7 @@
 //!
 //! Must not: parse or check the values (zenoh does, when the file is loaded: the tests load what this writes).
 
-use crate::network::NetworkOptions;
+use crate::network::{LINK_LEASE_MS, NetworkOptions};
 use crate::security::{SceneRoles, TlsFiles, router_access_control_json5};
 
 /// One level of the document: each key's value, a JSON5 text or a nested level, in first-insertion order.
@@ -83,15 +83,12 @@ pub fn lab_router_config(listen: &[String], tls: &TlsFiles, scenes: &[SceneRoles
         ..NetworkOptions::default()
     };
     let mut entries = options.config_entries();
-    entries.push(("transport/link/tx/lease", ROUTER_LINK_LEASE_MS.to_string()));
+    // The router's lease: every role drops its session with a router that died silently this long after (a
+    // killed `zenohd` sends nothing on its QUIC links), and only then dials it again. With zenoh's 10 s
+    // default, roles stayed on a dead router's session 6 s past its restart (`zenohd_sites.rs`).
+    entries.push(("transport/link/tx/lease", LINK_LEASE_MS.to_string()));
     config_document(&entries)
 }
-
-/// The link lease a lab's router announces, ms (zenoh's default: 10 s): every role drops its session with a
-/// router that died silently this long after (a killed `zenohd` sends nothing on its QUIC links), and only then
-/// dials the router again. With the default, roles stayed on a dead router's session for 10 s, 6 s past its
-/// restart (`zenohd_sites.rs`).
-pub const ROUTER_LINK_LEASE_MS: u64 = 3000;
 
 #[cfg(test)]
 mod tests {

@@ -56,12 +56,11 @@ pub fn zenoh_config(network: &NetworkOptions) -> Result<zenoh::Config, HapticErr
     Ok(config)
 }
 
-/// The link lease a device announces (zenoh's default: 10 s): the server drops a link of this device's that
-/// has carried nothing for this long. The device sends a keep-alive every quarter lease on a link that
-/// carries nothing else; poses (1 kHz) keep their link alive. Over a 100 ms path with 5% loss a TCP link
-/// stalls this long only if one segment is lost four times running (retransmits after about 0.3, 0.6, 1.2
-/// s).
-pub const DEVICE_LINK_LEASE: Duration = Duration::from_secs(3);
+/// The link lease a device announces (`sinew_protocol::network::LINK_LEASE_MS`, the server's and the lab
+/// router's too): the server drops a link of this device's that has carried nothing for this long. Poses
+/// (1 kHz) keep their link alive.
+pub const DEVICE_LINK_LEASE: Duration =
+    Duration::from_millis(sinew_protocol::network::LINK_LEASE_MS);
 
 /// Open a session for `network`.
 pub fn open_session(network: &NetworkOptions) -> Result<zenoh::Session, HapticError> {

@@ -30,10 +30,11 @@ pub fn open_session(options: &NetworkOptions) -> zenoh::Result<zenoh::Session> {
     zenoh::open(config).wait()
 }
 
-/// The link lease a server announces (zenoh's default: 10 s): its sessions end this long after it dies
-/// silently (a kill on a QUIC link). It sends a keep-alive every quarter lease when it has nothing else to
-/// send; its stats, deltas and forces keep its links alive anyway.
-pub const SERVER_LINK_LEASE: std::time::Duration = std::time::Duration::from_secs(3);
+/// The link lease a server announces (`sinew_protocol::network::LINK_LEASE_MS`, the devices' and the lab
+/// router's too): its sessions end this long after it dies silently (a kill on a QUIC link). Its stats, deltas
+/// and forces keep its links alive.
+pub const SERVER_LINK_LEASE: std::time::Duration =
+    std::time::Duration::from_millis(sinew_protocol::network::LINK_LEASE_MS);
 
 /// How long a starting server waits for a live server of its scene to leave before refusing: a server that
 /// just died silently is still present until its lease ends.
