@@ -19,6 +19,8 @@ struct RawDevice {
     instance: InstanceId,
     stop: Arc<AtomicBool>,
     forces: Arc<AtomicU64>,
+    /// Poses published.
+    sent: Arc<AtomicU64>,
     last_force: Arc<Mutex<Option<ForceCommand>>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
@@ -70,6 +72,8 @@ impl RawDevice {
         );
         let stop = Arc::new(AtomicBool::new(false));
         let running = stop.clone();
+        let sent = Arc::new(AtomicU64::new(0));
+        let published = sent.clone();
         let thread = std::thread::spawn(move || {
             let _subscriber = subscriber;
             let _token = token;
@@ -97,6 +101,7 @@ impl RawDevice {
                     ..DevicePose::default()
                 };
                 poses.put(encode_to_vec(instance, &pose)).wait().unwrap();
+                published.fetch_add(1, Ordering::Relaxed);
                 std::thread::sleep(Duration::from_millis(1));
             }
             let _ = session.close().wait();
@@ -105,6 +110,7 @@ impl RawDevice {
             instance,
             stop,
             forces,
+            sent,
             last_force,
             thread: Some(thread),
         }
@@ -237,10 +243,21 @@ fn poses_counting_down_are_answered_and_refused_nowhere_and_poses_received_spans
 
     let next = RawDevice::start(&endpoint, "left-probe", true);
     assert!(feels_the_pad(&next), "the next instance got no force");
-    let now = left(&server).poses_received;
-    assert!(
-        now > first + 200,
-        "poses_received restarted with the new instance: {first} then {now}"
-    );
+    let sent = next.sent.clone();
     next.stop();
+    let sent = sent.load(Ordering::Relaxed);
+    // The stats are published once a second: wait for the count to settle. A count that restarted with the
+    // new instance would end at most at what it sent.
+    let mut last = 0;
+    assert!(wait_until(Duration::from_secs(5), || {
+        std::thread::sleep(Duration::from_millis(1200));
+        let now = left(&server).poses_received;
+        let settled = now == last;
+        last = now;
+        settled
+    }));
+    assert!(
+        last > sent + first / 2,
+        "poses_received restarted with the new instance: {first}, then {last} after it sent {sent}"
+    );
 }
