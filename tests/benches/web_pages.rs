@@ -18,7 +18,7 @@ use std::time::Duration;
 
 use futures_util::StreamExt;
 use sinew_protocol::rt::LatencyHistogram;
-use sinew_testkit::bench_support::{arg, us};
+use sinew_testkit::bench_support::{arg, round_trips_since, us};
 use sinew_testkit::harness::{
     Pacing, free_loopback_endpoint, load_shipped_world, start_server, start_sim_device,
     start_viewer, surgeon_scripts,
@@ -130,17 +130,7 @@ fn run(seconds: f64, gateway: bool, pages: usize) -> Phase {
             (false, _) => "no gateway".to_owned(),
             (true, n) => format!("gateway, {n} pages"),
         },
-        devices: after
-            .iter()
-            .zip(&settled)
-            .map(|(a, s)| {
-                (
-                    a.device_id.clone(),
-                    a.round_trip.since(&s.round_trip),
-                    a.wire_round_trip.since(&s.wire_round_trip),
-                )
-            })
-            .collect(),
+        devices: round_trips_since(&after, &settled),
         tick_p99_us: stats.tick_p99_us,
         pages: pages_after
             .iter()

@@ -25,7 +25,7 @@ use sinew_protocol::keys::SceneKeys;
 use sinew_protocol::network::{NetworkOptions, with_udp_twin};
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_protocol::security::TlsFiles;
-use sinew_testkit::bench_support::{self, arg, encoded_pose_len, us};
+use sinew_testkit::bench_support::{self, arg, encoded_pose_len, round_trips_since, us};
 use sinew_testkit::harness::{
     Pacing, SimDeviceSetup, free_loopback_endpoint, load_shipped_world, start_server_networked,
     start_sim_device_networked, surgeon_scripts,
@@ -92,17 +92,7 @@ fn pose_to_force(
         hand.stop().unwrap();
     }
     server.stop();
-    after
-        .iter()
-        .zip(&settled)
-        .map(|(a, s)| {
-            (
-                a.device_id.clone(),
-                a.round_trip.since(&s.round_trip),
-                a.wire_round_trip.since(&s.wire_round_trip),
-            )
-        })
-        .collect()
+    round_trips_since(&after, &settled)
 }
 
 fn row(

@@ -1,7 +1,7 @@
 //! What the system benches (`tests/benches/`) share: their `--name value` arguments, microseconds from a
 //! histogram, an encoded pose's size, and raw zenoh ping-pong (the baseline every round trip is a ratio to).
 //!
-//! Owns: [`arg`], [`us`], [`encoded_pose_len`], [`ping_pong`]. Must not: print tables (each bench has its
+//! Owns: [`arg`], [`us`], [`encoded_pose_len`], [`ping_pong`], [`round_trips_since`]. Must not: print tables (each bench has its
 //! own).
 
 use std::sync::{Arc, Mutex};
@@ -110,4 +110,23 @@ pub fn ping_pong(
     }
     std::thread::sleep(Duration::from_millis(50));
     Ok(histogram.lock().map_err(lock_error)?.clone())
+}
+
+/// Per device, its id and its rendered and wire round trips between two reports (`settled`, then `after`, in
+/// the same device order).
+pub fn round_trips_since(
+    after: &[hapticserver::HapticReport],
+    settled: &[hapticserver::HapticReport],
+) -> Vec<(String, LatencyHistogram, LatencyHistogram)> {
+    after
+        .iter()
+        .zip(settled)
+        .map(|(a, s)| {
+            (
+                a.device_id.clone(),
+                a.round_trip.since(&s.round_trip),
+                a.wire_round_trip.since(&s.wire_round_trip),
+            )
+        })
+        .collect()
 }
