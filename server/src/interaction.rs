@@ -8,6 +8,7 @@
 //! ([`TissuePair`]). Must not: integrate the tissue (that is [`crate::tissue`]) or find
 //! candidates (that is [`crate::collision`]).
 
+mod blade_path;
 mod cut;
 mod grasp;
 mod instrument;
@@ -16,6 +17,7 @@ mod probe;
 pub mod suture;
 mod tissue_pair;
 
+pub use blade_path::{BladePath, HISTORY_SWEEPS};
 pub use cut::{BladeSweep, CutScratch, swept_seams, torn_seams};
 pub use grasp::{Attachment, Grasp, GraspEvent, MAX_ATTACHMENTS};
 pub use instrument::{

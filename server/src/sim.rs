@@ -26,6 +26,7 @@
 //! its body is its instrument: one trait with a hook per stage (`instrument.rs`), one file per instrument
 //! (`instruments/`).
 
+mod cut_follow;
 mod drive;
 mod from_scene;
 mod guarded;

@@ -27,6 +27,7 @@ pub mod spring_law;
 pub mod springs;
 pub mod stability;
 mod state;
+pub mod subdivision;
 mod surface_mesh;
 pub mod ties;
 pub mod volume;

@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::mesh_pieces::pieces;
 use common::scene_edits::with_integrator;
 use common::world_toml::{SIM_DEFAULTS, SheetWorldToml, fixed_plane, sphere_tool};
 use nalgebra::Vector3;
@@ -118,34 +119,6 @@ fn draw_blade(
         y = next;
     }
     openings
-}
-
-/// Connected pieces of `elements` (elements sharing a vertex are in one piece).
-fn pieces<const K: usize>(elements: &[[u32; K]], vertices: usize) -> usize {
-    let mut parent: Vec<usize> = (0..vertices).collect();
-    fn find(p: &mut [usize], mut i: usize) -> usize {
-        while p[i] != i {
-            p[i] = p[p[i]];
-            i = p[i];
-        }
-        i
-    }
-    for e in elements {
-        for w in &e[1..] {
-            let (a, b) = (
-                find(&mut parent, e[0] as usize),
-                find(&mut parent, *w as usize),
-            );
-            parent[a.max(b)] = a.min(b);
-        }
-    }
-    let mut roots: Vec<usize> = elements
-        .iter()
-        .map(|e| find(&mut parent, e[0] as usize))
-        .collect();
-    roots.sort_unstable();
-    roots.dedup();
-    roots.len()
 }
 
 /// The surface is closed and consistently wound: every directed edge once, with its twin.

@@ -220,6 +220,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
             tet_bulk_modulus_n_per_mm2: 0.0,
             tear_strain: None,
             cut_resistance_n: MaterialSpec::DEFAULT_CUT_RESISTANCE_N,
+            cut_follows_blade: false,
             burn_shrink: 0.0,
             friction_coefficient: 0.0,
             puncture: sinew_server::tissue::PunctureSpec::DEFAULT,

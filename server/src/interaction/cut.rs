@@ -17,6 +17,7 @@ use parry3d::bounding_volume::{Aabb, BoundingVolume};
 use parry3d::query::{Ray, RayCast};
 use parry3d::shape::Triangle;
 
+use super::BladePath;
 use crate::collision::glam_boundary::to_parry;
 use crate::tissue::seams::{Facet, facet_without, shared_by_two};
 use crate::tissue::{MassSpringModel, Vec3};
@@ -32,14 +33,14 @@ pub struct BladeSweep {
 
 impl BladeSweep {
     /// The two triangles of the swept quadrilateral.
-    fn triangles(&self) -> [Triangle; 2] {
+    pub(crate) fn triangles(&self) -> [Triangle; 2] {
         let [a, b] = self.from_mm.map(|p| to_parry(&p));
         let [c, d] = self.to_mm.map(|p| to_parry(&p));
         [Triangle::new(a, b, d), Triangle::new(a, d, c)]
     }
 
     /// The box around everything swept.
-    fn aabb(&self) -> Aabb {
+    pub(crate) fn aabb(&self) -> Aabb {
         let mut lo = self.from_mm[0];
         let mut hi = lo;
         for p in self.from_mm.iter().chain(&self.to_mm) {
@@ -67,6 +68,20 @@ pub struct CutScratch {
     /// How far beyond the swept box an element may reach and still have a centroid segment through it: the
     /// model's longest rest spring, twice (a stretched element).
     margin_mm: f32,
+    /// The cut of a tissue that follows the blade (`cut = "follow-blade"`).
+    pub path: BladePath,
+}
+
+impl CutScratch {
+    /// How far beyond a sweep's box an element of `model` may reach and still be crossed by it: twice the
+    /// model's longest rest spring (kept per model).
+    pub(crate) fn margin_for(&mut self, model: &MassSpringModel) -> f32 {
+        if self.model_id != model.id() {
+            self.model_id = model.id();
+            self.margin_mm = 2.0 * model.springs().rest_mm.iter().copied().fold(0.0, f32::max);
+        }
+        self.margin_mm
+    }
 }
 
 /// Centroid of element `e` at `positions_mm`.
@@ -144,10 +159,7 @@ pub fn swept_seams(
     if !sweep.moved() {
         return;
     }
-    if scratch.model_id != model.id() {
-        scratch.model_id = model.id();
-        scratch.margin_mm = 2.0 * model.springs().rest_mm.iter().copied().fold(0.0, f32::max);
-    }
+    scratch.margin_for(model);
     let tets = &model.tets().tets;
     if tets.is_empty() {
         seams_among(model.triangles(), positions_mm, sweep, scratch, out);

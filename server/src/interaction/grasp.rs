@@ -340,6 +340,24 @@ impl Grasp {
         self.rebuild_nodes(object, model);
     }
 
+    /// Object `object` was subdivided: each attachment on it is re-expressed on the piece of its triangle that
+    /// holds its point ([`crate::tissue::subdivision::ElementRemap`]), then the corners are re-read.
+    pub fn subdivided(
+        &mut self,
+        object: usize,
+        model: &MassSpringModel,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) {
+        for a in self
+            .attachments
+            .iter_mut()
+            .filter(|a| usize::from(a.object) == object)
+        {
+            (a.triangle, a.barycentric) = remap.triangle(a.triangle, a.barycentric);
+        }
+        self.rebuild_nodes(object, model);
+    }
+
     /// Recompute the attached-node list of `object` from the attachments (after some let go).
     fn rebuild_nodes(&mut self, object: usize, model: &MassSpringModel) {
         let Some(list) = self.attached_nodes.get_mut(object) else {

@@ -74,6 +74,8 @@ impl Sim {
                 split_parents: Vec::new(),
                 tear_strain: spec.material.tear_strain,
                 cut_resistance_n: spec.material.cut_resistance_n,
+                cut_follows_blade: spec.material.cut_follows_blade,
+                rate_ceiling: None,
                 burn_shrink: spec.material.burn_shrink,
                 friction: spec.material.friction_coefficient,
                 puncture: spec.material.puncture,

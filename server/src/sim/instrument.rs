@@ -82,6 +82,19 @@ pub(crate) trait Instrument: Debug + Send + Sync {
     /// (it may come for an object whose model did not change).
     fn topology_changed(&mut self, _object: usize, _model: &MassSpringModel) {}
 
+    /// Object `object` was subdivided (a cut that follows the blade split or reshaped elements): re-express the
+    /// material points held on it with `remap`, then re-read what stands on it. By default only the latter
+    /// (the element ids held stay valid; a point on a split element then lies on the piece that kept the id).
+    fn subdivided(
+        &mut self,
+        object: usize,
+        model: &MassSpringModel,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) {
+        let _ = remap;
+        self.topology_changed(object, model);
+    }
+
     /// The instrument's own pull on the tool this tick, world, N (a grasp's, the drag of cutting), added to
     /// the body's reaction before the clamp.
     fn force_on_tool_n(&self) -> Vec3 {

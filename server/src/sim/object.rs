@@ -45,6 +45,11 @@ pub struct SimObject {
     pub(super) tear_strain: Option<f32>,
     /// The material's drag against a sharp edge cutting it, N.
     pub(super) cut_resistance_n: f32,
+    /// A blade splits the edges it crosses (see [`crate::tissue::subdivision`]) rather than opening facets.
+    pub(super) cut_follows_blade: bool,
+    /// The uncut model's largest stiffness rate (`subdivision::rate_ceiling`), taken at its first cut that
+    /// follows the blade: no vertex a cut touches is left stiffer for its mass.
+    pub(super) rate_ceiling: Option<f32>,
     /// The share of rest length a spring between two fully burnt nodes loses (0: burns do not shrink).
     pub(super) burn_shrink: f32,
     /// Coulomb friction between a tool and this tissue (0: frictionless).

@@ -98,12 +98,15 @@ impl Sim {
     }
 
     /// Cut object `object` where a blade swept this tick ([`crate::interaction::swept_seams`] at the current
-    /// positions, then [`Self::open_seams`]).
+    /// positions, then [`Self::open_seams`]; a tissue whose cut follows the blade: [`Self::cut_following_blade`]).
     pub fn cut(&mut self, object: usize, sweep: &BladeSweep, scratch: &mut CutScratch) -> Opening {
         let Some(o) = self.objects.get(object).filter(|o| o.lane.is_none()) else {
             scratch.seams.clear();
             return Opening::default();
         };
+        if o.cut_follows_blade {
+            return self.cut_following_blade(object, sweep, scratch);
+        }
         let mut seams = std::mem::take(&mut scratch.seams);
         seams.clear();
         swept_seams(&o.model, &o.state.positions_mm, sweep, scratch, &mut seams);

@@ -85,6 +85,9 @@ pub struct MaterialSpec {
     pub tear_strain: Option<f32>,
     /// Drag a sharp edge feels against its motion while it cuts this tissue, N.
     pub cut_resistance_n: f32,
+    /// A blade cutting this tissue splits the edges it crosses where it crosses them (`cut = "follow-blade"`),
+    /// rather than opening the mesh's own facets along its path.
+    pub cut_follows_blade: bool,
     /// Share of its rest length a spring loses when both its ends are fully burnt (0: burns do not shrink).
     pub burn_shrink: f32,
     /// Coulomb friction coefficient between a tool and this tissue (0: frictionless).

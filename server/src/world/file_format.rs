@@ -294,6 +294,9 @@ pub(crate) struct MaterialSection {
     /// Drag a sharp edge feels against its motion while it cuts this tissue, N.
     #[serde(default)]
     pub cut_resistance_n: Option<Spanned<f32>>,
+    /// How a blade cuts this tissue: along the mesh's own facets, or following the blade.
+    #[serde(default)]
+    pub cut: Option<Spanned<CutSection>>,
     /// Share of its rest length a spring loses between fully burnt ends (cautery shrinks tissue), 0 to 0.5.
     #[serde(default)]
     pub burn_shrink: Option<Spanned<f32>>,
@@ -312,6 +315,16 @@ pub(crate) struct MaterialSection {
     /// A suture's thread pulling on this tissue at a hole harder than this tears it there, N.
     #[serde(default)]
     pub suture_tear_n: Option<Spanned<f32>>,
+}
+
+/// `cut = "facets"` (the default) or `"follow-blade"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub(crate) enum CutSection {
+    /// Seams open along the mesh's own edges and faces the blade's path separates.
+    Facets,
+    /// The edges the blade crosses are split where it crosses them, and the cut opens along its path.
+    FollowBlade,
 }
 
 #[derive(Debug, Clone, Deserialize)]

@@ -5,6 +5,7 @@
 #![allow(dead_code)] // each test binary uses its own subset
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
+pub mod mesh_pieces;
 pub mod scene_edits;
 pub mod world_toml;
 

@@ -195,6 +195,15 @@ impl Instrument for Grasper {
         self.grasp.topology_changed(object, model);
     }
 
+    fn subdivided(
+        &mut self,
+        object: usize,
+        model: &MassSpringModel,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) {
+        self.grasp.subdivided(object, model, remap);
+    }
+
     fn force_on_tool_n(&self) -> Vec3 {
         self.pull_n + self.thread_pull_n + self.needle_pull_n
     }

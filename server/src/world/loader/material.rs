@@ -3,7 +3,9 @@
 use toml::Spanned;
 
 use crate::tissue::SpringLaw;
-use crate::world::file_format::{ElasticModel, LawSection, MaterialSection, MaterialValue};
+use crate::world::file_format::{
+    CutSection, ElasticModel, LawSection, MaterialSection, MaterialValue,
+};
 use crate::world::material_presets::material_presets;
 
 use super::*;
@@ -233,6 +235,10 @@ impl Context<'_> {
                     Some(strain)
                 }
             },
+            cut_follows_blade: m
+                .cut
+                .as_ref()
+                .is_some_and(|c| *c.get_ref() == CutSection::FollowBlade),
             cut_resistance_n: self.optional_in(
                 &m.cut_resistance_n,
                 &key("cut_resistance_n"),

@@ -1,0 +1,317 @@
+//! A cut that follows the blade: where each sweep crosses a model's edges (the cut plan), the vertices the blade
+//! has put on its path, and which facets lie on that path (the seams to open).
+//!
+//! Owns: [`BladePath`], one per blade (a scalpel's edge, a pair of scissors' two). Each sweep gets a stamp and
+//! is remembered for [`HISTORY_SWEEPS`] sweeps. A vertex the cut puts on the blade's path (a new vertex where an
+//! edge was split, a vertex moved onto the path, one taken as on it where it lies, and later the copies a seam
+//! makes of these) is remembered with its sweep's stamp and where it was then. A facet whose every vertex is on
+//! the path lies on the cut when its centre (at those places) is within a quarter of its size of the sweeps made
+//! between its vertices' stamps: the cut between two crossings follows the blade's path between them, and a
+//! chord across a bend of the path does not open.
+//!
+//! Must not: change the model (the sim subdivides and opens, `sim/cut_follow.rs`), or allocate outside a cut.
+
+use std::collections::VecDeque;
+
+use parry3d::bounding_volume::{Aabb, BoundingVolume};
+use parry3d::query::{PointQuery, Ray, RayCast};
+use parry3d::shape::Triangle;
+
+use super::BladeSweep;
+use crate::collision::glam_boundary::to_parry;
+use crate::tissue::seams::{Facet, NO_VERTEX, Opening, facet_without};
+use crate::tissue::subdivision::{CutPlan, EdgeSplit, Subdivision};
+use crate::tissue::{MassSpringModel, Vec3};
+
+/// Sweeps remembered: 4 s at 1 kHz. A facet whose vertices were put on the path further apart than this is
+/// taken as on it unchecked.
+pub const HISTORY_SWEEPS: usize = 4096;
+
+/// A facet lies on the cut when its centre is within this share of its mean edge of the blade's path.
+const ON_PATH_SHARE: f32 = 0.25;
+
+/// A vertex the blade has put on its path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CutVertex {
+    object: u16,
+    vertex: u32,
+    /// The sweep that put it there.
+    stamp: u64,
+    /// Where it was then, world frame, mm.
+    place_mm: Vec3,
+}
+
+/// One blade's cut by subdivision: its sweeps and the vertices on its path.
+#[derive(Debug, Default)]
+pub struct BladePath {
+    /// The latest sweeps, oldest first, with their stamps.
+    sweeps: VecDeque<(u64, [Triangle; 2])>,
+    /// The latest sweep itself (a second object cut by the same sweep gets the same stamp).
+    last: Option<BladeSweep>,
+    /// Stamp of the latest sweep.
+    stamp: u64,
+    /// Vertices on the path, sorted by (object, vertex).
+    on_cut: Vec<CutVertex>,
+    /// This sweep's new vertices on the path (object, vertex).
+    fresh: Vec<(u16, u32)>,
+    /// Scratch: the edges near the sweep.
+    edges: Vec<[u32; 2]>,
+    /// Scratch: where the sweep crosses them.
+    crossings: Vec<EdgeSplit>,
+    /// The plan of the latest sweep on the latest object.
+    pub plan: CutPlan,
+}
+
+/// Where segment `p -> q` crosses either triangle, as a share of the way from `p`.
+fn crossing(swept: &[Triangle; 2], p: &Vec3, q: &Vec3) -> Option<f32> {
+    let dir = q - p;
+    if dir.norm_squared() == 0.0 {
+        return None;
+    }
+    let ray = Ray::new(to_parry(p), to_parry(&dir));
+    swept
+        .iter()
+        .filter_map(|t| t.cast_local_ray(&ray, 1.0, false))
+        .reduce(f32::min)
+}
+
+impl BladePath {
+    /// The stamp of `sweep`: a new one unless it is the sweep seen last (another object on the same sweep).
+    fn stamp_for(&mut self, sweep: &BladeSweep) -> u64 {
+        if self.last.as_ref() != Some(sweep) {
+            self.stamp += 1;
+            self.last = Some(*sweep);
+            if self.sweeps.len() == HISTORY_SWEEPS {
+                self.sweeps.pop_front();
+            }
+            self.sweeps.push_back((self.stamp, sweep.triangles()));
+        }
+        self.stamp
+    }
+
+    fn find(&self, object: u16, vertex: u32) -> Result<usize, usize> {
+        self.on_cut
+            .binary_search_by(|c| (c.object, c.vertex).cmp(&(object, vertex)))
+    }
+
+    /// Whether vertex `vertex` of object `object` is on the path.
+    pub fn is_on_cut(&self, object: u16, vertex: u32) -> bool {
+        self.find(object, vertex).is_ok()
+    }
+
+    fn put_on_cut(&mut self, object: u16, vertex: u32, stamp: u64, place_mm: Vec3) {
+        let entry = CutVertex {
+            object,
+            vertex,
+            stamp,
+            place_mm,
+        };
+        match self.find(object, vertex) {
+            Ok(i) => self.on_cut[i] = entry,
+            Err(i) => self.on_cut.insert(i, entry),
+        }
+        self.fresh.push((object, vertex));
+    }
+
+    /// Plan the cut of `sweep` through object `object` (`model` at `positions_mm`): every element edge near the
+    /// sweep (within `margin_mm` of its box) that crosses it, and where; then [`CutPlan::from_crossings`]. The
+    /// plan is [`Self::plan`].
+    pub fn plan_sweep(
+        &mut self,
+        object: u16,
+        model: &MassSpringModel,
+        positions_mm: &[Vec3],
+        sweep: &BladeSweep,
+        margin_mm: f32,
+    ) {
+        self.plan.clear();
+        self.fresh.clear();
+        self.stamp_for(sweep);
+        if sweep.from_mm == sweep.to_mm {
+            return;
+        }
+        let swept = sweep.triangles();
+        let reach = sweep.aabb().loosened(margin_mm);
+        self.edges.clear();
+        let mut near = |element: &[u32]| {
+            let mut lo = positions_mm[element[0] as usize];
+            let mut hi = lo;
+            for &v in &element[1..] {
+                lo = lo.inf(&positions_mm[v as usize]);
+                hi = hi.sup(&positions_mm[v as usize]);
+            }
+            if reach.intersects(&Aabb::new(to_parry(&lo), to_parry(&hi))) {
+                for (i, &p) in element.iter().enumerate() {
+                    for &q in &element[i + 1..] {
+                        self.edges.push([p.min(q), p.max(q)]);
+                    }
+                }
+            }
+        };
+        let tets = &model.tets().tets;
+        if tets.is_empty() {
+            model.triangles().iter().for_each(|t| near(t));
+        } else {
+            tets.iter().for_each(|t| near(t));
+        }
+        self.edges.sort_unstable();
+        self.edges.dedup();
+        self.crossings.clear();
+        for &[a, b] in &self.edges {
+            let (p, q) = (&positions_mm[a as usize], &positions_mm[b as usize]);
+            if let Some(t) = crossing(&swept, p, q) {
+                self.crossings.push(EdgeSplit { a, b, t });
+            }
+        }
+        let mut plan = std::mem::take(&mut self.plan);
+        let mut crossings = std::mem::take(&mut self.crossings);
+        plan.from_crossings(model, &mut crossings, |v| self.is_on_cut(object, v));
+        self.crossings = crossings;
+        self.plan = plan;
+    }
+
+    /// The plan has been applied (`change`, the model now at `positions_mm`): remember the vertices it put on
+    /// the path.
+    pub fn record_plan(&mut self, object: u16, change: &Subdivision, positions_mm: &[Vec3]) {
+        let stamp = self.stamp;
+        let mut put = Vec::with_capacity(
+            change.new_vertices.len() + change.moved.len() + self.plan.pinned.len(),
+        );
+        put.extend((0..change.new_vertices.len() as u32).map(|k| change.first_new_vertex + k));
+        put.extend(change.moved.iter().map(|(m, _)| m.vertex));
+        put.extend_from_slice(&self.plan.pinned);
+        for v in put {
+            if let Some(&place) = positions_mm.get(v as usize) {
+                self.put_on_cut(object, v, stamp, place);
+            }
+        }
+    }
+
+    /// A seam opening of object `object` made copies of some vertices: copies of vertices on the path are on
+    /// it too, with their parents' stamps and places.
+    pub fn record_opening(&mut self, object: u16, opening: &Opening) {
+        for (k, &parent) in opening.parents.iter().enumerate() {
+            if let Ok(i) = self.find(object, parent) {
+                let CutVertex {
+                    stamp, place_mm, ..
+                } = self.on_cut[i];
+                let copy = opening.first_new_vertex + k as u32;
+                self.put_on_cut(object, copy, stamp, place_mm);
+            }
+        }
+    }
+
+    /// The facets of `model` (object `object`) around this sweep's new vertices on the path that lie on the
+    /// path, appended to `out` (sorted, once each).
+    pub fn facets_on_path(&self, object: u16, model: &MassSpringModel, out: &mut Vec<Facet>) {
+        let tets = &model.tets().tets;
+        let start = out.len();
+        for &(o, v) in &self.fresh {
+            if o != object || v as usize >= model.node_count() {
+                continue;
+            }
+            if tets.is_empty() {
+                for &t in model.node_triangles(v as usize) {
+                    self.push_on_path(object, &model.triangles()[t as usize], v, out);
+                }
+            } else {
+                for &t in model.node_tets(v as usize) {
+                    self.push_on_path(object, &tets[t as usize], v, out);
+                }
+            }
+        }
+        out[start..].sort_unstable();
+        let mut kept = start;
+        for i in start..out.len() {
+            if i == start || out[i] != out[kept - 1] {
+                out[kept] = out[i];
+                kept += 1;
+            }
+        }
+        out.truncate(kept);
+    }
+
+    /// Push each facet of `element` holding `v` that lies on the path.
+    fn push_on_path<const K: usize>(
+        &self,
+        object: u16,
+        element: &[u32; K],
+        v: u32,
+        out: &mut Vec<Facet>,
+    ) {
+        for skip in 0..K {
+            if element[skip] == v {
+                continue;
+            }
+            let facet = facet_without(element, skip);
+            if self.on_path(object, &facet) {
+                out.push(facet);
+            }
+        }
+    }
+
+    /// Whether every vertex of `facet` is on the path and its centre lies on the sweeps between their stamps.
+    fn on_path(&self, object: u16, facet: &Facet) -> bool {
+        let mut corners = [Vec3::zeros(); 3];
+        let mut count = 0;
+        let (mut first, mut last) = (u64::MAX, 0);
+        for &v in facet.iter().filter(|&&v| v != NO_VERTEX) {
+            let Ok(i) = self.find(object, v) else {
+                return false;
+            };
+            let c = &self.on_cut[i];
+            corners[count] = c.place_mm;
+            count += 1;
+            first = first.min(c.stamp);
+            last = last.max(c.stamp);
+        }
+        if count < 2 {
+            return false;
+        }
+        let corners = &corners[..count];
+        let centre = corners.iter().sum::<Vec3>() / count as f32;
+        let mut size = 0.0;
+        let mut edges = 0.0;
+        for i in 0..count {
+            for j in i + 1..count {
+                size += (corners[i] - corners[j]).norm();
+                edges += 1.0;
+            }
+        }
+        let tolerance = ON_PATH_SHARE * size / edges;
+        let oldest = self.sweeps.front().map_or(u64::MAX, |&(s, _)| s);
+        if first < oldest {
+            return true;
+        }
+        let point = to_parry(&centre);
+        self.sweeps
+            .iter()
+            .filter(|&&(s, _)| s >= first && s <= last)
+            .flat_map(|(_, triangles)| triangles)
+            .any(|t| t.distance_to_local_point(point, true) <= tolerance)
+    }
+
+    /// Forget object `object`'s vertices (its topology was reset).
+    pub fn forget(&mut self, object: u16) {
+        self.on_cut.retain(|c| c.object != object);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_edge_through_the_swept_quad_crosses_it_where_it_passes() {
+        let sweep = BladeSweep {
+            from_mm: [Vec3::new(0.3, 0.0, -3.0), Vec3::new(0.3, 0.0, 3.0)],
+            to_mm: [Vec3::new(0.3, 1.0, -3.0), Vec3::new(0.3, 1.0, 3.0)],
+        };
+        let swept = sweep.triangles();
+        let t = crossing(&swept, &Vec3::new(0.0, 0.5, 0.0), &Vec3::new(1.0, 0.5, 0.0));
+        assert!((t.unwrap() - 0.3).abs() < 1e-6);
+        let t = crossing(&swept, &Vec3::new(1.0, 0.5, 0.0), &Vec3::new(0.0, 0.5, 0.0));
+        assert!((t.unwrap() - 0.7).abs() < 1e-6);
+        assert!(crossing(&swept, &Vec3::new(0.0, 1.5, 0.0), &Vec3::new(1.0, 1.5, 0.0)).is_none());
+    }
+}
