@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::mesh_pieces::pieces;
+use common::mesh_pieces::{assert_closed_surface, pieces};
 use common::scene_edits::with_integrator;
 use common::world_toml::{SIM_DEFAULTS, SheetWorldToml, fixed_plane, sphere_tool};
 use nalgebra::Vector3;
@@ -119,27 +119,6 @@ fn draw_blade(
         y = next;
     }
     openings
-}
-
-/// The surface is closed and consistently wound: every directed edge once, with its twin.
-fn assert_closed_surface(triangles: &[[u32; 3]]) {
-    let mut directed: Vec<[u32; 2]> = triangles
-        .iter()
-        .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-        .collect();
-    directed.sort_unstable();
-    let unique = {
-        let mut d = directed.clone();
-        d.dedup();
-        d.len()
-    };
-    assert_eq!(unique, directed.len(), "a directed edge is used twice");
-    for [a, b] in &directed {
-        assert!(
-            directed.binary_search(&[*b, *a]).is_ok(),
-            "edge {a}-{b} has no twin: the surface is open"
-        );
-    }
 }
 
 fn total_mass(sim: &Sim, object: usize) -> f64 {

@@ -5,9 +5,10 @@
 //! is remembered for [`HISTORY_SWEEPS`] sweeps. A vertex the cut puts on the blade's path (a new vertex where an
 //! edge was split, a vertex moved onto the path, one taken as on it where it lies, and later the copies a seam
 //! makes of these) is remembered with its sweep's stamp and where it was then. A facet whose every vertex is on
-//! the path lies on the cut when its centre (at those places) is within a quarter of its size of the sweeps made
-//! between its vertices' stamps: the cut between two crossings follows the blade's path between them, and a
-//! chord across a bend of the path does not open.
+//! the path lies on the cut when its centre (at those places) is within a quarter of its size of a remembered
+//! sweep: the cut between two crossings follows the blade's path between them (in whichever sweeps passed there:
+//! a path that comes back to its start closes through sweeps made before and after), and a chord across a bend
+//! of the path does not open.
 //!
 //! Must not: change the model (the sim subdivides and opens, `sim/cut_follow.rs`), or allocate outside a cut.
 
@@ -44,8 +45,8 @@ struct CutVertex {
 /// One blade's cut by subdivision: its sweeps and the vertices on its path.
 #[derive(Debug, Default)]
 pub struct BladePath {
-    /// The latest sweeps, oldest first, with their stamps.
-    sweeps: VecDeque<(u64, [Triangle; 2])>,
+    /// The latest sweeps, oldest first: their boxes and triangles.
+    sweeps: VecDeque<(Aabb, [Triangle; 2])>,
     /// The latest sweep itself (a second object cut by the same sweep gets the same stamp).
     last: Option<BladeSweep>,
     /// Stamp of the latest sweep.
@@ -84,7 +85,7 @@ impl BladePath {
             if self.sweeps.len() == HISTORY_SWEEPS {
                 self.sweeps.pop_front();
             }
-            self.sweeps.push_back((self.stamp, sweep.triangles()));
+            self.sweeps.push_back((sweep.aabb(), sweep.triangles()));
         }
         self.stamp
     }
@@ -250,11 +251,11 @@ impl BladePath {
         }
     }
 
-    /// Whether every vertex of `facet` is on the path and its centre lies on the sweeps between their stamps.
+    /// Whether every vertex of `facet` is on the path and its centre lies on a remembered sweep.
     fn on_path(&self, object: u16, facet: &Facet) -> bool {
         let mut corners = [Vec3::zeros(); 3];
         let mut count = 0;
-        let (mut first, mut last) = (u64::MAX, 0);
+        let mut first = u64::MAX;
         for &v in facet.iter().filter(|&&v| v != NO_VERTEX) {
             let Ok(i) = self.find(object, v) else {
                 return false;
@@ -263,7 +264,6 @@ impl BladePath {
             corners[count] = c.place_mm;
             count += 1;
             first = first.min(c.stamp);
-            last = last.max(c.stamp);
         }
         if count < 2 {
             return false;
@@ -279,14 +279,15 @@ impl BladePath {
             }
         }
         let tolerance = ON_PATH_SHARE * size / edges;
-        let oldest = self.sweeps.front().map_or(u64::MAX, |&(s, _)| s);
+        // Older than every sweep remembered: taken as on the path unchecked.
+        let oldest = self.stamp + 1 - self.sweeps.len() as u64;
         if first < oldest {
             return true;
         }
         let point = to_parry(&centre);
         self.sweeps
             .iter()
-            .filter(|&&(s, _)| s >= first && s <= last)
+            .filter(|(aabb, _)| aabb.loosened(tolerance).contains_local_point(point))
             .flat_map(|(_, triangles)| triangles)
             .any(|t| t.distance_to_local_point(point, true) <= tolerance)
     }

@@ -1,4 +1,5 @@
-//! Connected pieces of a mesh: what the cutting tests count to see a cut part the tissue.
+//! Connected pieces of a mesh and a closed surface: what the cutting tests check to see a cut part the tissue
+//! and leave each piece whole.
 
 /// Connected pieces of `elements` (elements sharing a vertex are in one piece).
 pub fn pieces<const K: usize>(elements: &[[u32; K]], vertices: usize) -> usize {
@@ -26,4 +27,25 @@ pub fn pieces<const K: usize>(elements: &[[u32; K]], vertices: usize) -> usize {
     roots.sort_unstable();
     roots.dedup();
     roots.len()
+}
+
+/// The surface is closed and consistently wound: every directed edge once, with its twin.
+pub fn assert_closed_surface(triangles: &[[u32; 3]]) {
+    let mut directed: Vec<[u32; 2]> = triangles
+        .iter()
+        .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+        .collect();
+    directed.sort_unstable();
+    let unique = {
+        let mut d = directed.clone();
+        d.dedup();
+        d.len()
+    };
+    assert_eq!(unique, directed.len(), "a directed edge is used twice");
+    for [a, b] in &directed {
+        assert!(
+            directed.binary_search(&[*b, *a]).is_ok(),
+            "edge {a}-{b} has no twin: the surface is open"
+        );
+    }
 }
