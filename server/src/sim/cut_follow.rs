@@ -11,7 +11,7 @@ use crate::interaction::{BladeSweep, CutScratch};
 use crate::tissue::seams::Opening;
 use crate::tissue::stability::DESIGN_STRAIN;
 use crate::tissue::subdivision::{
-    CutPlan, ElementRemap, Subdivision, floor_masses, rate_ceiling, subdivide_into,
+    CutPlan, ElementRemap, Subdivision, floor_model_masses, rate_ceiling, subdivide_into,
 };
 use crate::tissue::{DivergenceGuard, RegionTracker, Vec3, integrator_for};
 
@@ -107,8 +107,7 @@ impl Sim {
 
     /// After a seam opening of a cut that follows the blade: a copy on the side of a thin piece gets that
     /// piece's small share of its parent's mass but keeps the full springs on its side, so raise the masses
-    /// of the split vertices and their copies to the object's rate ceiling ([`floor_masses`]), rebuilding the
-    /// model only if one was raised.
+    /// of the split vertices and their copies to the object's rate ceiling ([`floor_model_masses`]), in place.
     fn floor_opened_masses(&mut self, object: usize, opening: &Opening) {
         let Some(o) = self.objects.get_mut(object) else {
             return;
@@ -120,20 +119,14 @@ impl Sim {
         touched.extend((0..opening.parents.len() as u32).map(|k| opening.first_new_vertex + k));
         touched.sort_unstable();
         touched.dedup();
-        o.model.to_parts_into(&mut o.parts);
         let stiffening = o.model.law().stiffening_at(DESIGN_STRAIN);
-        if floor_masses(&mut o.parts, &touched, ceiling, stiffening) {
-            o.model.rebuild_from(&o.parts);
+        if floor_model_masses(&mut o.model, &touched, ceiling, stiffening) {
             o.guard = DivergenceGuard::new(&o.model);
+            o.integrator = integrator_for(o.integrator_spec.0, o.integrator_spec.1);
             o.region = o
                 .region
                 .as_ref()
                 .map(|r| RegionTracker::new(&o.model, r.params()));
-            for i in 0..o.model.node_count() {
-                if o.burn[i] > 0 {
-                    o.shrink_springs_of(i);
-                }
-            }
         }
     }
 

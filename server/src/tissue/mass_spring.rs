@@ -169,6 +169,15 @@ impl MassSpringModel {
         &self.mass_kg
     }
 
+    /// Set free node `i`'s mass to `kg` (above 0) in place: its acceleration per newton follows. A fixed node,
+    /// an index out of range or a mass not above 0 changes nothing. (Mass scaling after a cut: no rebuild.)
+    pub fn set_node_mass(&mut self, i: usize, kg: f32) {
+        if i < self.node_count() && self.accel_per_force[i] > 0.0 && kg > 0.0 && kg.is_finite() {
+            self.mass_kg[i] = kg;
+            self.accel_per_force[i] = crate::tissue::MM_PER_M / kg;
+        }
+    }
+
     /// mm/s^2 per newton for each node (0 for fixed nodes).
     pub fn accel_per_force(&self) -> &[f32] {
         &self.accel_per_force

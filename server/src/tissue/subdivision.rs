@@ -26,7 +26,7 @@ mod shares;
 mod split;
 
 pub use remap::ElementRemap;
-pub use shares::{floor_masses, rate_ceiling};
+pub use shares::{floor_masses, floor_model_masses, rate_ceiling};
 pub use split::move_keeps_quality;
 
 use crate::tissue::seams::NO_VERTEX;

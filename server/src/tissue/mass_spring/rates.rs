@@ -29,35 +29,43 @@ impl MassSpringModel {
             if w == 0.0 {
                 return None;
             }
-            let (mut k, mut c) = (self.anchor_stiffness_n_per_mm, 0.0);
-            for &s in self.node_springs(i) {
-                k += 2.0 * self.springs.stiffness_n_per_mm[s as usize] * stiffening;
-                c += 2.0 * self.springs.damping_n_s_per_mm[s as usize];
-            }
-            let x = &self.rest_positions_mm;
-            if self.tets.bulk_modulus_n_per_mm2 > 0.0 {
-                let tets = &self.node_tets
-                    [self.node_tet_start[i] as usize..self.node_tet_start[i + 1] as usize];
-                for &t in tets {
-                    let tet = self.tets.tets[t as usize];
-                    let g = crate::tissue::volume::tet_volume_gradients(x, tet);
-                    let own = tet
-                        .iter()
-                        .position(|&v| v as usize == i)
-                        .map_or(0.0, |k| g[k].norm());
-                    let row: f32 = g.iter().map(|gj| gj.norm()).sum();
-                    k += self.tets.bulk_modulus_n_per_mm2 / self.tets.rest_volume_mm3[t as usize]
-                        * own
-                        * row;
-                }
-            }
-            k += self.fem.node_row_bound_n_per_mm(i);
-            if let Some(global) = &self.global_volume {
-                k += global.bulk_modulus_n_per_mm2 / global.rest_volume_mm3
+            let (k, c) = self.node_bounds(i, stiffening);
+            let k = k + self.global_volume.as_ref().map_or(0.0, |global| {
+                global.bulk_modulus_n_per_mm2 / global.rest_volume_mm3
                     * global_gradient_norm(i)
-                    * global_row;
-            }
+                    * global_row
+            });
             Some((w * k, w * c))
         })
+    }
+
+    /// Node `i`'s Gershgorin bounds `(K, C)` (N/mm, N s/mm) without the global volume term: its springs
+    /// (`2 k stiffening` each), the anchor, its tetrahedra's volume terms and finite elements at rest, and
+    /// `2 sum(c)` of its springs' damping. See [`Self::node_rates`].
+    pub fn node_bounds(&self, i: usize, stiffening: f32) -> (f32, f32) {
+        let (mut k, mut c) = (self.anchor_stiffness_n_per_mm, 0.0);
+        for &s in self.node_springs(i) {
+            k += 2.0 * self.springs.stiffness_n_per_mm[s as usize] * stiffening;
+            c += 2.0 * self.springs.damping_n_s_per_mm[s as usize];
+        }
+        let x = &self.rest_positions_mm;
+        if self.tets.bulk_modulus_n_per_mm2 > 0.0 {
+            let tets = &self.node_tets
+                [self.node_tet_start[i] as usize..self.node_tet_start[i + 1] as usize];
+            for &t in tets {
+                let tet = self.tets.tets[t as usize];
+                let g = crate::tissue::volume::tet_volume_gradients(x, tet);
+                let own = tet
+                    .iter()
+                    .position(|&v| v as usize == i)
+                    .map_or(0.0, |k| g[k].norm());
+                let row: f32 = g.iter().map(|gj| gj.norm()).sum();
+                k += self.tets.bulk_modulus_n_per_mm2 / self.tets.rest_volume_mm3[t as usize]
+                    * own
+                    * row;
+            }
+        }
+        k += self.fem.node_row_bound_n_per_mm(i);
+        (k, c)
     }
 }

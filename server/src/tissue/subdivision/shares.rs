@@ -208,6 +208,34 @@ pub fn floor_masses(
     raised
 }
 
+/// [`floor_masses`] on a built model, in place ([`MassSpringModel::set_node_mass`]): each free vertex of
+/// `touched` whose stiffness bound ([`MassSpringModel::node_bounds`]) over its mass passes `omega2_max` gets
+/// the mass that brings it to it. Returns whether any was raised.
+pub fn floor_model_masses(
+    model: &mut MassSpringModel,
+    touched: &[u32],
+    omega2_max: f32,
+    stiffening: f32,
+) -> bool {
+    if omega2_max.is_nan() || omega2_max <= 0.0 {
+        return false;
+    }
+    let mut raised = false;
+    for &v in touched {
+        let v = v as usize;
+        if v >= model.node_count() || model.is_fixed(v) {
+            continue;
+        }
+        let (k, _) = model.node_bounds(v, stiffening);
+        let floor = 1000.0 * k / omega2_max;
+        if model.mass_kg()[v] < floor {
+            model.set_node_mass(v, floor);
+            raised = true;
+        }
+    }
+    raised
+}
+
 /// The largest stiffness rate `w^2` (1/s^2) of `model`'s free nodes, as the stability analysis bounds it: the
 /// ceiling no node may pass after a cut ([`floor_masses`]).
 pub fn rate_ceiling(model: &MassSpringModel) -> f32 {
