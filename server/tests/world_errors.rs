@@ -107,6 +107,36 @@ fn an_unknown_key_names_the_key_and_line() {
 }
 
 #[test]
+fn a_cut_mode_is_read_and_an_unknown_one_names_its_line_and_the_choices() {
+    let good = good_world().replace(
+        "damping_n_s_per_mm = 0.0",
+        "damping_n_s_per_mm = 0.0\ncut = \"follow-blade\"",
+    );
+    let world = load_world(&write_world(&good, None)).unwrap();
+    assert!(world.objects[0].material.cut_follows_blade);
+    let facets = good.replace("\"follow-blade\"", "\"facets\"");
+    let world = load_world(&write_world(&facets, None)).unwrap();
+    assert!(!world.objects[0].material.cut_follows_blade);
+    let world = load_world(&write_world(&good_world(), None)).unwrap();
+    assert!(
+        !world.objects[0].material.cut_follows_blade,
+        "the default is facets"
+    );
+    let bad = good.replace("\"follow-blade\"", "\"zigzag\"");
+    let (error, message, _) = refused(&bad, None);
+    assert!(
+        matches!(error, WorldError::Syntax { line, .. } if line == line_of(&bad, "zigzag")),
+        "{message}"
+    );
+    assert!(
+        message.contains("zigzag")
+            && message.contains("follow-blade")
+            && message.contains("facets"),
+        "{message}"
+    );
+}
+
+#[test]
 fn a_non_manifold_mesh_is_refused() {
     // A fourth triangle on the edge (1, 5) that two triangles already share.
     let mesh = format!("{GRID_OBJ}v 2 2 3\nf 1 5 10\n");

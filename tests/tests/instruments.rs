@@ -184,6 +184,17 @@ fn a_recorded_cut_session_replays_bit_for_bit() {
     );
 }
 
+/// A scalpel cutting the sheet following its blade (worlds/cut_under_tension.toml: edges split where it crosses
+/// them) under a grasper's pull replays bit for bit from its recording.
+#[test]
+fn a_recorded_cut_that_follows_the_blade_replays_bit_for_bit() {
+    let kinds = record_and_replay_exactly("cut_under_tension.toml");
+    assert!(
+        kinds.iter().any(|k| k == "cut_begin"),
+        "no cut event: {kinds:?}"
+    );
+}
+
 /// A cautery tip burns a line on the sheet over zenoh: every viewer's replica holds exactly the server's burn
 /// levels, a viewer joining afterwards gets them in its snapshot, and the rendered picture shows the burn.
 ///

@@ -80,6 +80,9 @@ impl BladePath {
     /// The stamp of `sweep`: a new one unless it is the sweep seen last (another object on the same sweep).
     fn stamp_for(&mut self, sweep: &BladeSweep) -> u64 {
         if self.last.as_ref() != Some(sweep) {
+            if self.sweeps.capacity() < HISTORY_SWEEPS {
+                self.sweeps.reserve_exact(HISTORY_SWEEPS);
+            }
             self.stamp += 1;
             self.last = Some(*sweep);
             if self.sweeps.len() == HISTORY_SWEEPS {
