@@ -10,7 +10,7 @@ use sinew_server::interaction::JawInput;
 use sinew_server::interaction::suture::SutureThread;
 use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
 use sinew_server::training::{MetricsConfig, SessionEvent, SessionObserver, TickView, Transition};
-use sinew_server::world::{InstrumentSpec, load_world};
+use sinew_server::world::{InstrumentSpec, World, load_world};
 
 use super::tool_pose::pose_command;
 
@@ -54,8 +54,14 @@ pub struct Wound {
 
 impl Wound {
     pub fn new() -> Self {
+        Self::new_with(|_| {})
+    }
+
+    /// The wound with its world edited first by `edit`.
+    pub fn new_with(edit: impl FnOnce(&mut World)) -> Self {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/suture.toml");
-        let world = load_world(&path).unwrap();
+        let mut world = load_world(&path).unwrap();
+        edit(&mut world);
         // (The world's needle: a half circle held at its tail in small jaws, which follow it through.)
         let InstrumentSpec::NeedleDriver(spec) = world.tools[0].instrument else {
             panic!("tool 0 of the wound world is not a needle driver");
@@ -285,7 +291,11 @@ impl CrossedDraw {
     /// The wound as the stitch's tests start it: the pass, the grasper's take of the thread 15 mm past the
     /// entry hole (checked), and the draw at `most_n` ready to go.
     pub fn after_the_pass(most_n: f32) -> (Wound, Pass, Self) {
-        let mut wound = Wound::new();
+        Self::after_the_pass_in(Wound::new(), most_n)
+    }
+
+    /// [`Self::after_the_pass`] in `wound` (as made).
+    pub fn after_the_pass_in(mut wound: Wound, most_n: f32) -> (Wound, Pass, Self) {
         let pass = wound.pass();
         let grasper_from = wound.take_thread(&pass, 15.0);
         assert!(

@@ -27,6 +27,18 @@ impl HolePoint {
         }
     }
 
+    /// The same point after object `object` was subdivided (see [`SurfacePoint::remapped`]).
+    pub fn remapped(
+        &self,
+        object: usize,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) -> Self {
+        match self {
+            HolePoint::Surface(p) => HolePoint::Surface(p.remapped(object, remap)),
+            HolePoint::Volume(p) => HolePoint::Volume(p.remapped(object, remap)),
+        }
+    }
+
     /// A hole in the surface (not a point of a track inside).
     pub fn is_surface(&self) -> bool {
         matches!(self, HolePoint::Surface(_))

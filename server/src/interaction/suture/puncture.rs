@@ -443,6 +443,23 @@ impl NeedleTissue {
         self.rebuild_nodes(object, model);
     }
 
+    /// Object `object` was subdivided: the pressed point and every hole on it are re-expressed on the pieces of
+    /// their triangles that hold them (the same places), then the corners re-read.
+    pub fn subdivided(
+        &mut self,
+        object: usize,
+        model: &MassSpringModel,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) {
+        if let TipPhase::Pressing { contact, .. } = &mut self.phase {
+            contact.point = contact.point.remapped(object, remap);
+        }
+        for hole in self.holes.iter_mut().chain(self.passed_tail.iter_mut()) {
+            hole.point = hole.point.remapped(object, remap);
+        }
+        self.rebuild_nodes(object, model);
+    }
+
     fn press(
         &mut self,
         object: usize,

@@ -26,6 +26,7 @@
 //! Must not: allocate or panic; a point whose corners are all fixed, or missing, is left alone.
 
 use crate::collision::{SurfaceCollider, crossing_nearest};
+use crate::tissue::subdivision::ElementRemap;
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
 /// A tip this far across its push from its point has slid off it, mm ([`TipContact::follow`]).
@@ -47,6 +48,20 @@ pub struct SurfacePoint {
 }
 
 impl SurfacePoint {
+    /// The same material point after object `object` was subdivided: on the piece of its triangle that holds it
+    /// ([`ElementRemap::triangle`]); unchanged on another object.
+    pub fn remapped(&self, object: usize, remap: &ElementRemap<'_>) -> Self {
+        if usize::from(self.object) != object {
+            return *self;
+        }
+        let (triangle, barycentric) = remap.triangle(self.triangle, self.barycentric);
+        Self {
+            triangle,
+            barycentric,
+            ..*self
+        }
+    }
+
     /// The triangle's corners, if the model has it.
     pub fn corners(&self, model: &MassSpringModel) -> Option<[u32; 3]> {
         model.triangles().get(self.triangle as usize).copied()

@@ -24,6 +24,24 @@ pub struct VolumePoint {
 }
 
 impl VolumePoint {
+    /// The same material point after object `object` was subdivided: in the piece of its tetrahedron that holds
+    /// it ([`ElementRemap::tet`]); unchanged in another object.
+    pub fn remapped(
+        &self,
+        object: usize,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) -> Self {
+        if usize::from(self.object) != object {
+            return *self;
+        }
+        let (tet, barycentric) = remap.tet(self.tet, self.barycentric);
+        Self {
+            tet,
+            barycentric,
+            ..*self
+        }
+    }
+
     /// The material point of object `object` at `place_mm` in the tissue as it is now: the tetrahedron holding
     /// it (or the nearest, within a twentieth of its size outside), its weights clamped to it. None when no
     /// tetrahedron holds it, the object has none, or the place is not finite. Scans every tetrahedron: for an

@@ -407,6 +407,18 @@ impl Instrument for NeedleDriver {
         self.needle.topology_changed(object, model);
     }
 
+    fn subdivided(
+        &mut self,
+        object: usize,
+        model: &MassSpringModel,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) {
+        self.needle.subdivided(object, model, remap);
+        if let Some(thread) = &mut self.thread {
+            thread.subdivided(object, remap);
+        }
+    }
+
     /// The needle's pull while the driver's own jaws hold it (fading as they open once they let it go), and
     /// the thread's while they hold the thread.
     fn force_on_tool_n(&self) -> Vec3 {

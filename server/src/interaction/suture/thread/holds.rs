@@ -116,6 +116,21 @@ impl SutureThread {
         true
     }
 
+    /// Object `object` was subdivided: the holes, the tracks' rings and the points the nodes lie on there are
+    /// re-expressed on the pieces of their elements that hold them (the same places).
+    pub fn subdivided(
+        &mut self,
+        object: usize,
+        remap: &crate::tissue::subdivision::ElementRemap<'_>,
+    ) {
+        for hole in self.holes.iter_mut().chain(self.tracks.iter_mut()) {
+            hole.point = hole.point.remapped(object, remap);
+        }
+        for contact in self.contacts.iter_mut().flatten() {
+            *contact = contact.remapped(object, remap);
+        }
+    }
+
     /// The holes in the surface the thread runs through.
     pub fn holes(&self) -> &[ThreadHole] {
         &self.holes
