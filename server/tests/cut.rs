@@ -451,10 +451,19 @@ fn a_scalpel_cuts_where_its_edge_sweeps_and_drags_against_its_motion() {
             against += usize::from(out.force_world_n.y < -0.05);
         }
     }
+    // The hand stops: the tool settles onto it, the drag fading, never flipping tick to tick (a drag that
+    // flipped with the tool's own last motion made a still hand's scalpel chatter).
     let mut out = ToolOutput::default();
+    let mut flips = 0;
     for _ in 0..50 {
+        let last = out.force_world_n[1];
         out = tick(&mut sim, blade_at(5.0, 1.5)).0;
+        flips += usize::from(last * out.force_world_n[1] < 0.0);
     }
+    assert_eq!(
+        flips, 0,
+        "the drag flipped {flips} times while the hand held still"
+    );
     println!(
         "10 mm line: {split} vertices split, cutting on {cutting_ticks} ticks, dragged back on {against}"
     );

@@ -60,7 +60,14 @@ impl Instrument for Scalpel {
         self.drag.advance(motion.norm(), severed);
         if let Some(direction) = motion.try_normalize(MIN_CUT_SPEED_MM_S * dt_s) {
             self.drag.moving = true;
-            self.drag.force_n = -direction * self.drag.resistance_n * self.drag.level;
+            // The drag acts a tick late against the last tick's motion (explicit Coulomb friction): one the size
+            // of the force that would have stopped that motion in the coupling throws the tool back next tick,
+            // and a still hand felt the tool chatter, the drag flipping each tick. Half of it only slows it.
+            let params = *sim.tools[t].drive.coupling.params();
+            let stopping_n =
+                (params.damping_n_s_per_mm / dt_s + params.stiffness_n_per_mm) * motion.norm();
+            self.drag.force_n =
+                -direction * (self.drag.resistance_n * self.drag.level).min(0.5 * stopping_n);
         }
     }
 
