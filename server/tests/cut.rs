@@ -677,11 +677,21 @@ fn scissors_snipping_into_the_tet_block_open_it_and_its_surface_stays_closed() {
         model.triangles().len()
     );
     assert!(split >= 4, "seven snips split {split} vertices");
-    assert_eq!(
-        model.tets().tets.len(),
+    // The block's cut follows the blades (cut.toml: `cut = "follow-blade"`): the tetrahedra they cross split.
+    assert!(
+        model.tets().tets.len() > tets_before,
+        "the snips split no tetrahedron: {} then {}",
         tets_before,
-        "a cut adds no tetrahedron"
+        model.tets().tets.len()
     );
+    let rest = model.rest_positions_mm();
+    for tet in &model.tets().tets {
+        let [a, b, c, d] = tet.map(|v| rest[v as usize]);
+        assert!(
+            (b - a).cross(&(c - a)).dot(&(d - a)) > 0.0,
+            "{tet:?} turned over"
+        );
+    }
     assert!(
         model.triangles().len() > surface_before,
         "the snips show no cut face"
