@@ -522,3 +522,44 @@ fn a_grasp_on_triangles_a_cut_splits_holds_the_same_points_and_holds_on() {
         "a held point moved {worst_mm} mm across a cut"
     );
 }
+
+#[test]
+fn a_cut_through_the_corotational_fem_block_follows_the_blade_and_parts_it() {
+    // worlds/fem_block.toml: the same tet block as elastic elements (implicit Euler), its base and one end fixed.
+    let mut world = load_world(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds/fem_block.toml"),
+    )
+    .unwrap();
+    world.objects[0].material.cut_follows_blade = true;
+    let mut sim = Sim::new(&world).unwrap();
+    let before = sim.objects[0].model.tets().tets.len();
+    // Across the block (x -20 to 20, y -15 to 15, z -10 to 0) at x = -5.2, through its depth.
+    let x0 = -5.2;
+    let split = sweep_path(&mut sim, 0, (-12.0, 2.0), 340, |s| (x0, -17.0 + 34.0 * s));
+    let model = &sim.objects[0].model;
+    println!(
+        "fem block cut: {split} vertices split, {} tetrahedra (from {before})",
+        model.tets().tets.len()
+    );
+    assert!(model.tets().tets.len() > before);
+    assert_eq!(pieces(&model.tets().tets, model.node_count()), 2);
+    assert_closed_surface(model.triangles());
+    kick(&mut sim, 0);
+    for _ in 0..1000 {
+        idle_tick(&mut sim);
+    }
+    let o = &sim.objects[0];
+    assert!(o.state.is_finite());
+    let worst = o
+        .model
+        .tets()
+        .tets
+        .iter()
+        .map(|t| quality(&o.state.positions_mm, t) / quality(o.model.rest_positions_mm(), t))
+        .fold(f32::INFINITY, f32::min);
+    println!("kicked, then 1000 ticks: the worst tetrahedron keeps {worst:.3} of its rest quality");
+    assert!(
+        worst > 0.5,
+        "a tetrahedron flattened or turned over: {worst}"
+    );
+}
