@@ -25,28 +25,37 @@ pub fn move_keeps_quality(parts: &ModelParts, ring: &[u32], v: u32, to_mm: &Vec3
     let Some(&from) = rest.get(v as usize) else {
         return false;
     };
-    let moved = |p: u32| if p == v { *to_mm } else { rest[p as usize] };
     let volume = !parts.tets.is_empty();
     ring.iter().all(|&e| {
-        if volume {
-            let Some(&tet) = parts.tets.get(e as usize) else {
-                return false;
-            };
-            let before = tet_volume_mm3(rest, tet);
-            let [a, b, c, d] = tet.map(moved);
+        let element: Option<&[u32]> = if volume {
+            parts.tets.get(e as usize).map(|t| t.as_slice())
+        } else {
+            parts.triangles.get(e as usize).map(|t| t.as_slice())
+        };
+        element.is_some_and(|element| keeps_measure(rest, element, v, to_mm))
+    }) && from != *to_mm
+}
+
+/// Whether `element` (a tetrahedron's four corners or a triangle's three, at `rest`) keeps at least
+/// [`MIN_MEASURE_SHARE`] of its measure, the same way round, with vertex `v` moved to `to_mm`.
+fn keeps_measure(rest: &[Vec3], element: &[u32], v: u32, to_mm: &Vec3) -> bool {
+    let moved = |p: u32| if p == v { *to_mm } else { rest[p as usize] };
+    match *element {
+        [a, b, c, d] => {
+            let before = tet_volume_mm3(rest, [a, b, c, d]);
+            let [a, b, c, d] = [a, b, c, d].map(moved);
             let after = (b - a).cross(&(c - a)).dot(&(d - a)) / 6.0;
             before != 0.0 && after / before >= MIN_MEASURE_SHARE
-        } else {
-            let Some(&tri) = parts.triangles.get(e as usize) else {
-                return false;
-            };
-            let before = area_vector(rest, tri);
-            let [a, b, c] = tri.map(moved);
+        }
+        [a, b, c] => {
+            let before = area_vector(rest, [a, b, c]);
+            let [a, b, c] = [a, b, c].map(moved);
             let after = (b - a).cross(&(c - a));
             let norm2 = before.norm_squared();
             norm2 > 0.0 && after.dot(&before) >= MIN_MEASURE_SHARE * norm2
         }
-    }) && from != *to_mm
+        _ => false,
+    }
 }
 
 /// Whether moving vertex `v` along edge `v w` keeps the object's shape: an inner vertex may move anywhere, one
@@ -105,13 +114,15 @@ pub(super) fn can_move(model: &MassSpringModel, m: &VertexMove, moves: &[VertexM
     } else {
         model.node_triangles(v)
     };
-    let neighbour_moves = ring.iter().any(|&e| {
-        let corners: &[u32] = if volume {
+    let corners = |e: u32| -> &[u32] {
+        if volume {
             &model.tets().tets[e as usize]
         } else {
             &model.triangles()[e as usize]
-        };
-        corners
+        }
+    };
+    let neighbour_moves = ring.iter().any(|&e| {
+        corners(e)
             .iter()
             .any(|&c| moves.iter().any(|other| other.vertex == c))
     });
@@ -120,29 +131,8 @@ pub(super) fn can_move(model: &MassSpringModel, m: &VertexMove, moves: &[VertexM
     }
     let rest = model.rest_positions_mm();
     let to = rest[v].lerp(&rest[w], m.t);
-    let moved = |p: u32| {
-        if p as usize == v {
-            to
-        } else {
-            rest[p as usize]
-        }
-    };
-    ring.iter().all(|&e| {
-        if volume {
-            let tet = model.tets().tets[e as usize];
-            let before = tet_volume_mm3(rest, tet);
-            let [a, b, c, d] = tet.map(moved);
-            let after = (b - a).cross(&(c - a)).dot(&(d - a)) / 6.0;
-            before != 0.0 && after / before >= MIN_MEASURE_SHARE
-        } else {
-            let tri = model.triangles()[e as usize];
-            let before = area_vector(rest, tri);
-            let [a, b, c] = tri.map(moved);
-            let after = (b - a).cross(&(c - a));
-            let norm2 = before.norm_squared();
-            norm2 > 0.0 && after.dot(&before) >= MIN_MEASURE_SHARE * norm2
-        }
-    })
+    ring.iter()
+        .all(|&e| keeps_measure(rest, corners(e), m.vertex, &to))
 }
 
 /// Record element `id`'s corners before the change, once.
