@@ -12,7 +12,9 @@ mod tool_spec;
 
 use std::path::PathBuf;
 
-pub use exercise_spec::{ExerciseKind, ExerciseSpec, SUTURE_GAP_LIMIT_MM, SampleSpec, TargetSpec};
+pub use exercise_spec::{
+    ExerciseKind, ExerciseSpec, PatternSpec, SUTURE_GAP_LIMIT_MM, SampleSpec, TargetSpec,
+};
 pub use tool_spec::ToolSpec;
 
 use crate::tissue::{ObjectSpec, TieSet};

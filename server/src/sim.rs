@@ -36,6 +36,7 @@ mod instruments;
 mod knot_watch;
 mod needle_model;
 mod object;
+mod pattern_watch;
 mod step_report;
 mod suture_output;
 mod tearing;
@@ -129,6 +130,8 @@ pub struct Sim {
     openings: u64,
     /// The two objects whose gap the world's suture exercise judges (`wound_watch.rs`).
     wound: Option<[usize; 2]>,
+    /// The pattern the world's pattern-cutting exercise marks, and its cut as last read (`pattern_watch.rs`).
+    pattern: Option<pattern_watch::PatternWatch>,
     /// The slits a suture cuts through its tissue (`hole_tearing.rs`).
     hole_tear_scratch: crate::interaction::CutScratch,
     /// The knots the threads tie (`knot_watch.rs`).
@@ -366,6 +369,7 @@ impl Sim {
             }
         }
         report.wound_gap_mm = self.wound_gap_now();
+        report.pattern_cut = self.pattern_cut_now();
         self.time_s += f64::from(dt_s);
         self.steps += 1;
         report

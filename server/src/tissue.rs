@@ -19,6 +19,7 @@ pub mod integrators;
 mod kuhn;
 mod mass_spring;
 mod object_desc;
+pub mod pattern_cut;
 mod puncture_material;
 pub mod region;
 mod rod;

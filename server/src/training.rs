@@ -10,6 +10,7 @@
 //! - [`exercise`]: an exercise's targets, clock and errors, scored from the events;
 //! - [`knot_score`]: the knot a suture exercise read, and which knots tie a stitch off;
 //! - [`observer`]: events, states and metrics per tool (and the exercise), fed one tick at a time;
+//! - [`pattern_cutting`]: a pattern cut out of a sheet, scored as MISTELS scores FLS's task;
 //! - [`wound_gap`]: how far a wound between two objects is open (a stitch's result).
 
 pub mod events;
@@ -17,6 +18,7 @@ pub mod exercise;
 pub mod knot_score;
 pub mod metrics;
 pub mod observer;
+pub mod pattern_cutting;
 pub mod skill_state;
 pub mod wound_gap;
 
@@ -27,5 +29,6 @@ pub use exercise::{
 pub use knot_score::{KnotScore, secure_knot};
 pub use metrics::{MetricsConfig, MetricsSummary, ParticipantMetrics};
 pub use observer::{LiveTraining, SessionObserver, TickView};
+pub use pattern_cutting::{PatternCutScore, PatternJudge};
 pub use skill_state::{SkillMachine, SkillState, Transition};
 pub use wound_gap::{wound_gap_between_mm, wound_gap_mm};

@@ -453,6 +453,7 @@ fn the_shipped_exercises_and_a_test_exercise_load() {
         "exercise_coordination.toml",
         "exercise_accurate_touch.toml",
         "exercise_stiffness_ranking.toml",
+        "exercise_pattern_cutting.toml",
         "suture.toml",
     ] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -1381,4 +1382,123 @@ fn assert_refused_on_its_line(good: &str, cases: &[(&str, &str, &str, &str)]) {
         );
         assert!(message.contains(says), "{message}");
     }
+}
+
+/// `worlds/exercise_pattern_cutting.toml` with `edit` applied, its mesh named by its full path.
+fn pattern_world(edit: impl Fn(String) -> String) -> String {
+    let worlds = Path::new(env!("CARGO_MANIFEST_DIR")).join("../worlds");
+    let text = std::fs::read_to_string(worlds.join("exercise_pattern_cutting.toml")).unwrap();
+    let mesh = worlds.join("meshes/pad.obj");
+    edit(text.replace(
+        "\"meshes/pad.obj\"",
+        &format!("{:?}", mesh.display().to_string()),
+    ))
+}
+
+#[test]
+fn a_bad_pattern_names_the_key_and_line_and_says_why() {
+    let shipped = pattern_world(|t| t);
+    let pattern = load_world(&write_world(&shipped, None))
+        .unwrap()
+        .exercise
+        .unwrap()
+        .pattern
+        .unwrap();
+    assert_eq!(
+        (
+            pattern.object,
+            pattern.inner_radius_mm,
+            pattern.outer_radius_mm
+        ),
+        (0, 19.5, 20.5)
+    );
+    let cases: [(&str, &str, &str, &str); 6] = [
+        // (replace, with, key, in the message)
+        (
+            "outer_radius_mm = 20.5",
+            "outer_radius_mm = 19.0",
+            "exercise.pattern.outer_radius_mm",
+            "more than the inner radius",
+        ),
+        (
+            "inner_radius_mm = 19.5",
+            "inner_radius_mm = -1.0",
+            "exercise.pattern.inner_radius_mm",
+            "positive",
+        ),
+        (
+            "object = \"gauze\"",
+            "object = \"liver\"",
+            "exercise.pattern.object",
+            "objects: gauze",
+        ),
+        (
+            "centre_mm = [0.0, 0.0, 0.0]",
+            "centre_mm = [0.0, 0.0, 30.0]",
+            "exercise.pattern.centre_mm",
+            "must lie on the sheet",
+        ),
+        // A pattern reaching the clips could never come free.
+        (
+            "outer_radius_mm = 20.5",
+            "outer_radius_mm = 31.0",
+            "exercise.pattern.outer_radius_mm",
+            "never come free",
+        ),
+        // A pattern-cutting exercise with targets.
+        (
+            "[exercise.pattern]",
+            "[[exercise.targets]]\nat_mm = [0.0, 0.0, 0.0]\nradius_mm = 1.0\n\n[exercise.pattern]",
+            "exercise.targets",
+            "a pattern, not targets",
+        ),
+    ];
+    for (old, new, key, why) in cases {
+        let world = pattern_world(|t| {
+            assert!(t.contains(old), "{old}");
+            t.replacen(old, new, 1)
+        });
+        let (error, message, _) = refused(&world, None);
+        let (at, line) = invalid_key_and_line(&error);
+        assert_eq!(at, key, "{message}");
+        assert!(message.contains(why), "{message}");
+        let section = line_of(&world, "[exercise.pattern]");
+        assert!(
+            line >= line_of(&world, "[exercise]") && line <= section + 5,
+            "line {line}: {message}"
+        );
+    }
+    // No pattern at all.
+    let world = pattern_world(|t| t[..t.find("[exercise.pattern]").unwrap()].to_owned());
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error).0,
+        "exercise.pattern",
+        "{message}"
+    );
+    // A pattern on another kind of exercise.
+    let world =
+        pattern_world(|t| t.replace("kind = \"pattern-cutting\"", "kind = \"coordination\""));
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error).0,
+        "exercise.pattern",
+        "{message}"
+    );
+    assert!(
+        message.contains("only a pattern-cutting exercise"),
+        "{message}"
+    );
+    // A sheet without clips: nothing to cut the pattern free of.
+    let world = pattern_world(|t| {
+        let (from, to) = (t.find("# The clips").unwrap(), t.find("[[tools]]").unwrap());
+        format!("{}{}", &t[..from], &t[to..])
+    });
+    let (error, message, _) = refused(&world, None);
+    assert_eq!(
+        invalid_key_and_line(&error).0,
+        "exercise.pattern.object",
+        "{message}"
+    );
+    assert!(message.contains("no fixed vertex"), "{message}");
 }

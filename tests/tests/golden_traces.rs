@@ -343,6 +343,7 @@ fn every_shipped_world_has_a_golden_trace() {
         "cut_under_tension",
         "exercise_accurate_touch",
         "exercise_coordination",
+        "exercise_pattern_cutting",
         "exercise_stiffness_ranking",
         "fem_block",
         "grasp_pull",
@@ -396,6 +397,11 @@ golden_world!(
 golden_world!(
     exercise_stiffness_ranking,
     "exercise_stiffness_ranking.toml",
+    DURATION_S
+);
+golden_world!(
+    exercise_pattern_cutting,
+    "exercise_pattern_cutting.toml",
     DURATION_S
 );
 golden_world!(tet_block, "tet_block.toml", DURATION_S);

@@ -107,7 +107,7 @@ pub struct TrainingStats {
 /// The running exercise, scored live (server -> anyone, in [`ServerStats`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct ExerciseStats {
-    /// The exercise kind: `coordination`, `accurate-touch`, `stiffness-ranking`.
+    /// The exercise kind: `coordination`, `accurate-touch`, `stiffness-ranking`, `suture`, `pattern-cutting`.
     pub kind: String,
     /// Score so far, 0-100.
     pub score: f32,
@@ -123,7 +123,8 @@ pub struct ExerciseStats {
     pub completed: bool,
     /// The time limit passed.
     pub timed_out: bool,
-    /// The exercise's targets (or a suture's marks) in order, with whether each is hit: a viewer marks them.
+    /// The exercise's targets (or a suture's marks, or a pattern's two circles about one centre) in order,
+    /// with whether each is hit: a viewer marks them.
     /// Protocol 18.
     pub targets: Vec<TargetMark>,
 }

@@ -100,7 +100,7 @@ pub fn training_stats(live: &super::LiveTraining) -> TrainingStats {
 }
 
 /// The wire form of an exercise's running score, with its targets and which are hit (targets are hit in
-/// order: the first `hits`; a ranking has samples, not targets).
+/// order: the first `hits`; a ranking has samples, not targets; a pattern's marks are its two circles).
 pub fn exercise_stats(spec: &ExerciseSpec, live: &LiveScore) -> ExerciseStats {
     let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
     let hit_targets = if spec.kind == ExerciseKind::StiffnessRanking {
@@ -117,17 +117,27 @@ pub fn exercise_stats(spec: &ExerciseSpec, live: &LiveScore) -> ExerciseStats {
         time_s: live.time_s as f32,
         completed: live.completed,
         timed_out: live.timed_out,
-        targets: spec
-            .targets
-            .iter()
-            .take(ExerciseStats::MAX_TARGETS)
-            .enumerate()
-            .map(|(i, target)| TargetMark {
-                at_mm: target.at_mm,
-                radius_mm: target.radius_mm,
-                hit: i < hit_targets,
-            })
-            .collect(),
+        targets: match &spec.pattern {
+            // A pattern's marks are its two circles, hit once the circle is cut free.
+            Some(pattern) => [pattern.inner_radius_mm, pattern.outer_radius_mm]
+                .map(|radius_mm| TargetMark {
+                    at_mm: pattern.centre_mm,
+                    radius_mm,
+                    hit: live.completed,
+                })
+                .to_vec(),
+            None => spec
+                .targets
+                .iter()
+                .take(ExerciseStats::MAX_TARGETS)
+                .enumerate()
+                .map(|(i, target)| TargetMark {
+                    at_mm: target.at_mm,
+                    radius_mm: target.radius_mm,
+                    hit: i < hit_targets,
+                })
+                .collect(),
+        },
     }
 }
 

@@ -14,6 +14,17 @@
 //! tool = "left-probe"          # coordination: the tool whose colour the target shows
 //! ```
 //!
+//! A `kind = "pattern-cutting"` exercise has no targets but a pattern: two concentric circles marked on a sheet
+//! fixed by clips, and the piece inside is to be cut out along the band between them.
+//!
+//! ```toml
+//! [exercise.pattern]
+//! object = "gauze"             # a sheet with fixed vertices (the clips)
+//! centre_mm = [0.0, 0.0, 0.0]  # on the sheet at rest, world frame
+//! inner_radius_mm = 19.5
+//! outer_radius_mm = 20.5
+//! ```
+//!
 //! A `kind = "stiffness-ranking"` exercise names objects instead of targets: `samples = ["a", "b", "c"]`.
 //!
 //! A `kind = "suture"` exercise has exactly two targets, the marks a stitch goes in at and comes out at (as
@@ -47,6 +58,10 @@ pub enum ExerciseKind {
     /// and how far from them the needle went in and out, mm (FLS's intracorporeal suture task: time and mm
     /// off the marks; the wound's gap and the knot come with the knot).
     Suture,
+    /// Cut a marked circle out of a clipped sheet, between its two marked circles (FLS's pattern-cutting task,
+    /// scored as MISTELS scores it: the cutoff time less the time taken less the percentage area cut outside
+    /// the band).
+    PatternCutting,
 }
 
 impl ExerciseKind {
@@ -57,6 +72,7 @@ impl ExerciseKind {
             ExerciseKind::AccurateTouch => "accurate-touch",
             ExerciseKind::StiffnessRanking => "stiffness-ranking",
             ExerciseKind::Suture => "suture",
+            ExerciseKind::PatternCutting => "pattern-cutting",
         }
     }
 }
@@ -87,6 +103,20 @@ pub struct SampleSpec {
     pub max_xy_mm: [f32; 2],
 }
 
+/// A pattern-cutting exercise's marks: two concentric circles on a sheet at rest, the band the cut should run
+/// between.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PatternSpec {
+    /// The sheet (object index in the world).
+    pub object: usize,
+    /// The circles' centre, on the sheet at rest, world frame, mm.
+    pub centre_mm: [f32; 3],
+    /// The inner circle's radius, mm.
+    pub inner_radius_mm: f32,
+    /// The outer circle's radius, mm.
+    pub outer_radius_mm: f32,
+}
+
 /// A validated `[exercise]` section.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ExerciseSpec {
@@ -109,4 +139,7 @@ pub struct ExerciseSpec {
     /// alternating hands: a square knot, a surgeon's knot), and a knot that came undone is an error.
     #[serde(default)]
     pub knot: bool,
+    /// A pattern-cutting exercise's marked circles.
+    #[serde(default)]
+    pub pattern: Option<PatternSpec>,
 }

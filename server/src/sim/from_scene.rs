@@ -215,7 +215,7 @@ impl Sim {
                 ));
             }
         }
-        Ok(Self {
+        let mut sim = Self {
             budget: EnergyBudget::new(tools.len()),
             knots: super::knot_watch::KnotWatch::new(tools.len()),
             objects,
@@ -227,10 +227,18 @@ impl Sim {
             openings: 0,
             hole_tear_scratch: crate::interaction::CutScratch::default(),
             wound: world.exercise.as_ref().and_then(|e| e.wound),
+            pattern: world
+                .exercise
+                .as_ref()
+                .and_then(|e| e.pattern)
+                .map(super::pattern_watch::PatternWatch::new),
             collision_margin_mm: world.collision_margin_mm,
             time_s: 0.0,
             steps: 0,
-        })
+        };
+        // The pattern's first reading, so that no tick allocates for it before a cut.
+        sim.pattern_cut_now();
+        Ok(sim)
     }
 }
 

@@ -46,4 +46,6 @@ pub struct StepReport {
     pub needle_holes_closed: u32,
     /// How far open the wound the world's suture exercise names is after the tick, mm (None: no wound named).
     pub wound_gap_mm: Option<f32>,
+    /// How the pattern the world's pattern-cutting exercise marks is cut after the tick (None: no pattern).
+    pub pattern_cut: Option<crate::tissue::pattern_cut::PatternCutReading>,
 }

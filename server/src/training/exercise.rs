@@ -40,7 +40,9 @@ use serde::{Deserialize, Serialize};
 
 use super::events::{EventKind, SessionEvent, ToolActivity};
 use super::knot_score::{KnotScore, secure_knot};
+use super::pattern_cutting::{PatternCutScore, PatternJudge};
 use crate::scene::{ExerciseKind, ExerciseSpec, SUTURE_GAP_LIMIT_MM};
+use crate::tissue::pattern_cut::PatternCutReading;
 
 /// Points lost per error.
 pub const POINTS_PER_ERROR: f64 = 10.0;
@@ -144,6 +146,9 @@ pub struct ExerciseScore {
     /// A suture exercise's knot (None: another kind).
     #[serde(default)]
     pub knot: Option<KnotScore>,
+    /// A pattern-cutting exercise's cut (None: another kind).
+    #[serde(default)]
+    pub pattern: Option<PatternCutScore>,
 }
 
 /// The running score, without the lists (no allocation: read on the sim thread).
@@ -193,6 +198,8 @@ pub struct ExerciseRun {
     /// The knot read on the last tick (a suture exercise), and the knots that came undone.
     knot: Option<crate::interaction::suture::Throws>,
     knots_undone: u32,
+    /// A pattern-cutting exercise's cut.
+    pattern: PatternJudge,
 }
 
 impl ExerciseRun {
@@ -215,6 +222,22 @@ impl ExerciseRun {
             wound_gap_mm: None,
             knot: None,
             knots_undone: 0,
+            pattern: PatternJudge::default(),
+        }
+    }
+
+    /// The pattern's cut after tick `tick` (a pattern-cutting exercise; None changes nothing): the exercise is
+    /// done on the tick the circle comes free, if the clock runs and the time has not passed.
+    pub fn on_pattern_cut(&mut self, tick: u64, reading: Option<PatternCutReading>) {
+        if self.spec.kind != ExerciseKind::PatternCutting
+            || self.started_tick.is_none()
+            || self.finished_tick.is_some()
+            || self.timed_out_tick.is_some()
+        {
+            return;
+        }
+        if self.pattern.on_reading(reading) {
+            self.finished_tick = Some(tick);
         }
     }
 
@@ -456,6 +479,9 @@ impl ExerciseRun {
                 }
             }
             (right, pairs, self.last_touch.iter().all(Option::is_some))
+        } else if self.spec.kind == ExerciseKind::PatternCutting {
+            let freed = self.pattern.freed();
+            (usize::from(freed), 1, freed)
         } else {
             (
                 self.hits.len(),
@@ -469,21 +495,33 @@ impl ExerciseRun {
             .finished_tick
             .or(self.timed_out_tick)
             .unwrap_or(self.last_tick);
+        let time_s = if timed_out && !completed {
+            self.spec.time_limit_s
+        } else {
+            self.elapsed_s(end_tick)
+        };
         LiveScore {
             completed,
-            score: (100.0 * hits as f64 / total.max(1) as f64
-                - POINTS_PER_ERROR * f64::from(errors.total()))
-            .max(0.0),
+            score: match self.spec.kind {
+                ExerciseKind::PatternCutting => self.pattern_points(time_s, completed).1,
+                _ => (100.0 * hits as f64 / total.max(1) as f64
+                    - POINTS_PER_ERROR * f64::from(errors.total()))
+                .max(0.0),
+            },
             hits,
             total,
             errors,
-            time_s: if timed_out && !completed {
-                self.spec.time_limit_s
-            } else {
-                self.elapsed_s(end_tick)
-            },
+            time_s,
             timed_out,
         }
+    }
+
+    /// A pattern-cutting exercise's cut taking `time_s`, and its 0-100 score: the MISTELS points as a share
+    /// of the cutoff (`training::pattern_cutting`).
+    fn pattern_points(&self, time_s: f64, completed: bool) -> (PatternCutScore, f64) {
+        let cutoff_s = self.spec.time_limit_s;
+        let cut = self.pattern.score(time_s, cutoff_s, completed);
+        (cut, 100.0 * cut.mistels_points / cutoff_s)
     }
 
     /// The score so far.
@@ -496,6 +534,10 @@ impl ExerciseRun {
                 r.pairs.iter().filter(|p| p.correct).count(),
                 r.answer.len() == self.spec.samples.len(),
             ),
+            None if self.spec.kind == ExerciseKind::PatternCutting => {
+                let freed = self.pattern.freed();
+                (1, usize::from(freed), self.finished_tick.is_some())
+            }
             None => (
                 self.spec.targets.len(),
                 self.hits.len(),
@@ -512,9 +554,18 @@ impl ExerciseRun {
         } else {
             self.elapsed_s(end_tick)
         };
-        let score = (100.0 * hit as f64 / total.max(1) as f64
-            - POINTS_PER_ERROR * f64::from(errors.total()))
-        .max(0.0);
+        let pattern = (self.spec.kind == ExerciseKind::PatternCutting)
+            .then(|| self.pattern_points(time_s, completed));
+        let score = match &pattern {
+            Some((_, score)) => *score,
+            None => (100.0 * hit as f64 / total.max(1) as f64
+                - POINTS_PER_ERROR * f64::from(errors.total()))
+            .max(0.0),
+        };
+        // A pattern cut anywhere outside its band is cut with an error (MISTELS: "any deviation").
+        let on_band = pattern
+            .as_ref()
+            .is_none_or(|(cut, _)| cut.deviation_pct == 0.0);
         // A suture exercise's wound must be closed (a wound named but never told of is not), and one tied off
         // must end with a secure knot.
         let closed = self.spec.wound.is_none()
@@ -532,15 +583,15 @@ impl ExerciseRun {
             name: self.spec.name.clone(),
             kind: self.spec.kind,
             completed,
-            passed: completed && errors.total() == 0 && hit == total && closed && tied,
+            passed: completed && errors.total() == 0 && hit == total && closed && tied && on_band,
             score,
             time_s,
             timed_out: self.timed_out_tick.is_some() && (!completed || ranking.is_some()),
             targets_hit: hit,
             targets_total: total,
             errors,
-            mean_distance_mm: if hit > 0 {
-                self.hits.iter().map(|h| h.distance_mm).sum::<f64>() / hit as f64
+            mean_distance_mm: if !self.hits.is_empty() {
+                self.hits.iter().map(|h| h.distance_mm).sum::<f64>() / self.hits.len() as f64
             } else {
                 0.0
             },
@@ -549,6 +600,7 @@ impl ExerciseRun {
             ranking,
             wound_gap_mm: self.wound_gap_mm.map(f64::from),
             knot,
+            pattern: pattern.map(|(cut, _)| cut),
         }
     }
 }
@@ -575,6 +627,7 @@ mod tests {
             samples: Vec::new(),
             wound: None,
             knot: false,
+            pattern: None,
         }
     }
 

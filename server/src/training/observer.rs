@@ -119,6 +119,7 @@ impl SessionObserver {
         if let Some(run) = self.exercise.as_mut() {
             run.on_tick(view.tick, &self.activity);
             run.on_wound_gap(view.step.wound_gap_mm);
+            run.on_pattern_cut(view.tick, view.step.pattern_cut);
         }
     }
 

@@ -84,6 +84,18 @@ pub(crate) struct ExerciseSection {
     pub wound: Option<Spanned<[String; 2]>>,
     #[serde(default)]
     pub knot: Option<Spanned<bool>>,
+    #[serde(default)]
+    pub pattern: Option<Spanned<PatternSection>>,
+}
+
+/// A pattern-cutting exercise's marked circles.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PatternSection {
+    pub object: String,
+    pub centre_mm: [f32; 3],
+    pub inner_radius_mm: f32,
+    pub outer_radius_mm: f32,
 }
 
 #[derive(Debug, Deserialize)]

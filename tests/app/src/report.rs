@@ -241,6 +241,22 @@ pub fn summary(report: &SessionReport) -> String {
                 }
             );
         }
+        if let Some(cut) = &e.pattern {
+            let _ = writeln!(
+                s,
+                "  the pattern {}: {:.1} mm^2 cut outside the band, {:.1} mm^2 left inside it, a {:.2}% penalty; \
+                 MISTELS points {:.1} (cutoff - seconds - penalty)",
+                if cut.freed {
+                    "came free"
+                } else {
+                    "did not come free"
+                },
+                cut.outside_band_mm2,
+                cut.inside_band_mm2,
+                cut.deviation_pct,
+                cut.mistels_points
+            );
+        }
         if let Some(r) = &e.ranking {
             let pairs: Vec<String> = r
                 .pairs

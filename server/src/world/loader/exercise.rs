@@ -2,8 +2,8 @@
 
 use toml::Spanned;
 
-use crate::scene::{ExerciseKind, ExerciseSpec, SampleSpec, TargetSpec};
-use crate::world::file_format::{ExerciseSection, TargetSection};
+use crate::scene::{ExerciseKind, ExerciseSpec, PatternSpec, SampleSpec, TargetSpec};
+use crate::world::file_format::{ExerciseSection, PatternSection, TargetSection};
 
 use super::*;
 
@@ -42,14 +42,37 @@ impl Context<'_> {
                 "a suture exercise judges punctures, not presses: it has no depth limit",
             ));
         }
+        if let (ExerciseKind::PatternCutting, Some(at)) = (e.kind, &e.depth_limit_mm) {
+            return Err(self.invalid(
+                at,
+                "exercise.depth_limit_mm",
+                "a pattern-cutting exercise judges the cut, not presses: it has no depth limit",
+            ));
+        }
         let samples = self.exercise_samples(section, objects)?;
+        let pattern = match &e.pattern {
+            Some(at) => Some(self.exercise_pattern(at, e.kind, objects)?),
+            None if e.kind == ExerciseKind::PatternCutting => {
+                return Err(self.invalid(
+                    section,
+                    "exercise.pattern",
+                    "missing: a pattern-cutting exercise marks its circles in an [exercise.pattern] table",
+                ));
+            }
+            None => None,
+        };
         let ranking = e.kind == ExerciseKind::StiffnessRanking;
+        let untargeted = ranking || e.kind == ExerciseKind::PatternCutting;
         let list: &[Spanned<TargetSection>] = match &e.targets {
-            Some(at) if ranking => {
+            Some(at) if untargeted => {
                 return Err(self.invalid(
                     at,
                     "exercise.targets",
-                    "a stiffness-ranking exercise has samples, not targets",
+                    if ranking {
+                        "a stiffness-ranking exercise has samples, not targets"
+                    } else {
+                        "a pattern-cutting exercise has a pattern, not targets"
+                    },
                 ));
             }
             Some(at) => {
@@ -74,7 +97,7 @@ impl Context<'_> {
                 )?;
                 list
             }
-            None if ranking => &[],
+            None if untargeted => &[],
             None => {
                 return Err(self.invalid(
                     section,
@@ -152,6 +175,110 @@ impl Context<'_> {
             samples,
             wound,
             knot,
+            pattern,
+        })
+    }
+
+    /// A pattern-cutting exercise's circles: on a sheet of the world that is clipped somewhere outside them,
+    /// the inner radius less than the outer, the centre on the sheet.
+    fn exercise_pattern(
+        &self,
+        at: &Spanned<PatternSection>,
+        kind: ExerciseKind,
+        objects: &[ObjectSpec],
+    ) -> Result<PatternSpec, WorldError> {
+        self.check(
+            at,
+            "exercise.pattern",
+            kind == ExerciseKind::PatternCutting,
+            "only a pattern-cutting exercise marks a pattern",
+        )?;
+        let p = at.get_ref();
+        let Some(object) = objects.iter().position(|o| o.name == p.object) else {
+            return Err(self.invalid(
+                at,
+                "exercise.pattern.object",
+                format!(
+                    "no object named `{}` (objects: {})",
+                    p.object,
+                    listed(objects.iter().map(|o| o.name.as_str()))
+                ),
+            ));
+        };
+        let spec = &objects[object];
+        self.check(
+            at,
+            "exercise.pattern.object",
+            spec.tets.is_empty(),
+            &format!(
+                "`{}` is a volume: a pattern is cut out of a sheet",
+                p.object
+            ),
+        )?;
+        self.check(
+            at,
+            "exercise.pattern.centre_mm",
+            p.centre_mm.iter().all(|c| c.is_finite()),
+            "must be finite",
+        )?;
+        let (inner, outer) = (p.inner_radius_mm, p.outer_radius_mm);
+        self.check(
+            at,
+            "exercise.pattern.inner_radius_mm",
+            inner.is_finite() && inner > 0.0,
+            &format!("must be a positive number (got {inner})"),
+        )?;
+        self.check(
+            at,
+            "exercise.pattern.outer_radius_mm",
+            outer.is_finite() && outer > inner,
+            &format!("must be more than the inner radius, {inner} mm (got {outer})"),
+        )?;
+        let centre = nalgebra::Vector3::from(p.centre_mm);
+        let distance = |q: &[f32; 3]| (nalgebra::Vector3::from(*q) - centre).norm();
+        let nearest = spec
+            .mesh
+            .positions_mm
+            .iter()
+            .map(distance)
+            .fold(f32::INFINITY, f32::min);
+        self.check(
+            at,
+            "exercise.pattern.centre_mm",
+            nearest < inner,
+            &format!(
+                "lies {nearest} mm from the nearest vertex of `{}`: the centre must lie on the sheet, within the inner circle",
+                p.object
+            ),
+        )?;
+        let clipped = |q: &[f32; 3]| spec.fixed.iter().any(|f| f.contains(*q));
+        self.check(
+            at,
+            "exercise.pattern.object",
+            spec.mesh.positions_mm.iter().any(clipped),
+            &format!(
+                "`{}` has no fixed vertex: the sheet is held by clips ([[objects.fixed]]) and the pattern is cut free of them",
+                p.object
+            ),
+        )?;
+        self.check(
+            at,
+            "exercise.pattern.outer_radius_mm",
+            !spec
+                .mesh
+                .positions_mm
+                .iter()
+                .any(|q| clipped(q) && distance(q) <= outer),
+            &format!(
+                "a fixed vertex of `{}` lies within the outer circle: the pattern could never come free",
+                p.object
+            ),
+        )?;
+        Ok(PatternSpec {
+            object,
+            centre_mm: p.centre_mm,
+            inner_radius_mm: inner,
+            outer_radius_mm: outer,
         })
     }
 
