@@ -57,10 +57,24 @@ pub struct BladePath {
     fresh: Vec<(u16, u32)>,
     /// Scratch: the edges near the sweep.
     edges: Vec<[u32; 2]>,
+    /// Scratch: per vertex, on which sides of the sweep's reach it lies ([`outcode`]).
+    outcodes: Vec<u8>,
     /// Scratch: where the sweep crosses them.
     crossings: Vec<EdgeSplit>,
     /// The plan of the latest sweep on the latest object.
     pub plan: CutPlan,
+}
+
+/// On which sides of `reach` point `p` lies: one bit per side (below the least x, above the greatest x, then y,
+/// then z). An element's box misses `reach` exactly when its vertices' codes share a bit (they all lie beyond
+/// one side), the test `Aabb::intersects` makes of the element's box, without building it.
+fn outcode(reach: &Aabb, p: &Vec3) -> u8 {
+    let mut code = 0;
+    for axis in 0..3 {
+        code |= u8::from(p[axis] < reach.mins[axis]) << (2 * axis);
+        code |= u8::from(p[axis] > reach.maxs[axis]) << (2 * axis + 1);
+    }
+    code
 }
 
 /// Where segment `p -> q` crosses either triangle, as a share of the way from `p`.
@@ -137,14 +151,15 @@ impl BladePath {
         let swept = sweep.triangles();
         let reach = sweep.aabb().loosened(margin_mm);
         self.edges.clear();
+        self.outcodes.clear();
+        self.outcodes
+            .extend(positions_mm.iter().map(|p| outcode(&reach, p)));
+        let codes = &self.outcodes;
         let mut near = |element: &[u32]| {
-            let mut lo = positions_mm[element[0] as usize];
-            let mut hi = lo;
-            for &v in &element[1..] {
-                lo = lo.inf(&positions_mm[v as usize]);
-                hi = hi.sup(&positions_mm[v as usize]);
-            }
-            if reach.intersects(&Aabb::new(to_parry(&lo), to_parry(&hi))) {
+            let beyond = element
+                .iter()
+                .fold(u8::MAX, |all, &v| all & codes[v as usize]);
+            if beyond == 0 {
                 for (i, &p) in element.iter().enumerate() {
                     for &q in &element[i + 1..] {
                         self.edges.push([p.min(q), p.max(q)]);
