@@ -23,7 +23,7 @@ mod parts;
 mod surface;
 
 pub use elements::open_seams;
-pub use parts::{open_model, open_model_into};
+pub use parts::{open_model, open_model_into, open_parts};
 pub use surface::expose_volume_seams;
 
 /// A facet's vertex ids in increasing order: an edge is `[a, b, NO_VERTEX]`, a face `[a, b, c]`.

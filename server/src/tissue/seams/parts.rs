@@ -1,8 +1,9 @@
 //! A model with seams opened: the parts to rebuild it from, with each split vertex's mass and each
 //! reconsidered spring's stiffness and damping shared out so totals and stable steps are kept.
 //!
-//! Owns: [`open_model`] and [`open_model_into`]. Must not: rebuild the model or touch its state (the sim
-//! does, from the parts and the [`Opening`]).
+//! Owns: [`open_model`], [`open_model_into`] and [`open_parts`] (the same on parts not yet built into a model:
+//! a cut that follows the blade subdivides and opens in one pass). Must not: rebuild the model or touch its
+//! state (the sim does, from the parts and the [`Opening`]).
 
 use super::*;
 use crate::tissue::{MassSpringModel, ModelParts};
@@ -27,13 +28,25 @@ pub fn open_model_into(
     parts: &mut ModelParts,
 ) -> Opening {
     model.to_parts_into(parts);
+    open_parts(parts, seams)
+}
+
+/// [`open_model`] on `parts` in place: the parts of a model (springs sorted by edge, as a model's are) with
+/// `seams` opened. Opening the parts a model would be rebuilt from, or the model rebuilt from them, gives the
+/// same parts.
+pub fn open_parts(parts: &mut ModelParts, seams: &[Facet]) -> Opening {
     let n = parts.rest_positions_mm.len() as u32;
     let volume = !parts.tets.is_empty();
+    let (old_tets, old_triangles) = if volume {
+        (parts.tets.clone(), Vec::new())
+    } else {
+        (Vec::new(), parts.triangles.clone())
+    };
     let mut opening = if volume {
-        let before = parts.tets.clone();
+        let before = &old_tets;
         let mut opening = open_seams(&mut parts.tets, n, seams);
         expose_volume_seams(
-            &before,
+            before,
             &parts.tets,
             seams,
             &parts.rest_positions_mm,
@@ -94,13 +107,20 @@ pub fn open_model_into(
     let mut families: Vec<u32> = opening.parents.clone();
     families.sort_unstable();
     families.dedup();
+    // Each family's mass before it is shared out (the parent's own entry is rewritten with its share).
+    let family_mass: Vec<f32> = families
+        .iter()
+        .map(|&p| parts.mass_kg[p as usize])
+        .collect();
     for v in 0..total as u32 {
         let p = parent(v);
-        if families.binary_search(&p).is_err() || family[p as usize] <= 0.0 {
+        let Ok(f) = families.binary_search(&p) else {
+            continue;
+        };
+        if family[p as usize] <= 0.0 {
             continue;
         }
-        let m = model.mass_kg()[p as usize];
-        parts.mass_kg[v as usize] = m * measure[v as usize] / family[p as usize];
+        parts.mass_kg[v as usize] = family_mass[f] * measure[v as usize] / family[p as usize];
     }
 
     // Springs: an edge no changed element has keeps its spring. The edges of the changed elements, before and
@@ -108,7 +128,7 @@ pub fn open_model_into(
     // scaled by the share of that spring's elements it now borders (an edge a seam split between two sides
     // gives each side's copy half, so a split vertex, with half the mass, keeps the stiffness-to-mass ratio and
     // the stable step it had); one no element has any more is gone.
-    let (old_tets, old_triangles) = (&model.tets().tets, model.triangles());
+    let (old_tets, old_triangles) = (&old_tets, &old_triangles);
     let (new_tets, new_triangles) = (&parts.tets, &parts.triangles);
     let old_element = |e: usize| -> &[u32] {
         if volume {
@@ -144,34 +164,19 @@ pub fn open_model_into(
     let mut ends: Vec<u32> = affected.iter().flatten().copied().collect();
     ends.sort_unstable();
     ends.dedup();
-    let mut ring: Vec<(u32, u32)> = Vec::new();
-    for e in 0..new_count {
-        for &v in new_element(e) {
-            if ends.binary_search(&v).is_ok() {
-                ring.push((v, e as u32));
-            }
-        }
-    }
-    ring.sort_unstable();
-    let now_count = |[a, b]: [u32; 2]| -> usize {
-        let from = ring.partition_point(|&(v, _)| v < a);
-        ring[from..]
-            .iter()
-            .take_while(|&&(v, _)| v == a)
-            .filter(|&&(_, e)| new_element(e as usize).contains(&b))
-            .count()
+    // The elements around each end of an affected edge, now and before (before: around the parents).
+    let ring = ring_of(new_count, new_element, &ends);
+    let mut parent_ends: Vec<u32> = ends.iter().map(|&v| parent(v)).collect();
+    parent_ends.sort_unstable();
+    parent_ends.dedup();
+    let old_count = if volume {
+        old_tets.len()
+    } else {
+        old_triangles.len()
     };
-    let was_count = |[a, b]: [u32; 2]| -> usize {
-        let around = if volume {
-            model.node_tets(a as usize)
-        } else {
-            model.node_triangles(a as usize)
-        };
-        around
-            .iter()
-            .filter(|&&e| old_element(e as usize).contains(&b))
-            .count()
-    };
+    let old_ring = ring_of(old_count, old_element, &parent_ends);
+    let now_count = |edge: [u32; 2]| count_in(&ring, new_element, edge);
+    let was_count = |edge: [u32; 2]| count_in(&old_ring, old_element, edge);
     let mut reconsidered: Vec<([u32; 2], f32, f32)> = Vec::with_capacity(affected.len());
     for &edge in &affected {
         let now = now_count(edge);
@@ -230,4 +235,36 @@ pub fn open_model_into(
     parts.edge_damping_n_s_per_mm = damping;
     parts.global_bulk_modulus_n_per_mm2 = 0.0;
     opening
+}
+
+/// (vertex, element) for each element of the `count` and each of its vertices among `ends` (sorted), sorted.
+fn ring_of<'a>(
+    count: usize,
+    element: impl Fn(usize) -> &'a [u32],
+    ends: &[u32],
+) -> Vec<(u32, u32)> {
+    let mut ring: Vec<(u32, u32)> = Vec::new();
+    for e in 0..count {
+        for &v in element(e) {
+            if ends.binary_search(&v).is_ok() {
+                ring.push((v, e as u32));
+            }
+        }
+    }
+    ring.sort_unstable();
+    ring
+}
+
+/// How many elements of `ring` around `a` also hold `b`.
+fn count_in<'a>(
+    ring: &[(u32, u32)],
+    element: impl Fn(usize) -> &'a [u32],
+    [a, b]: [u32; 2],
+) -> usize {
+    let from = ring.partition_point(|&(v, _)| v < a);
+    ring[from..]
+        .iter()
+        .take_while(|&&(v, _)| v == a)
+        .filter(|&&(_, e)| element(e as usize).contains(&b))
+        .count()
 }
