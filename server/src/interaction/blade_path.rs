@@ -77,6 +77,19 @@ fn outcode(reach: &Aabb, p: &Vec3) -> u8 {
     code
 }
 
+/// Sort `out[start..]` and drop its repeats.
+fn sort_dedup_from(out: &mut Vec<Facet>, start: usize) {
+    out[start..].sort_unstable();
+    let mut kept = start;
+    for i in start..out.len() {
+        if i == start || out[i] != out[kept - 1] {
+            out[kept] = out[i];
+            kept += 1;
+        }
+    }
+    out.truncate(kept);
+}
+
 /// Where segment `p -> q` crosses either triangle, as a share of the way from `p`.
 fn crossing(swept: &[Triangle; 2], p: &Vec3, q: &Vec3) -> Option<f32> {
     let dir = q - p;
@@ -239,15 +252,35 @@ impl BladePath {
                 }
             }
         }
-        out[start..].sort_unstable();
-        let mut kept = start;
-        for i in start..out.len() {
-            if i == start || out[i] != out[kept - 1] {
-                out[kept] = out[i];
-                kept += 1;
+        sort_dedup_from(out, start);
+    }
+
+    /// [`Self::facets_on_path`] in a mesh not built into a model yet (a sheet's `triangles`, or a volume's
+    /// `tets`): every element is looked at for this sweep's new vertices on the path, and the same facets are
+    /// found.
+    pub fn facets_on_path_of(
+        &self,
+        object: u16,
+        triangles: &[[u32; 3]],
+        tets: &[[u32; 4]],
+        out: &mut Vec<Facet>,
+    ) {
+        let start = out.len();
+        let fresh = |v: u32| self.fresh.iter().any(|&(o, f)| o == object && f == v);
+        if tets.is_empty() {
+            for t in triangles {
+                for &v in t.iter().filter(|&&v| fresh(v)) {
+                    self.push_on_path(object, t, v, out);
+                }
+            }
+        } else {
+            for t in tets {
+                for &v in t.iter().filter(|&&v| fresh(v)) {
+                    self.push_on_path(object, t, v, out);
+                }
             }
         }
-        out.truncate(kept);
+        sort_dedup_from(out, start);
     }
 
     /// Push each facet of `element` holding `v` that lies on the path.

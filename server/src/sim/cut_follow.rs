@@ -1,21 +1,101 @@
 //! A cut that follows the blade: each sweep subdivides the tissue where the blade crossed it, then opens the
-//! facets that lie on the blade's path.
+//! facets that lie on the blade's path, in one pass over the model's parts and one rebuild.
 //!
 //! Owns: [`Sim::subdivide`] (apply a cut plan and rebuild what stands on the topology, re-expressing what the
 //! tools hold) and [`Sim::cut_following_blade`] (one sweep through one object: plan, subdivide, open). Must not:
 //! decide where a blade is (the instruments do) or how facets open (`topology.rs`, `tissue::seams`).
 
-use crate::collision::{NodeMarks, SurfaceCollider};
+use super::object::retopologize_collider;
 use crate::haptics::ContactStiffness;
 use crate::interaction::{BladeSweep, CutScratch};
-use crate::tissue::seams::Opening;
+use crate::tissue::seams::{Facet, Opening, open_parts, shared_by_two};
 use crate::tissue::stability::DESIGN_STRAIN;
 use crate::tissue::subdivision::{
     CutPlan, ElementRemap, Subdivision, floor_model_masses, rate_ceiling, subdivide_into,
 };
-use crate::tissue::{DivergenceGuard, RegionTracker, Vec3, integrator_for};
+use crate::tissue::{DivergenceGuard, RegionTracker, integrator_for};
 
 use super::*;
+
+impl SimObject {
+    /// Subdivide this object's parts (scratch) by `plan`, its state following: vertices moved onto the cut and
+    /// new vertices where edges split (each placed, moving and burnt as its edge is there). The model is not
+    /// rebuilt yet. An empty change changed nothing but the scratch.
+    fn subdivide_parts(&mut self, plan: &CutPlan) -> Subdivision {
+        let ceiling = *self
+            .rate_ceiling
+            .get_or_insert_with(|| rate_ceiling(&self.model));
+        let change = subdivide_into(&self.model, plan, &mut self.parts, ceiling);
+        if change.is_empty() {
+            return change;
+        }
+        let state = &mut self.state;
+        for (m, _) in &change.moved {
+            let (v, w) = (m.vertex as usize, m.toward as usize);
+            state.positions_mm[v] = state.positions_mm[v].lerp(&state.positions_mm[w], m.t);
+            state.velocities_mm_s[v] =
+                state.velocities_mm_s[v].lerp(&state.velocities_mm_s[w], m.t);
+        }
+        for s in &change.new_vertices {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let x = state.positions_mm[a].lerp(&state.positions_mm[b], s.t);
+            let v = state.velocities_mm_s[a].lerp(&state.velocities_mm_s[b], s.t);
+            let burn = f32::from(self.burn[a]) * (1.0 - s.t) + f32::from(self.burn[b]) * s.t;
+            state.positions_mm.push(x);
+            state.velocities_mm_s.push(v);
+            self.burn
+                .push(burn.round().clamp(0.0, f32::from(u16::MAX)) as u16);
+        }
+        // The collider takes the subdivided surface (the parts' triangles), and refits every leaf once if
+        // moved vertices reshaped triangles that were not re-pointed.
+        let retargeted: Vec<u32> = if self.parts.tets.is_empty() {
+            change.changed_elements.iter().map(|&(t, _)| t).collect()
+        } else {
+            change.changed_triangles.iter().map(|&(t, _)| t).collect()
+        };
+        retopologize_collider(
+            &mut self.collider,
+            &self.state.positions_mm,
+            &self.parts.triangles,
+            &retargeted,
+        );
+        if !change.moved.is_empty() {
+            self.collider.refit(&self.state.positions_mm);
+        }
+        change
+    }
+
+    /// Open `seams` (and the facets cut before that have not opened yet) in this object's parts, as
+    /// [`Sim::open_seams`] does in a model: copies start where their parents are. Returns the opening and the
+    /// facets cut so far, or `None` when every seam was cut before (nothing to try).
+    fn open_parts_on_path(&mut self, seams: &[Facet]) -> Option<(Opening, Vec<Facet>)> {
+        if seams.iter().all(|f| self.severed.binary_search(f).is_ok()) {
+            return None;
+        }
+        let mut all = std::mem::take(&mut self.severed);
+        all.extend_from_slice(seams);
+        all.sort_unstable();
+        all.dedup();
+        debug_assert!(
+            self.parts.edges.is_sorted(),
+            "the parts' springs are unsorted"
+        );
+        let opening = open_parts(&mut self.parts, &all);
+        let state = &mut self.state;
+        for &p in &opening.parents {
+            let p = p as usize;
+            let (x, v, b) = (
+                state.positions_mm[p],
+                state.velocities_mm_s[p],
+                self.burn[p],
+            );
+            state.positions_mm.push(x);
+            state.velocities_mm_s.push(v);
+            self.burn.push(b);
+        }
+        Some((opening, all))
+    }
+}
 
 impl Sim {
     /// Subdivide object `object` by `plan` ([`crate::tissue::subdivision`]): vertices moved onto the cut and
@@ -33,76 +113,36 @@ impl Sim {
             return Subdivision::default();
         }
         o.finish_refit();
-        let ceiling = *o.rate_ceiling.get_or_insert_with(|| rate_ceiling(&o.model));
-        let change = subdivide_into(&o.model, plan, &mut o.parts, ceiling);
+        let change = o.subdivide_parts(plan);
         if change.is_empty() {
             return change;
         }
         o.model.rebuild_from(&o.parts);
-        let n = o.model.node_count();
-        let state = &mut o.state;
-        for (m, _) in &change.moved {
-            let (v, w) = (m.vertex as usize, m.toward as usize);
-            state.positions_mm[v] = state.positions_mm[v].lerp(&state.positions_mm[w], m.t);
-            state.velocities_mm_s[v] =
-                state.velocities_mm_s[v].lerp(&state.velocities_mm_s[w], m.t);
-        }
-        for s in &change.new_vertices {
-            let (a, b) = (s.a as usize, s.b as usize);
-            let x = state.positions_mm[a].lerp(&state.positions_mm[b], s.t);
-            let v = state.velocities_mm_s[a].lerp(&state.velocities_mm_s[b], s.t);
-            let burn = f32::from(o.burn[a]) * (1.0 - s.t) + f32::from(o.burn[b]) * s.t;
-            state.positions_mm.push(x);
-            state.velocities_mm_s.push(v);
-            o.burn
-                .push(burn.round().clamp(0.0, f32::from(u16::MAX)) as u16);
-        }
-        state.forces_n.resize(n, Vec3::zeros());
-        state.external_forces_n.resize(n, Vec3::zeros());
-        let volume = !o.model.tets().tets.is_empty();
-        let retargeted: Vec<u32> = if volume {
-            change.changed_triangles.iter().map(|&(t, _)| t).collect()
-        } else {
-            change.changed_elements.iter().map(|&(t, _)| t).collect()
-        };
-        if o.collider
-            .retopologize(&state.positions_mm, o.model.triangles(), &retargeted)
-            .is_err()
-            && let Ok(collider) = SurfaceCollider::new(&state.positions_mm, o.model.triangles())
-        {
-            o.collider = collider.with_refit_margin(REFIT_MARGIN_MM);
-        }
-        // Moved vertices reshape triangles that were not re-pointed: refit every leaf once.
-        if !change.moved.is_empty() {
-            o.collider.refit(&state.positions_mm);
-        }
-        o.marks = NodeMarks::new(n);
-        o.guard = DivergenceGuard::new(&o.model);
-        o.integrator = integrator_for(o.integrator_spec.0, o.integrator_spec.1);
-        o.region = o
-            .region
-            .as_ref()
-            .map(|r| RegionTracker::new(&o.model, r.params()));
-        for i in 0..n {
-            if o.burn[i] > 0 {
-                o.shrink_springs_of(i);
-            }
-        }
-        o.topology_version += 1;
+        o.rebuilt_for_topology();
         o.split_parents
             .extend(change.new_vertices.iter().map(|s| s.nearer_end()));
+        self.tools_after_subdivision(object, &change, false);
+        self.last_energy_n_mm = None;
+        change
+    }
+
+    /// Each tool after object `object` was subdivided by `change` (and opened too, `opened`): a fresh contact
+    /// stiffness on it, and what its instrument holds re-expressed on the pieces.
+    fn tools_after_subdivision(&mut self, object: usize, change: &Subdivision, opened: bool) {
         let model = &self.objects[object].model;
-        let remap = ElementRemap::new(&change, model);
+        let n = model.node_count();
+        let remap = ElementRemap::new(change, model);
         for tool in &mut self.tools {
             if let Some(stiffness) = tool.haptic.stiffness.get_mut(object) {
                 *stiffness = ContactStiffness::new(n);
             }
             if let Some(instrument) = &mut tool.instrument_state {
                 instrument.subdivided(object, model, &remap);
+                if opened {
+                    instrument.topology_changed(object, model);
+                }
             }
         }
-        self.last_energy_n_mm = None;
-        change
     }
 
     /// After a seam opening of a cut that follows the blade: a copy on the side of a thin piece gets that
@@ -132,7 +172,9 @@ impl Sim {
 
     /// Cut object `object` where a blade swept this tick, following the blade: the edges it crossed are split
     /// where it crossed them (or a vertex near the crossing moved onto it), and the facets then on its path
-    /// open ([`Self::open_seams`]). `scratch.seams` holds the facets found on the path this sweep.
+    /// open. A sweep that splits something subdivides and opens the model's parts in one pass and rebuilds the
+    /// model once; one that splits nothing opens as [`Self::open_seams`] does. `scratch.seams` holds the facets
+    /// found on the path this sweep.
     pub fn cut_following_blade(
         &mut self,
         object: usize,
@@ -143,23 +185,64 @@ impl Sim {
         let Ok(object_id) = u16::try_from(object) else {
             return Opening::default();
         };
-        let Some(o) = self.objects.get(object).filter(|o| o.lane.is_none()) else {
+        let Some(o) = self.objects.get_mut(object).filter(|o| o.lane.is_none()) else {
             return Opening::default();
         };
         let margin_mm = scratch.margin_for(&o.model);
         scratch
             .path
             .plan_sweep(object_id, &o.model, &o.state.positions_mm, sweep, margin_mm);
-        let plan = std::mem::take(&mut scratch.path.plan);
-        let change = self.subdivide(object, &plan);
-        scratch.path.plan = plan;
-        let o = &self.objects[object];
+        let change = if scratch.path.plan.is_empty() {
+            Subdivision::default()
+        } else {
+            o.finish_refit();
+            o.subdivide_parts(&scratch.path.plan)
+        };
         scratch
             .path
             .record_plan(object_id, &change, &o.state.positions_mm);
         let mut seams = std::mem::take(&mut scratch.seams);
-        scratch.path.facets_on_path(object_id, &o.model, &mut seams);
-        let opening = self.open_seams(object, &seams);
+        if change.is_empty() {
+            // Nothing split: the facets on the path open as a facet cut's do.
+            scratch.path.facets_on_path(object_id, &o.model, &mut seams);
+            let opening = self.open_seams(object, &seams);
+            scratch.path.record_opening(object_id, &opening);
+            self.floor_opened_masses(object, &opening);
+            scratch.seams = seams;
+            return opening;
+        }
+        scratch
+            .path
+            .facets_on_path_of(object_id, &o.parts.triangles, &o.parts.tets, &mut seams);
+        let opened = o.open_parts_on_path(&seams);
+        o.model.rebuild_from(&o.parts);
+        let opening = match opened {
+            Some((opening, mut cut)) => {
+                if !opening.is_empty() {
+                    let mut retargeted = opening.changed_triangles.clone();
+                    retargeted.sort_unstable();
+                    retopologize_collider(
+                        &mut o.collider,
+                        &o.state.positions_mm,
+                        o.model.triangles(),
+                        &retargeted,
+                    );
+                }
+                cut.retain(|f| shared_by_two(&o.model, f));
+                o.severed = cut;
+                opening
+            }
+            None => Opening::default(),
+        };
+        o.rebuilt_for_topology();
+        o.split_parents
+            .extend(change.new_vertices.iter().map(|s| s.nearer_end()));
+        o.split_parents.extend_from_slice(&opening.parents);
+        self.tools_after_subdivision(object, &change, !opening.is_empty());
+        if !opening.is_empty() {
+            self.openings += 1;
+        }
+        self.last_energy_n_mm = None;
         scratch.path.record_opening(object_id, &opening);
         self.floor_opened_masses(object, &opening);
         scratch.seams = seams;

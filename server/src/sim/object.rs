@@ -8,7 +8,8 @@ use crate::multirate::StepLane;
 use crate::tissue::IntegratorName;
 use crate::tissue::seams::Facet;
 use crate::tissue::{
-    DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TissueState,
+    DivergenceGuard, Integrator, MassSpringModel, ModelParts, RegionTracker, TissueState, Vec3,
+    integrator_for,
 };
 
 /// One deformable object in the simulation.
@@ -89,6 +90,28 @@ impl SimObject {
         }
     }
 
+    /// After the model was rebuilt for a new topology: the state's force buffers sized to it, and what stands
+    /// on the topology built again (node marks, guard, a fresh integrator, the region of deformation, burnt
+    /// nodes' shrunk springs); the topology version moves on. Allocates: a topology change is an event.
+    pub(super) fn rebuilt_for_topology(&mut self) {
+        let n = self.model.node_count();
+        self.state.forces_n.resize(n, Vec3::zeros());
+        self.state.external_forces_n.resize(n, Vec3::zeros());
+        self.marks = NodeMarks::new(n);
+        self.guard = DivergenceGuard::new(&self.model);
+        self.integrator = integrator_for(self.integrator_spec.0, self.integrator_spec.1);
+        self.region = self
+            .region
+            .as_ref()
+            .map(|r| RegionTracker::new(&self.model, r.params()));
+        for i in 0..n {
+            if self.burn[i] > 0 {
+                self.shrink_springs_of(i);
+            }
+        }
+        self.topology_version += 1;
+    }
+
     /// The integrator's name.
     pub fn integrator_name(&self) -> &'static str {
         self.integrator.name()
@@ -161,5 +184,22 @@ impl SimObject {
             }
             None => self.guard.assess(&self.model, &self.state).broken,
         }
+    }
+}
+
+/// `collider` re-pointed at `triangles` (the triangles `retargeted`, sorted, changed corners; any past the old
+/// count are new), at `positions_mm`; built afresh if its tree cannot take the change.
+pub(super) fn retopologize_collider(
+    collider: &mut SurfaceCollider,
+    positions_mm: &[Vec3],
+    triangles: &[[u32; 3]],
+    retargeted: &[u32],
+) {
+    if collider
+        .retopologize(positions_mm, triangles, retargeted)
+        .is_err()
+        && let Ok(fresh) = SurfaceCollider::new(positions_mm, triangles)
+    {
+        *collider = fresh.with_refit_margin(super::REFIT_MARGIN_MM);
     }
 }

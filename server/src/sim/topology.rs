@@ -4,11 +4,10 @@
 //! Owns: [`Sim::open_seams`], [`Sim::cut`], [`Sim::tear`]. Must not: decide where to cut (the instruments
 //! and the tear test do).
 
-use crate::collision::{NodeMarks, SurfaceCollider};
+use super::object::retopologize_collider;
 use crate::haptics::ContactStiffness;
 use crate::interaction::{BladeSweep, CutScratch, swept_seams, torn_seams};
 use crate::tissue::seams::{Facet, Opening, open_model_into, shared_by_two};
-use crate::tissue::{DivergenceGuard, RegionTracker, Vec3, integrator_for};
 
 use super::*;
 
@@ -57,30 +56,15 @@ impl Sim {
             state.velocities_mm_s.push(v);
             o.burn.push(b);
         }
-        state.forces_n.resize(n, Vec3::zeros());
-        state.external_forces_n.resize(n, Vec3::zeros());
         let mut retargeted = opening.changed_triangles.clone();
         retargeted.sort_unstable();
-        if o.collider
-            .retopologize(&state.positions_mm, model.triangles(), &retargeted)
-            .is_err()
-            && let Ok(collider) = SurfaceCollider::new(&state.positions_mm, model.triangles())
-        {
-            o.collider = collider.with_refit_margin(REFIT_MARGIN_MM);
-        }
-        o.marks = NodeMarks::new(n);
-        o.guard = DivergenceGuard::new(model);
-        o.integrator = integrator_for(o.integrator_spec.0, o.integrator_spec.1);
-        o.region = o
-            .region
-            .as_ref()
-            .map(|r| RegionTracker::new(model, r.params()));
-        for i in 0..n {
-            if o.burn[i] > 0 {
-                o.shrink_springs_of(i);
-            }
-        }
-        o.topology_version += 1;
+        retopologize_collider(
+            &mut o.collider,
+            &state.positions_mm,
+            model.triangles(),
+            &retargeted,
+        );
+        o.rebuilt_for_topology();
         o.split_parents.extend_from_slice(&opening.parents);
         all.retain(|f| shared_by_two(&o.model, f));
         o.severed = all;
