@@ -13,7 +13,6 @@ use crate::tissue::stability::DESIGN_STRAIN;
 use crate::tissue::subdivision::{
     CutPlan, ElementRemap, Subdivision, floor_model_masses, rate_ceiling, subdivide_into,
 };
-use crate::tissue::{DivergenceGuard, RegionTracker, integrator_for};
 
 use super::*;
 
@@ -161,12 +160,7 @@ impl Sim {
         touched.dedup();
         let stiffening = o.model.law().stiffening_at(DESIGN_STRAIN);
         if floor_model_masses(&mut o.model, &touched, ceiling, stiffening) {
-            o.guard = DivergenceGuard::new(&o.model);
-            o.integrator = integrator_for(o.integrator_spec.0, o.integrator_spec.1);
-            o.region = o
-                .region
-                .as_ref()
-                .map(|r| RegionTracker::new(&o.model, r.params()));
+            o.remake_for_model();
         }
     }
 

@@ -98,18 +98,24 @@ impl SimObject {
         self.state.forces_n.resize(n, Vec3::zeros());
         self.state.external_forces_n.resize(n, Vec3::zeros());
         self.marks = NodeMarks::new(n);
-        self.guard = DivergenceGuard::new(&self.model);
-        self.integrator = integrator_for(self.integrator_spec.0, self.integrator_spec.1);
-        self.region = self
-            .region
-            .as_ref()
-            .map(|r| RegionTracker::new(&self.model, r.params()));
+        self.remake_for_model();
         for i in 0..n {
             if self.burn[i] > 0 {
                 self.shrink_springs_of(i);
             }
         }
         self.topology_version += 1;
+    }
+
+    /// What is built from the model's nodes and springs made again for it (after its topology or masses
+    /// changed): the guard, a fresh integrator, the region of deformation.
+    pub(super) fn remake_for_model(&mut self) {
+        self.guard = DivergenceGuard::new(&self.model);
+        self.integrator = integrator_for(self.integrator_spec.0, self.integrator_spec.1);
+        self.region = self
+            .region
+            .as_ref()
+            .map(|r| RegionTracker::new(&self.model, r.params()));
     }
 
     /// The integrator's name.
