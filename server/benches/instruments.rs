@@ -208,14 +208,20 @@ fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::er
         sim.step(0.001, &[at(0, h)], &mut out);
     }
     let (mut cutting, mut splitting) = (LatencyHistogram::new(), LatencyHistogram::new());
+    // Every tick that changed the topology (a subdivision that opened nothing too).
+    let mut changing = LatencyHistogram::new();
     let (mut split, mut changes) = (0u32, 0u32);
     let (mut plain_bytes, mut plain_count, mut topo_bytes, mut topo_count, mut topo_max) =
         (0, 0, 0, 0, 0);
     for k in 0..ticks {
+        let version = sim.objects[0].topology_version();
         let started = Instant::now();
         let report = sim.step(0.001, &[at(k, 1.5)], &mut out);
         let elapsed = started.elapsed();
         cutting.record(elapsed);
+        if sim.objects[0].topology_version() != version {
+            changing.record(elapsed);
+        }
         if report.vertices_split > 0 {
             splitting.record(elapsed);
             changes += 1;
@@ -253,6 +259,16 @@ fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::er
         c99 / a99,
         splitting.max_ns() as f32 / 1000.0,
         splitting.max_ns() as f32 / 1000.0 / a50,
+    );
+    println!(
+        "cut ticks that changed the topology: {} (p50 {:.0} us, x{:.2} the edge-above p50; p99 {:.0} us, x{:.2}; worst {:.0} us, x{:.2})",
+        changing.count(),
+        changing.percentile_us(50.0),
+        changing.percentile_us(50.0) / a50,
+        changing.percentile_us(99.0),
+        changing.percentile_us(99.0) / a50,
+        changing.max_ns() as f32 / 1000.0,
+        changing.max_ns() as f32 / 1000.0 / a50,
     );
     let mean = |bytes: usize, count: usize| bytes.checked_div(count).unwrap_or(0);
     println!(

@@ -155,7 +155,12 @@ fn area_beyond_mm2(corners: &[Vec3; 3], centre: &Vec3, radius_mm: f32) -> f32 {
             }
         }
     }
-    area * beyond as f32 / (SUBDIVISIONS * SUBDIVISIONS) as f32
+    // All or none: exactly the triangle's area or nothing (the share would round).
+    match beyond {
+        0 => 0.0,
+        all if all == SUBDIVISIONS * SUBDIVISIONS => area,
+        some => area * some as f32 / (SUBDIVISIONS * SUBDIVISIONS) as f32,
+    }
 }
 
 #[cfg(test)]
