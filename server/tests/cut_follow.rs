@@ -11,7 +11,7 @@ use nalgebra::Vector3;
 use sinew_server::interaction::{BladeSweep, CutScratch, GraspSpec, JawInput};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::stability::max_stable_dt_s;
-use sinew_server::tissue::{IntegratorName, MassSpringModel};
+use sinew_server::tissue::{IntegratorName, MassSpringModel, TieSet};
 use sinew_server::world::{InstrumentSpec, ToolShapeSpec, World, load_world};
 
 type Vec3 = Vector3<f32>;
@@ -186,6 +186,59 @@ fn a_straight_cut_across_the_pad_follows_the_blade_and_parts_it() {
     );
     assert_eq!(pieces(model.triangles(), model.node_count()), 2);
     settles_unturned(&mut sim, 0, &before);
+}
+
+#[test]
+fn a_cut_beside_tied_vertices_splits_their_edges_and_leaves_them_where_they_were() {
+    // The pad's free vertices on the line x = 0 tied to the block's first vertex (a tie holds a node by its id
+    // and its rest offset). A cut along x = 0.2 crosses their edges a fifth of the way along: untied, they
+    // would move onto it; tied, their edges split and they stay.
+    let mut world = world();
+    let pad = &world.objects[0].mesh.positions_mm;
+    let anchor = Vec3::from(world.objects[1].mesh.positions_mm[0]);
+    let pairs: Vec<(u32, u32, Vec3)> = pad
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p[0].abs() < 1e-4 && p[1].abs() < 29.5)
+        .map(|(i, p)| (i as u32, 0, anchor - Vec3::from(*p)))
+        .collect();
+    assert_eq!(pairs.len(), 59);
+    world.ties.push(TieSet {
+        object_a: 0,
+        object_b: 1,
+        pairs: pairs.clone(),
+        stiffness_n_per_mm: 0.01,
+        damping_n_s_per_mm: 0.0,
+    });
+    let mut sim = Sim::new(&world).unwrap();
+    let before = sim.objects[0].model.clone();
+    let x0 = 0.2;
+    let split = sweep_path(&mut sim, 0, (-4.0, 4.0), 650, |s| (x0, -32.5 + 65.0 * s));
+    let model = &sim.objects[0].model;
+    let moved = pairs
+        .iter()
+        .filter(|&&(v, _, _)| {
+            model.rest_positions_mm()[v as usize] != before.rest_positions_mm()[v as usize]
+        })
+        .count();
+    let edges = cut_border_edges(model, &before);
+    let worst = worst_share_off_path(model, &edges, |p| (p.x - x0).abs());
+    println!(
+        "cut beside {} tied vertices: {split} vertices split, {moved} tied vertices moved, worst {worst:.3} of an edge off the path",
+        pairs.len()
+    );
+    assert_eq!(moved, 0, "a cut moved a tied vertex");
+    assert!(worst <= 0.05, "the cut lies {worst} of an edge off the path");
+    assert_eq!(pieces(model.triangles(), model.node_count()), 2);
+    // Untied, the same cut moves them (the test would not tell otherwise).
+    let mut untied = Sim::new(&self::world()).unwrap();
+    sweep_path(&mut untied, 0, (-4.0, 4.0), 650, |s| (x0, -32.5 + 65.0 * s));
+    let rest = untied.objects[0].model.rest_positions_mm();
+    let moved_untied = pairs
+        .iter()
+        .filter(|&&(v, _, _)| rest[v as usize] != before.rest_positions_mm()[v as usize])
+        .count();
+    assert!(moved_untied > 30, "untied, only {moved_untied} moved onto the cut");
 }
 
 #[test]

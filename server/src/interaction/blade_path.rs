@@ -154,6 +154,7 @@ impl BladePath {
         positions_mm: &[Vec3],
         sweep: &BladeSweep,
         margin_mm: f32,
+        stays: &[u32],
     ) {
         self.plan.clear();
         self.fresh.clear();
@@ -197,7 +198,12 @@ impl BladePath {
         }
         let mut plan = std::mem::take(&mut self.plan);
         let mut crossings = std::mem::take(&mut self.crossings);
-        plan.from_crossings(model, &mut crossings, |v| self.is_on_cut(object, v));
+        plan.from_crossings(
+            model,
+            &mut crossings,
+            |v| self.is_on_cut(object, v),
+            |v| stays.binary_search(&v).is_ok(),
+        );
         self.crossings = crossings;
         self.plan = plan;
     }

@@ -183,9 +183,14 @@ impl Sim {
             return Opening::default();
         };
         let margin_mm = scratch.margin_for(&o.model);
-        scratch
-            .path
-            .plan_sweep(object_id, &o.model, &o.state.positions_mm, sweep, margin_mm);
+        scratch.path.plan_sweep(
+            object_id,
+            &o.model,
+            &o.state.positions_mm,
+            sweep,
+            margin_mm,
+            &o.tied,
+        );
         let change = if scratch.path.plan.is_empty() {
             Subdivision::default()
         } else {

@@ -82,6 +82,7 @@ impl Sim {
                 torn: Vec::new(),
                 lane: None,
                 pins_held: spec.integrator == IntegratorName::ImplicitEuler,
+                tied: Vec::new(),
                 parts: ModelParts::default(),
                 name: spec.name.clone(),
                 marks: NodeMarks::new(model.node_count()),
@@ -197,6 +198,20 @@ impl Sim {
                 reach_mm: tool.body.reach_mm,
             })
             .collect();
+        for tie in &world.ties {
+            for &(a, b, _) in &tie.pairs {
+                if let Some(o) = objects.get_mut(tie.object_a) {
+                    o.tied.push(a);
+                }
+                if let Some(o) = objects.get_mut(tie.object_b) {
+                    o.tied.push(b);
+                }
+            }
+        }
+        for object in &mut objects {
+            object.tied.sort_unstable();
+            object.tied.dedup();
+        }
         for object in objects.iter_mut().filter(|o| o.pins_held) {
             object.state.pinned = Vec::with_capacity(
                 (4096 + usize::from(crate::interaction::MAX_ATTACHMENTS)) * tools.len(),

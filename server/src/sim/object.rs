@@ -57,6 +57,9 @@ pub struct SimObject {
     pub(super) friction: f32,
     /// How it answers a suture needle.
     pub(super) puncture: crate::tissue::PunctureSpec,
+    /// Nodes tied to another object (`tissue::ties`), sorted: a cut that follows the blade never moves them
+    /// (a tie holds a node by its id and its rest place).
+    pub(super) tied: Vec<u32>,
     /// Scratch of a topology change: the parts the model is rebuilt from.
     pub(super) parts: ModelParts,
     /// Scratch of the tear test: the facets torn this tick.

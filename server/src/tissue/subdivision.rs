@@ -90,12 +90,15 @@ impl CutPlan {
     /// The plan for a blade's path crossing edges `crossings` of `model` (`a`, `b`, and where along from `a`):
     /// a crossing within [`SNAP_SHARE`] of a vertex moves that vertex onto the path (the nearest first) where
     /// the move keeps the object's shape and its elements' quality and no neighbour of it moves; any other is
-    /// split. An edge with an end already on the path (`on_cut`, or moved by this plan) is left alone.
+    /// split. An edge with an end already on the path (`on_cut`, or moved by this plan) is left alone. A vertex
+    /// that `stays` (tied to another object by its id and rest place) is never moved: it is pinned or its edge
+    /// split.
     pub fn from_crossings(
         &mut self,
         model: &MassSpringModel,
         crossings: &mut [EdgeSplit],
         on_cut: impl Fn(u32) -> bool,
+        stays: impl Fn(u32) -> bool,
     ) {
         self.clear();
         crossings.sort_by(|x, y| x.t.min(1.0 - x.t).total_cmp(&y.t.min(1.0 - y.t)));
@@ -124,7 +127,9 @@ impl CutPlan {
                 None
             };
             match snap {
-                Some(m) if split::can_move(model, &m, &self.moves) => self.moves.push(m),
+                Some(m) if !stays(m.vertex) && split::can_move(model, &m, &self.moves) => {
+                    self.moves.push(m)
+                }
                 Some(m) if m.t < PIN_SHARE => self.pinned.push(m.vertex),
                 _ => self.splits.push(*c),
             }

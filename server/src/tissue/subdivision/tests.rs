@@ -131,9 +131,12 @@ fn finish(mut parts: ModelParts) -> ModelParts {
 /// The plan for the plane `normal . x = offset` ([`CutPlan::from_crossings`] over [`plane_crossings`]).
 fn plane_plan(model: &MassSpringModel, normal: Vec3, offset: f32) -> CutPlan {
     let mut plan = CutPlan::default();
-    plan.from_crossings(model, &mut plane_crossings(model, normal, offset), |_| {
-        false
-    });
+    plan.from_crossings(
+        model,
+        &mut plane_crossings(model, normal, offset),
+        |_| false,
+        |_| false,
+    );
     plan
 }
 
