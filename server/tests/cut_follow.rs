@@ -228,7 +228,10 @@ fn a_cut_beside_tied_vertices_splits_their_edges_and_leaves_them_where_they_were
         pairs.len()
     );
     assert_eq!(moved, 0, "a cut moved a tied vertex");
-    assert!(worst <= 0.05, "the cut lies {worst} of an edge off the path");
+    assert!(
+        worst <= 0.05,
+        "the cut lies {worst} of an edge off the path"
+    );
     assert_eq!(pieces(model.triangles(), model.node_count()), 2);
     // Untied, the same cut moves them (the test would not tell otherwise).
     let mut untied = Sim::new(&self::world()).unwrap();
@@ -238,7 +241,10 @@ fn a_cut_beside_tied_vertices_splits_their_edges_and_leaves_them_where_they_were
         .iter()
         .filter(|&&(v, _, _)| rest[v as usize] != before.rest_positions_mm()[v as usize])
         .count();
-    assert!(moved_untied > 30, "untied, only {moved_untied} moved onto the cut");
+    assert!(
+        moved_untied > 30,
+        "untied, only {moved_untied} moved onto the cut"
+    );
 }
 
 #[test]

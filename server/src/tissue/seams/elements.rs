@@ -47,10 +47,16 @@ pub fn open_seams<const K: usize>(
         .collect();
     touched.sort_unstable();
     touched.dedup();
+    let mut is_touched = vec![false; vertex_count as usize];
+    for &v in &touched {
+        if let Some(slot) = is_touched.get_mut(v as usize) {
+            *slot = true;
+        }
+    }
     let mut ring: Vec<(u32, u32)> = Vec::new();
     for (e, element) in original.iter().enumerate() {
         for &v in element {
-            if touched.binary_search(&v).is_ok() {
+            if is_touched.get(v as usize).copied().unwrap_or(false) {
                 ring.push((v, e as u32));
             }
         }

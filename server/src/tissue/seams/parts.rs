@@ -80,19 +80,37 @@ pub fn open_parts(parts: &mut ModelParts, seams: &[Facet]) -> Opening {
         parts.mass_kg.push(0.0);
     }
 
-    // Masses: each family (a parent and its copies) shares the parent's mass by element measure.
+    // Masses: each family (a parent and its copies) shares the parent's mass by element measure (measured only
+    // on the elements that hold a member, in element order, so each member's sum is what a pass over every
+    // element would give).
     let total = parts.rest_positions_mm.len();
+    let mut families: Vec<u32> = opening.parents.clone();
+    families.sort_unstable();
+    families.dedup();
+    let mut member = vec![false; total];
+    for &p in &families {
+        member[p as usize] = true;
+    }
+    member[n as usize..].fill(true);
     let mut measure = vec![0.0f32; total];
     let rest = &parts.rest_positions_mm;
     if volume {
-        for tet in &parts.tets {
+        for tet in parts
+            .tets
+            .iter()
+            .filter(|t| t.iter().any(|&i| member[i as usize]))
+        {
             let v = crate::tissue::volume::tet_volume_mm3(rest, *tet).abs() / 4.0;
             for &i in tet {
                 measure[i as usize] += v;
             }
         }
     } else {
-        for tri in &parts.triangles {
+        for tri in parts
+            .triangles
+            .iter()
+            .filter(|t| t.iter().any(|&i| member[i as usize]))
+        {
             let [a, b, c] = tri.map(|v| rest[v as usize]);
             let area = 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
             for &i in tri {
@@ -101,12 +119,9 @@ pub fn open_parts(parts: &mut ModelParts, seams: &[Facet]) -> Opening {
         }
     }
     let mut family = vec![0.0f32; n as usize];
-    for v in 0..total as u32 {
+    for v in (0..total as u32).filter(|&v| member[v as usize]) {
         family[parent(v) as usize] += measure[v as usize];
     }
-    let mut families: Vec<u32> = opening.parents.clone();
-    families.sort_unstable();
-    families.dedup();
     // Each family's mass before it is shared out (the parent's own entry is rewritten with its share).
     let family_mass: Vec<f32> = families
         .iter()
@@ -165,16 +180,21 @@ pub fn open_parts(parts: &mut ModelParts, seams: &[Facet]) -> Opening {
     ends.sort_unstable();
     ends.dedup();
     // The elements around each end of an affected edge, now and before (before: around the parents).
-    let ring = ring_of(new_count, new_element, &ends);
-    let mut parent_ends: Vec<u32> = ends.iter().map(|&v| parent(v)).collect();
-    parent_ends.sort_unstable();
-    parent_ends.dedup();
+    let mut is_end = vec![false; total];
+    for &v in &ends {
+        is_end[v as usize] = true;
+    }
+    let ring = ring_of(new_count, new_element, &is_end);
+    let mut is_parent_end = vec![false; n as usize];
+    for &v in &ends {
+        is_parent_end[parent(v) as usize] = true;
+    }
     let old_count = if volume {
         old_tets.len()
     } else {
         old_triangles.len()
     };
-    let old_ring = ring_of(old_count, old_element, &parent_ends);
+    let old_ring = ring_of(old_count, old_element, &is_parent_end);
     let now_count = |edge: [u32; 2]| count_in(&ring, new_element, edge);
     let was_count = |edge: [u32; 2]| count_in(&old_ring, old_element, edge);
     let mut reconsidered: Vec<([u32; 2], f32, f32)> = Vec::with_capacity(affected.len());
@@ -237,16 +257,16 @@ pub fn open_parts(parts: &mut ModelParts, seams: &[Facet]) -> Opening {
     opening
 }
 
-/// (vertex, element) for each element of the `count` and each of its vertices among `ends` (sorted), sorted.
+/// (vertex, element) for each element of the `count` and each of its vertices marked in `is_end`, sorted.
 fn ring_of<'a>(
     count: usize,
     element: impl Fn(usize) -> &'a [u32],
-    ends: &[u32],
+    is_end: &[bool],
 ) -> Vec<(u32, u32)> {
     let mut ring: Vec<(u32, u32)> = Vec::new();
     for e in 0..count {
         for &v in element(e) {
-            if ends.binary_search(&v).is_ok() {
+            if is_end.get(v as usize).copied().unwrap_or(false) {
                 ring.push((v, e as u32));
             }
         }
