@@ -9,7 +9,7 @@ mod common;
 use common::mesh_pieces::{assert_closed_surface, pieces};
 use nalgebra::Vector3;
 use sinew_server::interaction::{BladeSweep, CutScratch, GraspSpec, JawInput};
-use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
+use sinew_server::sim::{Sim, SimObject, ToolCommand, ToolOutput};
 use sinew_server::tissue::stability::max_stable_dt_s;
 use sinew_server::tissue::{IntegratorName, MassSpringModel, TieSet};
 use sinew_server::world::{InstrumentSpec, ToolShapeSpec, World, load_world};
@@ -335,6 +335,16 @@ fn a_circular_cut_in_the_pad_follows_the_blade_and_frees_a_disc() {
 }
 
 /// A tetrahedron's shape quality, `6 sqrt(2) V / l_rms^3`: 1 for a regular one, 0 for a flat one (signed).
+/// The least share of its rest quality any tetrahedron of `o` keeps now.
+fn worst_kept_quality(o: &SimObject) -> f32 {
+    o.model
+        .tets()
+        .tets
+        .iter()
+        .map(|t| quality(&o.state.positions_mm, t) / quality(o.model.rest_positions_mm(), t))
+        .fold(f32::INFINITY, f32::min)
+}
+
 fn quality(x: &[Vec3], tet: &[u32; 4]) -> f32 {
     let p = tet.map(|v| x[v as usize]);
     let mut sum = 0.0;
@@ -438,13 +448,7 @@ fn cut_block(steps: usize, path: impl Fn(f32) -> (f32, f32), off_mm: impl Fn(Vec
         }
     }
     let o = &sim.objects[1];
-    let worst_now = o
-        .model
-        .tets()
-        .tets
-        .iter()
-        .map(|t| quality(&o.state.positions_mm, t) / quality(o.model.rest_positions_mm(), t))
-        .fold(f32::INFINITY, f32::min);
+    let worst_now = worst_kept_quality(o);
     println!(
         "kicked, then 1000 ticks: the worst tetrahedron keeps {worst_now:.3} of its rest quality; at worst \
          {worst_seen:.3} on the way"
@@ -609,13 +613,7 @@ fn a_cut_through_the_corotational_fem_block_follows_the_blade_and_parts_it() {
     }
     let o = &sim.objects[0];
     assert!(o.state.is_finite());
-    let worst = o
-        .model
-        .tets()
-        .tets
-        .iter()
-        .map(|t| quality(&o.state.positions_mm, t) / quality(o.model.rest_positions_mm(), t))
-        .fold(f32::INFINITY, f32::min);
+    let worst = worst_kept_quality(o);
     println!("kicked, then 1000 ticks: the worst tetrahedron keeps {worst:.3} of its rest quality");
     assert!(
         worst > 0.5,

@@ -5,9 +5,7 @@
 
 mod common;
 
-use sinew_server::training::{
-    ExerciseRun, ExerciseScore, MetricsConfig, SessionObserver, TickView,
-};
+use sinew_server::training::{ExerciseRun, ExerciseScore, MetricsConfig, SessionObserver};
 use sinew_server::world::{World, load_world};
 
 /// Centre height of a hovering probe (radius 4 mm: 6 mm clear of the pad), mm.
@@ -102,13 +100,7 @@ fn run(world: &World, left: &Hand, right: &Hand) -> ExerciseScore {
         let inputs = [pose(left, origins[0]), pose(right, origins[1])];
         let step = tick.step(&inputs, &[None, None], &mut out);
         assert_eq!(step.faults, 0);
-        let view = TickView {
-            tick: k,
-            active: tick.tools_active(),
-            outputs: tick.outputs(),
-            step: &step,
-        };
-        observer.observe(&view, |_| {}, |_, _| {});
+        common::observe_tick(&mut observer, &tick, k, &step);
     }
     let score = observer.exercise().unwrap().score();
     println!("{score:?}");

@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 
 use sinew_server::node::exercise_stats;
 use sinew_server::training::{
-    ExerciseRun, ExerciseScore, LiveScore, MetricsConfig, SessionObserver, TickView,
+    ExerciseRun, ExerciseScore, LiveScore, MetricsConfig, SessionObserver,
 };
 use sinew_server::world::{World, load_world};
 
@@ -72,13 +72,7 @@ fn run(world: &World, path: impl Fn(f64) -> [f32; 3], end_s: f64) -> (ExerciseSc
         ];
         let step = tick.step(&inputs, &[None, None], &mut out);
         assert_eq!(step.faults, 0, "the guard reset the gauze");
-        let view = TickView {
-            tick: k,
-            active: tick.tools_active(),
-            outputs: tick.outputs(),
-            step: &step,
-        };
-        observer.observe(&view, |_| {}, |_, _| {});
+        common::observe_tick(&mut observer, &tick, k, &step);
     }
     let exercise = observer.exercise().unwrap();
     let score = exercise.score();

@@ -1,8 +1,8 @@
 //! A cut that follows the blade: each sweep subdivides the tissue where the blade crossed it, then opens the
 //! facets that lie on the blade's path, in one pass over the model's parts and one rebuild.
 //!
-//! Owns: [`Sim::subdivide`] (apply a cut plan and rebuild what stands on the topology, re-expressing what the
-//! tools hold) and [`Sim::cut_following_blade`] (one sweep through one object: plan, subdivide, open). Must not:
+//! Owns: [`Sim::cut_following_blade`] (one sweep through one object: plan, subdivide, open, rebuild what stands
+//! on the topology once, and re-express what the tools hold on split elements). Must not:
 //! decide where a blade is (the instruments do) or how facets open (`topology.rs`, `tissue::seams`).
 
 use super::object::retopologize_collider;
@@ -97,34 +97,6 @@ impl SimObject {
 }
 
 impl Sim {
-    /// Subdivide object `object` by `plan` ([`crate::tissue::subdivision`]): vertices moved onto the cut and
-    /// new vertices where edges split (each placed, moving and burnt as its edge is there), and everything built
-    /// on the topology rebuilt as after a seam opening (springs and masses, the collider, the integrator, the
-    /// region, the guard, each tool's contact stiffness); what the tools hold on a split element is
-    /// re-expressed on the piece that holds it ([`crate::sim::Instrument::subdivided`]). Each new vertex's
-    /// replication parent is the nearer end of its edge. Allocates (a cut is an event). An object out of range,
-    /// stepped on its own thread, or a plan that changes nothing, changes nothing.
-    pub fn subdivide(&mut self, object: usize, plan: &CutPlan) -> Subdivision {
-        let Some(o) = self.objects.get_mut(object).filter(|o| o.lane.is_none()) else {
-            return Subdivision::default();
-        };
-        if plan.is_empty() {
-            return Subdivision::default();
-        }
-        o.finish_refit();
-        let change = o.subdivide_parts(plan);
-        if change.is_empty() {
-            return change;
-        }
-        o.model.rebuild_from(&o.parts);
-        o.rebuilt_for_topology();
-        o.split_parents
-            .extend(change.new_vertices.iter().map(|s| s.nearer_end()));
-        self.tools_after_subdivision(object, &change, false);
-        self.last_energy_n_mm = None;
-        change
-    }
-
     /// Each tool after object `object` was subdivided by `change` (and opened too, `opened`): a fresh contact
     /// stiffness on it, and what its instrument holds re-expressed on the pieces.
     fn tools_after_subdivision(&mut self, object: usize, change: &Subdivision, opened: bool) {

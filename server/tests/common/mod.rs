@@ -94,6 +94,22 @@ pub fn server_tick(world: &sinew_server::world::World) -> sinew_server::server_t
     )
 }
 
+/// Show tick `k` of `tick` (its step's report `step`) to `observer`, its events and transitions dropped.
+pub fn observe_tick(
+    observer: &mut sinew_server::training::SessionObserver,
+    tick: &sinew_server::server_tick::ServerTick,
+    k: u64,
+    step: &sinew_server::sim::StepReport,
+) {
+    let view = sinew_server::training::TickView {
+        tick: k,
+        active: tick.tools_active(),
+        outputs: tick.outputs(),
+        step,
+    };
+    observer.observe(&view, |_| {}, |_, _| {});
+}
+
 /// A fresh, usable pose number `seq` at `position_device_mm`, upright.
 pub fn pose_at(
     seq: u64,
