@@ -388,10 +388,12 @@ fn a_replay_published_from_a_recording_plays_in_the_page() {
         speed: 1.0,
         linger: Duration::from_secs(12),
     };
-    let replay =
-        std::thread::spawn(move || sinew::debrief::publish(&recording, world, &options, |_, _| {}));
+    // The page is open before the replay starts: a gateway that came up after a 4 s replay had ended (a
+    // loaded machine) saw the mesh's snapshot but never a tool state.
     let gateway = WebGatewayProcess::start(SCENE, std::slice::from_ref(&endpoint), &[]).unwrap();
     let mut page = BrowserPage::open(&gateway.url, 800, 600).unwrap();
+    let replay =
+        std::thread::spawn(move || sinew::debrief::publish(&recording, world, &options, |_, _| {}));
     // The recorded cut arrives in the page as the replay reaches it.
     let state = page
         .wait_for(Duration::from_secs(40), "the replayed cut", |s| {
