@@ -14,7 +14,7 @@ const feedStats = document.getElementById('feed-stats');
 
 const sinew = {
   connected: false, connections: 0, scene: null, layout: null, objects: [], tools: [],
-  paused: false, messages: 0, bytes: 0, undecodable: 0, unapplied: 0, states: 0, lastStateFrame: 0, parts: 0, arrows: 0, rendered: 0,
+  paused: false, messages: 0, bytes: 0, undecodable: 0, unapplied: 0, states: 0, lastStateFrame: 0, parts: 0, arrows: 0, arrowsDrawn: [], rendered: 0,
 };
 window.sinew = sinew;
 
@@ -76,6 +76,7 @@ function applyPending() {
     sinew.lastStateFrame = state.frame;
     sinew.parts = state.tools.reduce((n, t) => n + t.parts.length, 0);
     sinew.arrows = state.arrows.length;
+    sinew.arrowsDrawn = view.arrowsDrawn;
     changed = true;
   }
   if (changed) objectsSummary();

@@ -309,11 +309,14 @@ export class SceneView {
         this.tools.add(mesh);
       }
     }
+    // The arrows drawn (one shorter than 0.5 mm is not): their length, mm, and colour, for the page's state.
+    this.arrowsDrawn = [];
     for (const arrow of state.arrows) {
       const from = new THREE.Vector3().fromArray(arrow.from), to = new THREE.Vector3().fromArray(arrow.to);
       const along = to.clone().sub(from);
       const length = along.length();
       if (!(length > 0.5)) continue;
+      this.arrowsDrawn.push({ lengthMm: length, rgb: arrow.rgb });
       const helper = new THREE.ArrowHelper(along.normalize(), from, length, srgb(arrow.rgb), Math.min(6, 0.3 * length), Math.min(3.5, 0.18 * length));
       helper.line.material.depthTest = false;
       helper.cone.material.depthTest = false;
