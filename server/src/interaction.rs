@@ -20,6 +20,7 @@ mod tissue_pair;
 pub use blade_path::{BladePath, HISTORY_SWEEPS};
 pub use cut::{BladeSweep, CutScratch, swept_seams, torn_seams};
 pub use grasp::{Attachment, Grasp, GraspEvent, MAX_ATTACHMENTS};
+pub(crate) use grasp::{hold_points, nodes_held, point_pull_n};
 pub use instrument::{
     CauterySpec, GraspSpec, InstrumentSpec, JawActivation, ScalpelSpec, ScissorsSpec,
 };

@@ -18,15 +18,30 @@
 //! solve of `haptics/contact_stiffness.rs`, run on the job's thread): the local model a latency-moderated device
 //! renders, evaluated on the server every tick. The object's deformation lags its tools by one step period.
 //!
+//! Grasping. The tick's grasper takes hold of a multi-rate object's surface on its latest finished step, as
+//! it does any object's; each launch copies the tool's attachments to that object into the job
+//! (`multirate/job_grasp.rs`), whose substeps hold them on the jaws where the tool was at launch, as the tick
+//! holds them on an object it steps. At the end of the step the job measures each point's pull and the
+//! condensed stiffness of everything the tool holds (`K`, full 3x3: a grasp pulls back in every direction);
+//! the sim lets points pulled past the slip force go at the hand-off, and between hand-offs the grasper feels
+//! `g0 - K (x - x0)`, bilateral: `g0` the points' summed pull and the body's push on the tissue it presses
+//! (held tissue is rendered whole: a one-sided push model would drop its normal stiffness as the jaws lift
+//! away), scaled by the jaws' grip. The tool's turning is not in the model (position only); the lobe follows
+//! the jaws one step period late.
+//!
 //! Must not: touch threads or clocks (the node's runner does), or change the model: a multi-rate object is
 //! never cut, torn or shrunk by burns (the loader and the sim refuse them), so the job's copy stays the
 //! object's model.
 
+mod job_grasp;
+
 use nalgebra::{Matrix3, UnitQuaternion};
+
+use self::job_grasp::JobGrasp;
 
 use crate::collision::ToolCollider;
 use crate::haptics::ContactStiffness;
-use crate::interaction::{ProbeContacts, ToolBody};
+use crate::interaction::{Attachment, Grasp, ProbeContacts, ToolBody};
 use crate::tissue::{
     DivergenceGuard, Integrator, MassSpringModel, Stepped, TissueState, Vec3, Verdict, guard,
     step_guarded,
@@ -37,6 +52,13 @@ use crate::tissue::{
 /// elements (30% of a 200 Hz fem_block step with two tools: `cargo bench -p sinew-server --bench tick -- --world
 /// worlds/fem_block.toml --step-hz 200`); `K` changes slowly, so a solve may span a few steps instead.
 pub const MAX_SOLVE_TICKS_PER_STEP: u32 = 1;
+
+/// The same while the tool's jaws hold the object. Held tissue stiffens as it is stretched, and its full 3x3
+/// `K` takes three solves' work. Lifting the liver's lobe at 4 mm/s (`server/tests/multirate_grasp.rs`), the
+/// force jumped at the worst hand-off by 3.2 times what the model rendered over the step before at one or two
+/// ticks' budget (a solve spanned many steps, and its `K` was stale), by 0.05 times at four; eight leaves
+/// room for a bigger bite.
+pub const MAX_GRASP_SOLVE_TICKS_PER_STEP: u32 = 8;
 
 /// What one finished step of a multi-rate object did (summed into the tick's `StepReport` at its hand-off).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -69,6 +91,16 @@ pub struct LaneContact {
     pub solved: bool,
     /// Nodes the tool held at the end of the step.
     pub held_nodes: u32,
+    /// While the jaws held points: the tissue's force on the tool at the end of the step, N (world; the
+    /// points' pull and the body's push, not scaled by the grip). `force_n` is then zero: held tissue is
+    /// rendered whole, bilaterally.
+    pub grasp_force_n: Vec3,
+    /// The held tissue's condensed stiffness `K`, full 3x3, N/mm (zero until a solve has finished).
+    pub grasp_stiffness_n_per_mm: Matrix3<f32>,
+    /// Its damping, N s/mm.
+    pub grasp_damping_n_s_per_mm: Matrix3<f32>,
+    /// Points the jaws held during the step (0: no grasp).
+    pub grasped_points: u32,
 }
 
 impl LaneContact {
@@ -85,6 +117,15 @@ impl LaneContact {
         }
         // The step's tangential part (friction) rides along unchanged; the normal part follows the model.
         self.force_n + self.normal * (push_n - self.force_n.dot(&self.normal))
+    }
+
+    /// The held tissue's force on a tool at `position_mm`: `g0 - K (x - x0)`, bilateral (held tissue pulls back
+    /// whichever way the jaws move it). Zero when the step held no points. Pure, finite for finite inputs.
+    pub fn grasp_force_at(&self, position_mm: &Vec3) -> Vec3 {
+        if self.grasped_points == 0 {
+            return Vec3::zeros();
+        }
+        self.grasp_force_n - self.grasp_stiffness_n_per_mm * (position_mm - self.position_mm)
     }
 
     /// `K = k n n^T`, N/mm.
@@ -120,6 +161,8 @@ struct JobTool {
     last_position_mm: Vec3,
     rotation: UnitQuaternion<f32>,
     contacts: ProbeContacts,
+    /// The points of this object the tool's jaws hold.
+    grasp: JobGrasp,
     stiffness: ContactStiffness,
     contact: LaneContact,
 }
@@ -160,9 +203,21 @@ impl Stepped for StepJob {
                     tool.position_mm,
                     tool.rotation,
                 );
-                tool.contacts
-                    .project(&body, &self.model, &mut self.state, &[], self.friction);
+                tool.contacts.project(
+                    &body,
+                    &self.model,
+                    &mut self.state,
+                    tool.grasp.nodes(),
+                    self.friction,
+                );
+                tool.grasp.hold(
+                    &tool.position_mm,
+                    &tool.rotation,
+                    &self.model,
+                    &mut self.state,
+                );
                 self.state.pinned.extend_from_slice(&tool.contacts.held);
+                self.state.pinned.extend_from_slice(tool.grasp.nodes());
             }
             self.state.pinned.sort_unstable();
             self.state.pinned.dedup();
@@ -218,6 +273,7 @@ impl StepJob {
             self.report.faults += 1;
             for tool in &mut self.tools {
                 tool.contacts.forget();
+                tool.grasp.clear();
                 tool.stiffness.forget();
             }
         }
@@ -226,15 +282,16 @@ impl StepJob {
                 Self::measure(tool, &self.model, &self.state, self.friction, self.ticks)
             } else {
                 tool.contacts.forget();
+                tool.grasp.clear();
                 tool.stiffness.forget();
                 LaneContact::default()
             };
         }
     }
 
-    /// The tool's contact at the end of the step: the held nodes' push, and the contact stiffness solve
-    /// advanced by `ticks` ticks' budget, at most [`MAX_SOLVE_TICKS_PER_STEP`] (a solve longer than that goes on
-    /// in the next step, as on the tick).
+    /// The tool's contact at the end of the step: the held nodes' push, the held points' pull, and the
+    /// contact stiffness solve (over both) advanced by `ticks` ticks' budget, at most
+    /// [`MAX_SOLVE_TICKS_PER_STEP`] (a solve longer than that goes on in the next step, as on the tick).
     fn measure(
         tool: &mut JobTool,
         model: &MassSpringModel,
@@ -243,55 +300,88 @@ impl StepJob {
         ticks: u32,
     ) -> LaneContact {
         let held = &tool.contacts.held;
-        if held.is_empty() {
+        let grasped = tool.grasp.holds();
+        let out_of_contact = LaneContact {
+            position_mm: tool.position_mm,
+            ..LaneContact::default()
+        };
+        if held.is_empty() && !grasped {
             tool.stiffness.forget();
-            return LaneContact {
-                position_mm: tool.position_mm,
-                ..LaneContact::default()
-            };
+            return out_of_contact;
         }
-        let force_n = tool.contacts.reaction_force_n(model, state, friction);
-        let normal = force_n.try_normalize(1e-9).unwrap_or_else(|| {
-            model
-                .rest_normals()
-                .get(held[0] as usize)
-                .copied()
-                .unwrap_or_else(Vec3::z)
-        });
-        for _ in 0..ticks.min(MAX_SOLVE_TICKS_PER_STEP) {
-            if tool
-                .stiffness
-                .advance(model, state, held, &tool.contacts.normals, &[], &normal)
-            {
+        let force_n = if held.is_empty() {
+            Vec3::zeros()
+        } else {
+            tool.contacts.reaction_force_n(model, state, friction)
+        };
+        let grasp_force_n = tool.grasp.measure(model, state);
+        let first = held.first().or(tool.grasp.nodes().first()).copied();
+        let normal = force_n
+            .try_normalize(1e-9)
+            .or_else(|| (-grasp_force_n).try_normalize(1e-9))
+            .unwrap_or_else(|| {
+                first
+                    .and_then(|n| model.rest_normals().get(n as usize).copied())
+                    .unwrap_or_else(Vec3::z)
+            });
+        let budget = if grasped {
+            MAX_GRASP_SOLVE_TICKS_PER_STEP
+        } else {
+            MAX_SOLVE_TICKS_PER_STEP
+        };
+        for _ in 0..ticks.min(budget) {
+            if tool.stiffness.advance(
+                model,
+                state,
+                held,
+                &tool.contacts.normals,
+                tool.grasp.nodes(),
+                &normal,
+            ) {
                 break;
             }
         }
-        let (stiffness_n_per_mm, damping_n_s_per_mm, solved) = match tool.stiffness.response() {
-            Some(r) => (
-                (normal.transpose() * r.stiffness_n_per_mm * normal)[(0, 0)].max(0.0),
-                (normal.transpose() * r.damping_n_s_per_mm * normal)[(0, 0)].max(0.0),
-                true,
-            ),
-            None => (0.0, 0.0, false),
-        };
-        let finite = force_n.iter().all(|c| c.is_finite())
-            && stiffness_n_per_mm.is_finite()
-            && damping_n_s_per_mm.is_finite();
-        if !finite {
-            return LaneContact {
-                position_mm: tool.position_mm,
-                ..LaneContact::default()
-            };
-        }
-        LaneContact {
-            force_n,
+        let along = |m: &Matrix3<f32>| (normal.transpose() * m * normal)[(0, 0)].max(0.0);
+        let response = tool.stiffness.response();
+        let mut contact = LaneContact {
             position_mm: tool.position_mm,
-            normal,
-            stiffness_n_per_mm,
-            damping_n_s_per_mm,
-            solved,
-            held_nodes: held.len() as u32,
+            solved: response.is_some(),
+            ..LaneContact::default()
+        };
+        if grasped {
+            // Held tissue is rendered whole and bilaterally: the body's push with the points' pull, and the
+            // full K (a one-sided push model would drop its normal stiffness as the jaws lift away).
+            contact.grasp_force_n = force_n + grasp_force_n;
+            contact.grasped_points = tool.grasp.nodes().len() as u32;
+            if let Some(r) = response {
+                contact.grasp_stiffness_n_per_mm = r.stiffness_n_per_mm;
+                contact.grasp_damping_n_s_per_mm = r.damping_n_s_per_mm;
+            }
+        } else {
+            contact.force_n = force_n;
+            contact.normal = normal;
+            contact.held_nodes = held.len() as u32;
+            if let Some(r) = response {
+                contact.stiffness_n_per_mm = along(&r.stiffness_n_per_mm);
+                contact.damping_n_s_per_mm = along(&r.damping_n_s_per_mm);
+            }
         }
+        let finite = contact.force_n.iter().all(|c| c.is_finite())
+            && contact.stiffness_n_per_mm.is_finite()
+            && contact.damping_n_s_per_mm.is_finite()
+            && contact.grasp_force_n.iter().all(|c| c.is_finite())
+            && contact
+                .grasp_stiffness_n_per_mm
+                .iter()
+                .all(|c| c.is_finite())
+            && contact
+                .grasp_damping_n_s_per_mm
+                .iter()
+                .all(|c| c.is_finite());
+        if !finite {
+            return out_of_contact;
+        }
+        contact
     }
 }
 
@@ -369,6 +459,7 @@ impl StepLane {
                     last_position_mm: Vec3::zeros(),
                     rotation: UnitQuaternion::identity(),
                     contacts: ProbeContacts::with_capacity(4096).sticky(),
+                    grasp: JobGrasp::new(),
                     stiffness: ContactStiffness::new(model.node_count()),
                     contact: LaneContact::default(),
                 })
@@ -457,7 +548,32 @@ impl StepLane {
             tool.contacts.candidates.extend_from_slice(candidates);
         } else {
             tool.contacts.forget();
+            tool.grasp.clear();
         }
+    }
+
+    /// Set what tool `t`'s jaws hold of this object (object `object` in the world) for the next step: the
+    /// points of it in `grasp` (None: nothing). Call after [`Self::set_tool`]; ignored while a step is under
+    /// way, the lane is lost or the tool is inactive. No allocation.
+    pub fn set_grasp(&mut self, t: usize, object: usize, grasp: Option<&Grasp>) {
+        let Some(job) = self.home.as_mut() else {
+            return;
+        };
+        let Some(tool) = job.tools.get_mut(t) else {
+            return;
+        };
+        if tool.active {
+            tool.grasp.set(object, grasp, &job.model);
+        }
+    }
+
+    /// The pull the step just taken back measured on `attachment` of tool `t`'s jaws (None: that step did
+    /// not hold it, or the next step is already away). No allocation.
+    pub fn finished_pull(&self, t: usize, attachment: &Attachment) -> Option<Vec3> {
+        self.home
+            .as_ref()
+            .and_then(|job| job.tools.get(t))
+            .and_then(|tool| tool.grasp.pull_of(attachment))
     }
 
     /// Send the next step, `step_dt_s` long, on its way.
@@ -493,6 +609,7 @@ mod tests {
             damping_n_s_per_mm: 0.0,
             solved: true,
             held_nodes: 10,
+            ..LaneContact::default()
         }
     }
 

@@ -210,9 +210,25 @@ impl Sim {
                 report.solver_iterations += job.solver_iterations;
                 report.faults += job.faults;
                 object.collider.refit(&object.state.positions_mm);
+                for (t, tool) in self.tools.iter_mut().enumerate() {
+                    let Some(grasp) = tool.instrument_state.as_mut().and_then(|i| i.grasp_mut())
+                    else {
+                        continue;
+                    };
+                    if grasp.attached_nodes(o).is_empty() {
+                        continue;
+                    }
+                    // The points' pulls as the step measured them: those pulled past the slip force go.
+                    let before = grasp.slipped();
+                    grasp.settle_with(o, &object.model, |a| lane.finished_pull(t, a));
+                    report.attachments_slipped += (grasp.slipped() - before) as u32;
+                }
                 if job.faults > 0 {
                     for tool in &mut self.tools {
                         tool.contacts[o].forget();
+                        if let Some(instrument) = tool.instrument_state.as_mut() {
+                            report.attachments_released += instrument.object_reset(o);
+                        }
                     }
                 }
             }
@@ -259,6 +275,7 @@ impl Sim {
                     &tool.rotation,
                     &tool.contacts[o].candidates,
                 );
+                lane.set_grasp(t, o, tool.instrument_state.as_ref().and_then(|i| i.grasp()));
             }
             lane.launch(dt_s * lane.ticks_per_step() as f32);
         }

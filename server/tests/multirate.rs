@@ -184,15 +184,10 @@ fn a_step_on_its_own_thread_gives_the_same_bits_as_one_run_inline() {
         assert_eq!(a[0].stiffness_n_per_mm, b[0].stiffness_n_per_mm, "tick {k}");
     }
     assert!(a[0].in_contact, "the path presses");
-    let bits = |sim: &Sim| -> Vec<u32> {
-        sim.objects[0]
-            .state
-            .positions_mm
-            .iter()
-            .flat_map(|p| p.iter().map(|c| c.to_bits()))
-            .collect()
-    };
-    assert_eq!(bits(&inline), bits(&threaded));
+    assert_eq!(
+        common::position_bits(&inline.objects[0]),
+        common::position_bits(&threaded.objects[0])
+    );
     let waited: u64 = late
         .lock()
         .unwrap()

@@ -242,36 +242,15 @@ impl Grasp {
         model: &MassSpringModel,
         state: &mut TissueState,
     ) {
-        for (a, corners) in in_object(&self.attachments, object, model.triangles()) {
-            let target = position_mm + rotation.transform_vector(&a.anchor_tool_mm);
-            let mut point = Vec3::zeros();
-            let mut free_weight = 0.0;
-            for (&c, &b) in corners.iter().zip(&a.barycentric) {
-                let Some(x) = state.positions_mm.get(c as usize) else {
-                    continue;
-                };
-                point += x * b;
-                if !model.is_fixed(c as usize) {
-                    free_weight += b * b;
-                }
-            }
-            if free_weight <= 0.0 {
-                continue;
-            }
-            let correction = (target - point) / free_weight * self.grip;
-            for (&c, &b) in corners.iter().zip(&a.barycentric) {
-                let c = c as usize;
-                if b == 0.0 || model.is_fixed(c) || c >= state.positions_mm.len() {
-                    continue;
-                }
-                state.positions_mm[c] += correction * b;
-                state.velocities_mm_s[c] = if self.grip >= 1.0 {
-                    Vec3::zeros()
-                } else {
-                    state.velocities_mm_s[c] * (1.0 - self.grip)
-                };
-            }
-        }
+        hold_points(
+            &self.attachments,
+            object,
+            self.grip,
+            position_mm,
+            rotation,
+            model,
+            state,
+        );
     }
 
     /// The tissue's pull on the tool through the points of object `object` held at the end of a tick (times the
@@ -279,31 +258,38 @@ impl Grasp {
     /// attachment pulled harder than `slip_force_n` lets go (counted). Call once per object per tick, after
     /// the substeps. No allocation.
     pub fn settle(&mut self, object: usize, model: &MassSpringModel, state: &TissueState) -> Vec3 {
-        let triangles = model.triangles();
         let pressure = model.pressure_n_per_mm2(&state.positions_mm);
         for (a, pull) in self.attachments.iter().zip(self.pull_n.iter_mut()) {
-            if usize::from(a.object) != object {
-                continue;
-            }
-            *pull = Vec3::zeros();
-            let Some(corners) = triangles.get(a.triangle as usize) else {
-                continue;
-            };
-            let mut weight = 0.0;
-            for (&c, &b) in corners.iter().zip(&a.barycentric) {
-                let c = c as usize;
-                if b == 0.0 || model.is_fixed(c) || c >= state.positions_mm.len() {
-                    continue;
-                }
-                *pull +=
-                    model.node_force(c, &state.positions_mm, &state.velocities_mm_s, pressure) * b;
-                weight += b * b;
-            }
-            if weight > 0.0 {
-                *pull /= weight;
+            if usize::from(a.object) == object {
+                *pull = point_pull_n(a, model, state, pressure);
             }
         }
-        // Let go of the points pulled too hard (stable order, no allocation).
+        self.let_slip(object, model)
+    }
+
+    /// Settle the points of object `object` on pulls measured elsewhere (a multi-rate object's step, on its
+    /// own thread: `pull_of` gives an attachment's pull, None for a point that step did not hold, which keeps
+    /// its last pull). Returns the summed pull times the grip, N; an attachment pulled harder than
+    /// `slip_force_n` lets go (counted). No allocation.
+    pub fn settle_with(
+        &mut self,
+        object: usize,
+        model: &MassSpringModel,
+        pull_of: impl Fn(&Attachment) -> Option<Vec3>,
+    ) -> Vec3 {
+        for (a, pull) in self.attachments.iter().zip(self.pull_n.iter_mut()) {
+            if usize::from(a.object) == object
+                && let Some(p) = pull_of(a)
+            {
+                *pull = p;
+            }
+        }
+        self.let_slip(object, model)
+    }
+
+    /// Let go of the points of object `object` pulled harder than the slip force (or not finitely), in stable
+    /// order; returns the summed pull of the rest times the grip, N. No allocation.
+    fn let_slip(&mut self, object: usize, model: &MassSpringModel) -> Vec3 {
         let slip = self.spec.slip_force_n;
         let before = self.attachments.len();
         let mut keep = 0;
@@ -363,17 +349,98 @@ impl Grasp {
         let Some(list) = self.attached_nodes.get_mut(object) else {
             return;
         };
-        list.clear();
-        for (a, corners) in in_object(&self.attachments, object, model.triangles()) {
-            for (&c, &b) in corners.iter().zip(&a.barycentric) {
-                if b != 0.0
-                    && let Err(at) = list.binary_search(&c)
-                {
-                    list.insert(at, c);
-                }
+        nodes_held(&self.attachments, object, model, list);
+    }
+}
+
+/// The nodes of object `object` that `attachments` move, sorted, into `nodes` (cleared first). No allocation
+/// beyond `nodes`' capacity.
+pub(crate) fn nodes_held(
+    attachments: &[Attachment],
+    object: usize,
+    model: &MassSpringModel,
+    nodes: &mut Vec<u32>,
+) {
+    nodes.clear();
+    for (a, corners) in in_object(attachments, object, model.triangles()) {
+        for (&c, &b) in corners.iter().zip(&a.barycentric) {
+            if b != 0.0
+                && let Err(at) = nodes.binary_search(&c)
+            {
+                nodes.insert(at, c);
             }
         }
     }
+}
+
+/// Move each point of object `object` in `attachments` to its place on jaws posed at `position_mm`,
+/// `rotation` (one substep; at a partial `grip`, that share of the way, and that share of its velocity taken;
+/// the minimum-norm correction over the triangle's free nodes). Fixed nodes are not moved; a point whose
+/// nodes are all fixed is left alone. No allocation.
+pub(crate) fn hold_points(
+    attachments: &[Attachment],
+    object: usize,
+    grip: f32,
+    position_mm: &Vec3,
+    rotation: &UnitQuaternion<f32>,
+    model: &MassSpringModel,
+    state: &mut TissueState,
+) {
+    for (a, corners) in in_object(attachments, object, model.triangles()) {
+        let target = position_mm + rotation.transform_vector(&a.anchor_tool_mm);
+        let mut point = Vec3::zeros();
+        let mut free_weight = 0.0;
+        for (&c, &b) in corners.iter().zip(&a.barycentric) {
+            let Some(x) = state.positions_mm.get(c as usize) else {
+                continue;
+            };
+            point += x * b;
+            if !model.is_fixed(c as usize) {
+                free_weight += b * b;
+            }
+        }
+        if free_weight <= 0.0 {
+            continue;
+        }
+        let correction = (target - point) / free_weight * grip;
+        for (&c, &b) in corners.iter().zip(&a.barycentric) {
+            let c = c as usize;
+            if b == 0.0 || model.is_fixed(c) || c >= state.positions_mm.len() {
+                continue;
+            }
+            state.positions_mm[c] += correction * b;
+            state.velocities_mm_s[c] = if grip >= 1.0 {
+                Vec3::zeros()
+            } else {
+                state.velocities_mm_s[c] * (1.0 - grip)
+            };
+        }
+    }
+}
+
+/// The tissue's pull on a held point: the weighted internal forces of its triangle's free nodes,
+/// `sum_k b_k f_k / sum_k b_k^2`, N (zero for a triangle the model does not have). `pressure` is the model's
+/// (`MassSpringModel::pressure_n_per_mm2`). No allocation.
+pub(crate) fn point_pull_n(
+    a: &Attachment,
+    model: &MassSpringModel,
+    state: &TissueState,
+    pressure: f32,
+) -> Vec3 {
+    let Some(corners) = model.triangles().get(a.triangle as usize) else {
+        return Vec3::zeros();
+    };
+    let mut pull = Vec3::zeros();
+    let mut weight = 0.0;
+    for (&c, &b) in corners.iter().zip(&a.barycentric) {
+        let c = c as usize;
+        if b == 0.0 || model.is_fixed(c) || c >= state.positions_mm.len() {
+            continue;
+        }
+        pull += model.node_force(c, &state.positions_mm, &state.velocities_mm_s, pressure) * b;
+        weight += b * b;
+    }
+    if weight > 0.0 { pull / weight } else { pull }
 }
 
 /// The attachments to object `object`, each with its triangle's corners (an attachment naming a triangle the

@@ -132,6 +132,12 @@ pub(crate) trait Instrument: Debug + Send + Sync {
         None
     }
 
+    /// The grasp, for a grasper, to settle on a multi-rate object's finished step (the sim does, at its
+    /// hand-off).
+    fn grasp_mut(&mut self) -> Option<&mut Grasp> {
+        None
+    }
+
     /// The needle against the tissue, for a needle driver.
     fn needle(&self) -> Option<&NeedleTissue> {
         None

@@ -110,22 +110,34 @@ impl Sim {
                 solver.forget();
                 continue;
             }
-            let lane_contact = object
-                .lane
-                .as_ref()
-                .map(|lane| lane.contact(t))
-                .filter(|c| c.force_at(&tool.position_mm) != Vec3::zeros());
-            if let Some(contact) = lane_contact {
-                // A multi-rate object's contact stiffness was solved on its own thread, with its step.
-                if contact.solved {
-                    k += contact.stiffness_matrix();
-                    d += contact.damping_matrix();
-                } else {
-                    let n = contact.normal;
-                    k += n * n.transpose() * tool.haptic.plane_stiffness_n_per_mm;
-                    d += n * n.transpose() * tool.haptic.plane_damping_n_s_per_mm;
+            if let Some(lane) = &object.lane {
+                // A multi-rate object's contact stiffness was solved on its own thread, with its step: the
+                // push's normal part while it pushes, the held tissue's full K while the jaws hold it.
+                let contact = lane.contact(t);
+                let pushing = contact.force_at(&tool.position_mm) != Vec3::zeros();
+                let holding = !grasped.is_empty() && contact.grasped_points > 0 && contact.solved;
+                if pushing {
+                    if contact.solved {
+                        k += contact.stiffness_matrix();
+                        d += contact.damping_matrix();
+                    } else {
+                        let n = contact.normal;
+                        k += n * n.transpose() * tool.haptic.plane_stiffness_n_per_mm;
+                        d += n * n.transpose() * tool.haptic.plane_damping_n_s_per_mm;
+                    }
                 }
-                continue;
+                if holding {
+                    k += contact.grasp_stiffness_n_per_mm;
+                    d += contact.grasp_damping_n_s_per_mm;
+                } else if !grasped.is_empty() {
+                    // Taken since the last launch, or its solve not yet finished: the last measured normal
+                    // stiffness of this tool, in every direction (as a grasp's first ticks on the tick).
+                    k += Matrix3::identity() * tool.haptic.plane_stiffness_n_per_mm;
+                    d += Matrix3::identity() * tool.haptic.plane_damping_n_s_per_mm;
+                }
+                if pushing || !grasped.is_empty() {
+                    continue;
+                }
             }
             let normals = object.model.rest_normals();
             for &node in &contacts.held {

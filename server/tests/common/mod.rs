@@ -258,3 +258,13 @@ pub fn furthest_from_rest_mm(object: &sinew_server::sim::SimObject) -> f32 {
         .map(|(x, r)| (x - r).norm())
         .fold(0.0f32, f32::max)
 }
+
+/// Every coordinate of an object's node positions, as bits (two runs that agree to the bit agree here).
+pub fn position_bits(object: &sinew_server::sim::SimObject) -> Vec<u32> {
+    object
+        .state
+        .positions_mm
+        .iter()
+        .flat_map(|p| p.iter().map(|c| c.to_bits()))
+        .collect()
+}

@@ -97,13 +97,9 @@ impl Instrument for Grasper {
         if closing && free && self.thread_of.is_none() && self.needle_of.is_none() {
             grasp.start_take();
             let bite_mm = grasp.spec().bite_mm;
-            // A multi-rate object is not grasped (its nodes move on its own thread).
-            for (o, object) in sim
-                .objects
-                .iter()
-                .enumerate()
-                .filter(|(_, o)| o.lane.is_none())
-            {
+            // A multi-rate object is taken on its latest finished step (its `state`); its step job holds
+            // the points from the next launch on (crate::multirate).
+            for (o, object) in sim.objects.iter().enumerate() {
                 // The nodes the body holds (on its surface) and free surface nodes within the bite of it:
                 // the closing jaws draw them in.
                 for &node in &tool.contacts[o].candidates {
@@ -149,8 +145,16 @@ impl Instrument for Grasper {
         }
         let before = grasp.slipped();
         for (o, object) in sim.objects.iter().enumerate() {
-            if !grasp.attached_nodes(o).is_empty() {
-                self.pull_n += grasp.settle(o, &object.model, &object.state);
+            if grasp.attached_nodes(o).is_empty() {
+                continue;
+            }
+            match &object.lane {
+                // Held on its own thread: its latest step's grasp model at the jaws' place now (the sim
+                // settled its pulls, and let the slipping points go, at the hand-off).
+                Some(lane) => {
+                    self.pull_n += lane.contact(t).grasp_force_at(&tool.position_mm) * grasp.grip();
+                }
+                None => self.pull_n += grasp.settle(o, &object.model, &object.state),
             }
         }
         if self.take_share < 1.0 {
@@ -227,6 +231,10 @@ impl Instrument for Grasper {
 
     fn grasp(&self) -> Option<&Grasp> {
         Some(&self.grasp)
+    }
+
+    fn grasp_mut(&mut self) -> Option<&mut Grasp> {
+        Some(&mut self.grasp)
     }
 }
 
