@@ -8,7 +8,9 @@
 //! multi-rate objects (`step_hz`) runs as the server runs it: their steps on threads of their own, the ticks
 //! paced at the tick rate (a flat-out tick would hand off faster than real time); it also prints each object's
 //! step time against its period and how many hand-offs had to wait for the step. `-- --step-hz H` makes the
-//! world's first object multi-rate at `H` Hz (one step a period).
+//! world's first object multi-rate at `H` Hz (one step a period). `-- --tools N` lets only the first `N` (0, 1
+//! or 2) of the two tools act; `-- --grasp` closes the second tool's jaws once it has pressed (0.5 s in): a
+//! grasper holds what it pressed as it strokes.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 use std::time::Instant;
@@ -31,6 +33,8 @@ mod bench_args;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ticks = bench_args::count_arg("ticks", 20_000)?;
+    let acting = bench_args::count_arg("tools", 2)?.min(2);
+    let grasp = std::env::args().any(|a| a == "--grasp");
     let other_world = bench_args::text_arg("world");
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("..")
@@ -74,10 +78,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut tick = LatencyHistogram::new();
     let mut held = 0u64;
     let mut retries = 0u64;
+    let mut grasped_ticks = 0u64;
     for k in 0..ticks {
         // Both probes press 5 mm and stroke +-8 mm along x with a 2 s period (after a 0.5 s descent).
         let mut commands = [ToolCommand::default(); 2];
         press_and_stroke_commands(k as f32 * dt_s, &mut commands);
+        for command in &mut commands[acting..] {
+            command.active = false;
+        }
+        if grasp && k as f32 * dt_s > 0.5 {
+            commands[1].jaws.buttons = 1;
+        }
         if let Some(pacer) = &mut pacer {
             pacer.wait();
         }
@@ -86,10 +97,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tick.record(start.elapsed());
         held += u64::from(report.held_nodes);
         retries += u64::from(report.retries);
+        grasped_ticks += u64::from(outputs[1].attachments > 0);
     }
     let us = |h: &LatencyHistogram, p: f64| h.percentile_ns(p) as f64 / 1000.0;
     println!(
-        "full tick (2 tools pressing+stroking): p50 {:.0} us  p99 {:.0} us  max {:.0} us  over {ticks} ticks, mean held nodes {:.0}, guard retries {retries}",
+        "full tick ({acting} tool(s) pressing+stroking{}): p50 {:.0} us  p99 {:.0} us  max {:.0} us  over {ticks} ticks, mean held nodes {:.0}, guard retries {retries}",
+        if grasp {
+            format!(
+                ", the second grasping (holding {:.0}% of ticks)",
+                100.0 * grasped_ticks as f64 / ticks as f64
+            )
+        } else {
+            String::new()
+        },
         us(&tick, 50.0),
         us(&tick, 99.0),
         tick.max_ns() as f64 / 1000.0,

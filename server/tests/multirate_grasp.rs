@@ -71,6 +71,8 @@ struct Run {
     held_after_take: u16,
     /// The lobe's top under the jaws once they closed, mm (world).
     lobe_at_take_mm: f32,
+    /// The grasper's output at the end of the lift's hold.
+    held: ToolOutput,
 }
 
 /// Step `sim` through `commands`, collecting the grasper's forces; every output finite and within its limit,
@@ -126,7 +128,7 @@ fn take_and_lift(sim: &mut Sim, lift_mm: f32) -> Run {
         &mut run,
         (0..1000).map(|k| grasper_at(bite + lift_mm * (k + 1) as f32 / 1000.0, true)),
     );
-    drive(
+    run.held = drive(
         sim,
         &mut run,
         (0..1000).map(|_| grasper_at(bite + lift_mm, true)),
@@ -207,6 +209,21 @@ fn a_grasped_liver_lobe_follows_the_jaws_pulls_back_and_settles_when_let_go() {
     assert!(
         worst_ratio < 2.0,
         "a hand-off stepped the force by {worst_ratio} times what the model rendered over the step"
+    );
+    // What a distant device renders: the held tissue's model, bilateral, stiff in every direction, and along
+    // the lift as stiff as the force's own slope over the lift's last 0.8 mm.
+    let k = run.held.stiffness_n_per_mm;
+    let slope = (at(start + 999).z - at(start + 799).z) / -(4.0 * 200.0 / 1000.0);
+    println!(
+        "the local model's K diagonal {:?} N/mm; the lift's last 0.8 mm sloped {slope:.4} N/mm",
+        k.diagonal()
+    );
+    assert!(run.held.attached && run.held.in_contact);
+    assert!(k.diagonal().iter().all(|&d| d > 0.0), "K {k}");
+    assert!(
+        (k[(2, 2)] - slope).abs() < 0.2 * slope,
+        "K_zz {} N/mm against the lift's slope {slope} N/mm",
+        k[(2, 2)]
     );
     // Open the jaws: the lobe lets go and settles back toward its rest shape.
     let bite = top - BITE_DEPTH_MM;
