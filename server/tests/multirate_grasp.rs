@@ -161,6 +161,17 @@ fn a_grasped_liver_lobe_follows_the_jaws_pulls_back_and_settles_when_let_go() {
     assert_eq!(run.report.grasps_taken, 1, "the jaws took the lobe");
     assert!(run.held_after_take > 0);
     assert_eq!(run.report.attachments_slipped, 0, "nothing slipped at 4 mm");
+    // The take: the push passes to the held tissue's model at the first hand-off after the jaws close, never
+    // stepping by more than 0.05 N a tick (the pad's grasp holds the same bound).
+    let take_step = run.forces[900..1100]
+        .windows(2)
+        .map(|w| (w[1] - w[0]).norm())
+        .fold(0.0f32, f32::max);
+    println!("the take stepped the force by {take_step:.4} N at most");
+    assert!(
+        take_step <= 0.05,
+        "the take stepped the force by {take_step} N"
+    );
     // The pull points back down at the organ, and grows with the lift.
     let at = |tick: usize| run.forces[tick];
     let start = 1100; // the lift starts
