@@ -348,11 +348,6 @@ impl BladePath {
             .flat_map(|(_, triangles)| triangles)
             .any(|t| t.distance_to_local_point(point, true) <= tolerance)
     }
-
-    /// Forget object `object`'s vertices (its topology was reset).
-    pub fn forget(&mut self, object: u16) {
-        self.on_cut.retain(|c| c.object != object);
-    }
 }
 
 #[cfg(test)]
