@@ -264,6 +264,16 @@ fn a_hard_pull_slips_out_of_the_jaws() {
         run.report.attachments_slipped > 0,
         "a 25 mm lift slipped nothing"
     );
+    // The pull grew until the points slipped (each lets go past 0.3 N), then fell to nothing.
+    let peak = run.forces.iter().map(|f| f.norm()).fold(0.0f32, f32::max);
+    let drop = run
+        .forces
+        .windows(2)
+        .map(|w| w[0].norm() - w[1].norm())
+        .fold(0.0f32, f32::max);
+    println!("peak pull {peak:.3} N; the largest fall in a tick {drop:.3} N");
+    assert!(peak > 0.3, "the pull peaked at {peak} N before slipping");
+    assert_eq!(held_now, Vector3::zeros(), "nothing is held after the slip");
 }
 
 #[test]
