@@ -460,7 +460,7 @@ impl StepLane {
                     rotation: UnitQuaternion::identity(),
                     contacts: ProbeContacts::with_capacity(4096).sticky(),
                     grasp: JobGrasp::new(),
-                    stiffness: ContactStiffness::new(model.node_count()),
+                    stiffness: ContactStiffness::new(model.node_count()).warm_started(),
                     contact: LaneContact::default(),
                 })
                 .collect(),

@@ -231,8 +231,58 @@ impl ContactStiffness {
                 .sqrt();
             self.converged[dir] = self.b_norm[dir].is_nan() || self.b_norm[dir] <= 1e-12;
         }
+        // A warm start: the last solve's free displacements, when it covered this same set (the tolerance
+        // stays relative to b).
+        if self.warm_start
+            && self.warm_full == self.full
+            && self.warm_nodes.len() == m
+            && self.warm_nodes == self.nodes
+        {
+            self.start_from_last_solve();
+        }
         self.iterations = 0;
         self.solving = true;
+    }
+
+    /// `u_F <- u_F(last)`, `r <- b - A_FF u_F`, `p <- M^-1 r`, per unconverged direction. No allocation.
+    #[allow(clippy::needless_range_loop)] // several buffers indexed in step
+    fn start_from_last_solve(&mut self) {
+        let m = self.nodes.len();
+        for dir in 0..3 {
+            if self.converged[dir] {
+                continue;
+            }
+            // The free part alone, in p (scratch until it is set below).
+            let mut free = std::mem::take(&mut self.p[dir]);
+            for l in 0..m {
+                free[l] = if self.role[l] == FREE {
+                    self.warm_u[dir][l]
+                } else {
+                    Vec3::zeros()
+                };
+            }
+            let mut a_free = std::mem::take(&mut self.ap[dir]);
+            self.apply(&free, &mut a_free);
+            let mut rz = 0.0;
+            for l in 0..m {
+                if self.role[l] != FREE {
+                    continue;
+                }
+                self.u[dir][l] = free[l];
+                self.r[dir][l] -= a_free[l];
+                let z = self.precondition(l, &self.r[dir][l]);
+                free[l] = z;
+                rz += self.r[dir][l].dot(&z);
+            }
+            for l in 0..m {
+                if self.role[l] != FREE {
+                    free[l] = Vec3::zeros();
+                }
+            }
+            self.p[dir] = free;
+            self.ap[dir] = a_free;
+            self.rz[dir] = rz;
+        }
     }
 
     /// Every tetrahedron touching the local set, with what its volume terms need at `x`.

@@ -210,5 +210,14 @@ impl ContactStiffness {
             nodes: m as u32,
         });
         self.solving = false;
+        if self.warm_start {
+            self.warm_nodes.clear();
+            self.warm_nodes.extend_from_slice(&self.nodes);
+            for (warm, u) in self.warm_u.iter_mut().zip(&self.u) {
+                warm.clear();
+                warm.extend_from_slice(u);
+            }
+            self.warm_full = self.full;
+        }
     }
 }
