@@ -54,11 +54,19 @@ use crate::tissue::{
 pub const MAX_SOLVE_TICKS_PER_STEP: u32 = 1;
 
 /// The same while the tool's jaws hold the object. Held tissue stiffens as it is stretched, and its full 3x3
-/// `K` takes three solves' work. Lifting the liver's lobe at 4 mm/s (`server/tests/multirate_grasp.rs`), the
-/// force jumped at the worst hand-off by 3.2 times what the model rendered over the step before at one or two
-/// ticks' budget (a solve spanned many steps, and its `K` was stale), by 0.05 times at four; eight leaves
-/// room for a bigger bite.
-pub const MAX_GRASP_SOLVE_TICKS_PER_STEP: u32 = 8;
+/// `K` takes three solves' work. Lifting the liver's lobe at 4 mm/s (`server/tests/multirate_grasp.rs`, solves
+/// started cold over 8 rings), the force jumped at the worst hand-off by 3.2 times what the model rendered over
+/// the step before at one or two ticks' budget (a solve spanned many steps, and its `K` was stale), by 0.05
+/// times at four.
+pub const MAX_GRASP_SOLVE_TICKS_PER_STEP: u32 = 4;
+
+/// Graph steps a multi-rate object's contact solves cover (the tick's cover
+/// [`ContactStiffness::RINGS`], 8). A multi-rate object is large and coarse: 8 rings of the liver's 3-5 mm
+/// elements took in 1,623 of its 3,100 nodes, and a grasp's solve nearly doubled its step (49.9 against 26.7 ms
+/// with two tools, one grasping as it strokes; `cargo bench -p sinew-server --bench tick -- --world
+/// worlds/liver.toml --tools 2 --grasp`). At 5 the grasped step costs 28.7 ms, and `K` along the lift is 11%
+/// stiffer than the force's own slope (2% at 8): stiffer errs on the stable side.
+pub const SOLVE_RINGS: u32 = 5;
 
 /// What one finished step of a multi-rate object did (summed into the tick's `StepReport` at its hand-off).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -460,7 +468,9 @@ impl StepLane {
                     rotation: UnitQuaternion::identity(),
                     contacts: ProbeContacts::with_capacity(4096).sticky(),
                     grasp: JobGrasp::new(),
-                    stiffness: ContactStiffness::new(model.node_count()).warm_started(),
+                    stiffness: ContactStiffness::new(model.node_count())
+                        .warm_started()
+                        .with_rings(SOLVE_RINGS),
                     contact: LaneContact::default(),
                 })
                 .collect(),

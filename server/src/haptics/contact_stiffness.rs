@@ -165,6 +165,8 @@ pub struct ContactStiffness {
     warm_nodes: Vec<u32>,
     warm_u: [Vec<Vec3>; 3],
     warm_full: bool,
+    /// Graph steps the local problem covers ([`Self::RINGS`] unless [`Self::with_rings`]).
+    rings: u32,
 }
 
 impl ContactStiffness {
@@ -213,6 +215,7 @@ impl ContactStiffness {
             ap: [vectors(), vectors(), vectors()],
             warm_nodes: Vec::with_capacity(m),
             warm_u: [vectors(), vectors(), vectors()],
+            rings: Self::RINGS,
             ..Self::default()
         }
     }
@@ -230,6 +233,13 @@ impl ContactStiffness {
     /// start's within the solve's tolerance, so the tick's own solves (and their golden traces) stay cold.
     pub fn warm_started(mut self) -> Self {
         self.warm_start = true;
+        self
+    }
+
+    /// Cover `rings` graph steps around the held nodes instead of [`Self::RINGS`] (a coarse mesh: fewer rings
+    /// reach as far).
+    pub fn with_rings(mut self, rings: u32) -> Self {
+        self.rings = rings;
         self
     }
 

@@ -120,7 +120,7 @@ impl ContactStiffness {
         }
         // Rings of free nodes around them (breadth first over the spring graph).
         let mut ring_start = 0;
-        for _ in 0..Self::RINGS {
+        for _ in 0..self.rings {
             let ring_end = self.nodes.len();
             if ring_start == ring_end {
                 break;
