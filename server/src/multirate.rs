@@ -107,7 +107,7 @@ pub struct LaneContact {
     pub grasp_stiffness_n_per_mm: Matrix3<f32>,
     /// Its damping, N s/mm.
     pub grasp_damping_n_s_per_mm: Matrix3<f32>,
-    /// Points the jaws held during the step (0: no grasp).
+    /// Nodes the jaws' points moved during the step (0: no grasp).
     pub grasped_points: u32,
 }
 
@@ -299,7 +299,8 @@ impl StepJob {
 
     /// The tool's contact at the end of the step: the held nodes' push, the held points' pull, and the
     /// contact stiffness solve (over both) advanced by `ticks` ticks' budget, at most
-    /// [`MAX_SOLVE_TICKS_PER_STEP`] (a solve longer than that goes on in the next step, as on the tick).
+    /// [`MAX_SOLVE_TICKS_PER_STEP`] ([`MAX_GRASP_SOLVE_TICKS_PER_STEP`] while the jaws hold it; a solve longer
+    /// than that goes on in the next step, as on the tick).
     fn measure(
         tool: &mut JobTool,
         model: &MassSpringModel,
