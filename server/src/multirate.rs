@@ -29,15 +29,24 @@
 //! away), scaled by the jaws' grip. The tool's turning is not in the model (position only); the lobe follows
 //! the jaws one step period late.
 //!
-//! Must not: touch threads or clocks (the node's runner does), or change the model: a multi-rate object is
-//! never cut, torn or shrunk by burns (the loader and the sim refuse them), so the job's copy stays the
-//! object's model.
+//! Cutting. The tick cuts a multi-rate object as it cuts any object, on its latest finished step (the mirror),
+//! the moment a blade sweeps, and logs what the cut did to the vertices (`multirate/job_topology.rs`: moved,
+//! split, copied). The step under way knows nothing of it: when it comes home, the log replays on its newer
+//! state before it becomes the mirror, and the job takes the cut model (a copy), a fresh integrator and guard,
+//! and starts its contact solves over (the last `K` stays until one finishes). The cut shows at once; the
+//! tissue moves on it from the next step.
+//!
+//! Must not: touch threads or clocks (the node's runner does), or change the model itself: the sim cuts the
+//! object's, and the job takes a copy at a hand-off. Tearing and burn shrink are refused by the loader (they
+//! would change the model every tick).
 
 mod job_grasp;
+mod job_topology;
 
 use nalgebra::{Matrix3, UnitQuaternion};
 
 use self::job_grasp::JobGrasp;
+pub use self::job_topology::TopologyLog;
 
 use crate::collision::ToolCollider;
 use crate::haptics::ContactStiffness;
@@ -245,6 +254,24 @@ impl Stepped for StepJob {
 }
 
 impl StepJob {
+    /// Take the object's new `model` (cut since this job left; its state already has the model's vertices) with
+    /// a fresh `integrator`: the guard is made again, the energy forgotten, each tool's probe contacts and
+    /// contact solve start over (their node sets were of the old model; the last solve's `K` and the contact
+    /// the finished step measured stay until the next ones: a cut does not drop the force). Allocates.
+    fn take_model(&mut self, model: &MassSpringModel, integrator: Box<dyn Integrator>) {
+        self.model.clone_from(model);
+        let n = model.node_count();
+        self.state.forces_n.resize(n, Vec3::zeros());
+        self.state.external_forces_n.resize(n, Vec3::zeros());
+        self.integrator = integrator;
+        self.guard = DivergenceGuard::new(model);
+        self.energy_n_mm = None;
+        for tool in &mut self.tools {
+            tool.contacts.forget();
+            tool.stiffness.topology_changed(n);
+        }
+    }
+
     /// Run the step: integrate `step_dt_s` in substeps of at most `max_dt_s`, pushing the tissue out of each
     /// active tool after every substep; rerun with halved substeps while the guard finds it broken or gaining
     /// energy the tools cannot have put in (as `Sim::step` does), reset it to rest if still broken at the
@@ -431,6 +458,9 @@ pub struct StepLane {
     /// The runner lost a job (its thread died): the object stays where it was, and pushes on nothing.
     lost: bool,
     contacts: Vec<LaneContact>,
+    /// What cuts did to the object's vertices and model since the last hand-off (replayed on the step under
+    /// way when it comes home).
+    topology: TopologyLog,
 }
 
 impl StepLane {
@@ -484,6 +514,7 @@ impl StepLane {
             in_flight: false,
             lost: false,
             contacts: vec![LaneContact::default(); tools.len()],
+            topology: TopologyLog::default(),
         }
     }
 
@@ -509,20 +540,46 @@ impl StepLane {
 
     /// Take the step under way back: copy its positions and velocities into `mirror` and its contacts into the
     /// lane. Returns its report (None when nothing was under way). A lost job counts as a fault: `mirror` stays
-    /// where it was and every contact pushes on nothing. No allocation.
-    pub fn collect(&mut self, mirror: &mut TissueState) -> Option<JobReport> {
+    /// where it was and every contact pushes on nothing.
+    ///
+    /// If the object was cut since the last hand-off (`model` is then not the job's: see
+    /// [`Self::topology_mut`]), the cut's changes to the vertices replay on the step's state first, and the job
+    /// takes `model` and a fresh `integrator` for its next step (its guard, contact solves and probe contacts
+    /// start again; allocates: a cut is an event). A step whose state the log cannot replay on (a bug) is
+    /// dropped: the mirror keeps the cut's own state, and the job starts from it. No allocation otherwise.
+    pub fn collect(
+        &mut self,
+        mirror: &mut TissueState,
+        model: &MassSpringModel,
+        integrator: impl FnOnce() -> Box<dyn Integrator>,
+    ) -> Option<JobReport> {
         if !self.in_flight {
             return None;
         }
         self.in_flight = false;
-        let Some(job) = self.runner.collect() else {
+        let Some(mut job) = self.runner.collect() else {
             self.lost = true;
+            self.topology.clear();
             self.contacts.fill(LaneContact::default());
             return Some(JobReport {
                 faults: 1,
                 ..JobReport::default()
             });
         };
+        let mut report = job.report;
+        if self.topology.pending() {
+            let replayed = self.topology.replay(&mut job.state)
+                && job.state.positions_mm.len() == mirror.positions_mm.len();
+            if !replayed {
+                job.state.positions_mm.clone_from(&mirror.positions_mm);
+                job.state
+                    .velocities_mm_s
+                    .clone_from(&mirror.velocities_mm_s);
+                report.faults += 1;
+            }
+            job.take_model(model, integrator());
+            self.topology.clear();
+        }
         mirror.positions_mm.copy_from_slice(&job.state.positions_mm);
         mirror
             .velocities_mm_s
@@ -530,9 +587,14 @@ impl StepLane {
         for (slot, tool) in self.contacts.iter_mut().zip(&job.tools) {
             *slot = tool.contact;
         }
-        let report = job.report;
         self.home = Some(job);
         Some(report)
+    }
+
+    /// Where the sim logs what a cut does to the object's vertices and model (the tick cuts the mirror; the
+    /// step under way replays the log when it comes home).
+    pub fn topology_mut(&mut self) -> &mut TopologyLog {
+        &mut self.topology
     }
 
     /// Set tool `t`'s pose and broad-phase candidates for the next step (ignored while a step is under way or

@@ -61,7 +61,7 @@ use thiserror::Error;
 
 use crate::haptics::EnergyBudget;
 use crate::multirate::StepRunner;
-use crate::tissue::{TieSet, step_guarded};
+use crate::tissue::{TieSet, integrator_for, step_guarded};
 use sinew_parallel::{ChunkRunner, for_chunks_mut};
 
 /// Why a world could not become a simulation.
@@ -204,7 +204,10 @@ impl Sim {
             let Some(lane) = object.lane.as_mut().filter(|l| l.due(tick)) else {
                 continue;
             };
-            if let Some(job) = lane.collect(&mut object.state) {
+            let spec = object.integrator_spec;
+            if let Some(job) = lane.collect(&mut object.state, &object.model, || {
+                integrator_for(spec.0, spec.1)
+            }) {
                 report.substeps += job.substeps;
                 report.retries += job.retries;
                 report.solver_iterations += job.solver_iterations;

@@ -7,9 +7,10 @@
 mod common;
 
 use common::mesh_pieces::{assert_closed_surface, pieces};
+use common::{quality, worst_kept_quality};
 use nalgebra::Vector3;
 use sinew_server::interaction::{BladeSweep, CutScratch, GraspSpec, JawInput};
-use sinew_server::sim::{Sim, SimObject, ToolCommand, ToolOutput};
+use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::tissue::stability::max_stable_dt_s;
 use sinew_server::tissue::{IntegratorName, MassSpringModel, TieSet};
 use sinew_server::world::{InstrumentSpec, ToolShapeSpec, World, load_world};
@@ -332,30 +333,6 @@ fn a_circular_cut_in_the_pad_follows_the_blade_and_frees_a_disc() {
     );
     assert_eq!(pieces(model.triangles(), model.node_count()), 2);
     settles_unturned(&mut sim, 0, &before);
-}
-
-/// A tetrahedron's shape quality, `6 sqrt(2) V / l_rms^3`: 1 for a regular one, 0 for a flat one (signed).
-/// The least share of its rest quality any tetrahedron of `o` keeps now.
-fn worst_kept_quality(o: &SimObject) -> f32 {
-    o.model
-        .tets()
-        .tets
-        .iter()
-        .map(|t| quality(&o.state.positions_mm, t) / quality(o.model.rest_positions_mm(), t))
-        .fold(f32::INFINITY, f32::min)
-}
-
-fn quality(x: &[Vec3], tet: &[u32; 4]) -> f32 {
-    let p = tet.map(|v| x[v as usize]);
-    let mut sum = 0.0;
-    for i in 0..4 {
-        for j in i + 1..4 {
-            sum += (p[i] - p[j]).norm_squared();
-        }
-    }
-    let l_rms = (sum / 6.0).sqrt();
-    let volume = (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(p[3] - p[0])) / 6.0;
-    6.0 * 2f32.sqrt() * volume / (l_rms * l_rms * l_rms)
 }
 
 /// The worst shape quality a cut may leave in the block, as a share of the uncut block's worst.

@@ -9,21 +9,14 @@ mod common;
 #[path = "common/counting_allocator.rs"]
 mod counting_allocator;
 
-use counting_allocator::{Counting, assert_counting_works, count_all_threads};
+use counting_allocator::{Counting, assert_counting_works, count_all_threads, serial};
+
+// The tests of this binary run one at a time (`serial`): the allocation count sees every thread's allocations.
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-/// The tests of this binary run one at a time: the allocation count sees every thread's allocations.
-fn serial() -> std::sync::MutexGuard<'static, ()> {
-    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    SERIAL
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-}
-
 use nalgebra::Vector3;
-use sinew_server::interaction::JawInput;
 use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::sim::{Sim, StepReport, ToolCommand, ToolOutput};
 use sinew_server::world::{World, load_world};
@@ -56,15 +49,7 @@ fn surface_z_mm(sim: &Sim) -> f32 {
 fn grasper_at(bottom_z_mm: f32, closed: bool) -> [ToolCommand; 2] {
     [
         ToolCommand::default(),
-        ToolCommand {
-            active: true,
-            position_device_mm: [0.0, 0.0, bottom_z_mm + RADIUS_MM],
-            jaws: JawInput {
-                buttons: u32::from(closed),
-                jaw_angle_rad: 0.0,
-            },
-            ..ToolCommand::default()
-        },
+        common::jaws_at([0.0, 0.0, bottom_z_mm + RADIUS_MM], closed),
     ]
 }
 
@@ -296,18 +281,12 @@ fn grasping_the_organ_on_its_own_thread_gives_the_same_bits_as_inline() {
     let a = take_and_lift(&mut inline, 4.0);
     let b = take_and_lift(&mut threaded, 4.0);
     assert_eq!(a.report.grasps_taken, 1);
-    for (k, (fa, fb)) in a.forces.iter().zip(&b.forces).enumerate() {
-        for axis in 0..3 {
-            assert_eq!(
-                fa[axis].to_bits(),
-                fb[axis].to_bits(),
-                "tick {k}: inline {fa:?}, threaded {fb:?}"
-            );
-        }
-    }
-    assert_eq!(
-        common::position_bits(&inline.objects[0]),
-        common::position_bits(&threaded.objects[0])
+    let one_tool = |forces: &[Vector3<f32>]| forces.iter().map(|f| [*f]).collect::<Vec<_>>();
+    common::assert_same_bits(
+        &one_tool(&a.forces),
+        &one_tool(&b.forces),
+        &inline,
+        &threaded,
     );
 }
 

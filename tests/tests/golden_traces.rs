@@ -348,6 +348,7 @@ fn every_shipped_world_has_a_golden_trace() {
         "fem_block",
         "grasp_pull",
         "liver",
+        "liver_incision",
         "pad",
         "pad_stiff",
         "suture",
@@ -407,6 +408,21 @@ golden_world!(
 golden_world!(tet_block, "tet_block.toml", DURATION_S);
 golden_world!(fem_block, "fem_block.toml", HEAVY_DURATION_S);
 golden_world!(liver, "liver.toml", DURATION_S);
+
+/// The liver stepped on its own thread, cut by the demo's scalpel while the grasper pulls: the trace covers the
+/// cut carried into the organ's step at a hand-off.
+#[test]
+fn liver_incision() {
+    let (_, topology_versions) = check(
+        "liver_incision",
+        &shipped("liver_incision.toml"),
+        DURATION_S,
+    );
+    assert!(
+        topology_versions.first().is_some_and(|&v| v > 0),
+        "the scalpel never cut the liver: topology versions {topology_versions:?}"
+    );
+}
 golden_world!(tug_of_war, "tug_of_war.toml", DURATION_S);
 golden_world!(suture_block, "suture_block.toml", DURATION_S);
 golden_world!(suture, "suture.toml", DURATION_S);

@@ -251,6 +251,18 @@ impl ContactStiffness {
         self.release_marks();
     }
 
+    /// The object's topology changed (a cut) and it now has `node_count` nodes: the solve under way, of the old
+    /// topology, is dropped, and so is the warm start; the last finished result stays until a solve on the new
+    /// topology finishes (a cut softens the tissue: the old, stiffer `K` errs on the stable side, where none
+    /// would render a held lobe as slack). Allocates when the object grew.
+    pub fn topology_changed(&mut self, node_count: usize) {
+        self.solving = false;
+        self.warm_nodes.clear();
+        self.release_marks();
+        self.local_of.resize(node_count, NONE);
+        self.pressure_of.resize(node_count, NONE);
+    }
+
     /// Advance the solve by one tick's budget; start a new one from the current state when none is under way.
     /// `held` are the nodes the tool holds and `tool_normals` the tool's outward normals there; `grasped` are
     /// nodes its jaws hold, which follow the tool's whole motion (a grasp's pull is solved like a press). Returns true

@@ -34,6 +34,9 @@ impl SimObject {
             state.positions_mm[v] = state.positions_mm[v].lerp(&state.positions_mm[w], m.t);
             state.velocities_mm_s[v] =
                 state.velocities_mm_s[v].lerp(&state.velocities_mm_s[w], m.t);
+            if let Some(lane) = &mut self.lane {
+                lane.topology_mut().moved(m.vertex, m.toward, m.t);
+            }
         }
         for s in &change.new_vertices {
             let (a, b) = (s.a as usize, s.b as usize);
@@ -44,6 +47,9 @@ impl SimObject {
             state.velocities_mm_s.push(v);
             self.burn
                 .push(burn.round().clamp(0.0, f32::from(u16::MAX)) as u16);
+            if let Some(lane) = &mut self.lane {
+                lane.topology_mut().split(s.a, s.b, s.t);
+            }
         }
         // The collider takes the subdivided surface (the parts' triangles), and refits every leaf once if
         // moved vertices reshaped triangles that were not re-pointed.
@@ -91,6 +97,9 @@ impl SimObject {
             state.positions_mm.push(x);
             state.velocities_mm_s.push(v);
             self.burn.push(b);
+            if let Some(lane) = &mut self.lane {
+                lane.topology_mut().copied(p as u32);
+            }
         }
         Some((opening, all))
     }
@@ -151,7 +160,7 @@ impl Sim {
         let Ok(object_id) = u16::try_from(object) else {
             return Opening::default();
         };
-        let Some(o) = self.objects.get_mut(object).filter(|o| o.lane.is_none()) else {
+        let Some(o) = self.objects.get_mut(object) else {
             return Opening::default();
         };
         let margin_mm = scratch.margin_for(&o.model);

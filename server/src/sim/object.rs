@@ -113,6 +113,10 @@ impl SimObject {
     /// What is built from the model's nodes and springs made again for it (after its topology or masses
     /// changed): the guard, a fresh integrator, the region of deformation.
     pub(super) fn remake_for_model(&mut self) {
+        if let Some(lane) = &mut self.lane {
+            // Its step job takes the new model at the next hand-off.
+            lane.topology_mut().model_changed();
+        }
         self.guard = DivergenceGuard::new(&self.model);
         self.integrator = integrator_for(self.integrator_spec.0, self.integrator_spec.1);
         self.region = self

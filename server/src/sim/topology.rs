@@ -20,8 +20,9 @@ impl Sim {
     /// before the cut holds on after it. Allocates (a cut or tear is an event, not the steady tick). An object
     /// index out of range, or seams that open nothing, change nothing.
     pub fn open_seams(&mut self, object: usize, seams: &[Facet]) -> Opening {
-        // A multi-rate object's model is stepped on its own thread: it is never cut (see crate::multirate).
-        let Some(o) = self.objects.get_mut(object).filter(|o| o.lane.is_none()) else {
+        // A multi-rate object's model and mirror are cut here as any object's; its step under way takes the
+        // change at the next hand-off (the lane's topology log, crate::multirate).
+        let Some(o) = self.objects.get_mut(object) else {
             return Opening::default();
         };
         // A tear opens mid-tick: the collider first follows the tick's motion (the tree is kept across the
@@ -55,6 +56,9 @@ impl Sim {
             state.positions_mm.push(x);
             state.velocities_mm_s.push(v);
             o.burn.push(b);
+            if let Some(lane) = &mut o.lane {
+                lane.topology_mut().copied(p as u32);
+            }
         }
         let mut retargeted = opening.changed_triangles.clone();
         retargeted.sort_unstable();
@@ -84,7 +88,7 @@ impl Sim {
     /// Cut object `object` where a blade swept this tick ([`crate::interaction::swept_seams`] at the current
     /// positions, then [`Self::open_seams`]; a tissue whose cut follows the blade: [`Self::cut_following_blade`]).
     pub fn cut(&mut self, object: usize, sweep: &BladeSweep, scratch: &mut CutScratch) -> Opening {
-        let Some(o) = self.objects.get(object).filter(|o| o.lane.is_none()) else {
+        let Some(o) = self.objects.get(object) else {
             scratch.seams.clear();
             return Opening::default();
         };

@@ -77,6 +77,20 @@ pub fn tet_volume_mm3(x: &[Vec3], tet: [u32; 4]) -> f32 {
     (b - a).cross(&(c - a)).dot(&(d - a)) / 6.0
 }
 
+/// A tetrahedron's shape quality, `6 sqrt(2) V / l_rms^3` (`V` signed, `l_rms` the root mean square of its six
+/// edges): 1 for a regular tetrahedron, 0 for a flat one, negative for one turned over. Dimensionless.
+pub fn tet_shape_quality(x: &[Vec3], tet: [u32; 4]) -> f32 {
+    let p = tet.map(|v| x[v as usize]);
+    let mut sum = 0.0;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            sum += (p[i] - p[j]).norm_squared();
+        }
+    }
+    let l_rms = (sum / 6.0).sqrt();
+    6.0 * 2f32.sqrt() * tet_volume_mm3(x, tet) / (l_rms * l_rms * l_rms)
+}
+
 /// Gradients of a tetrahedron's volume with respect to its four vertices, mm^2.
 #[inline(always)]
 pub fn tet_volume_gradients(x: &[Vec3], tet: [u32; 4]) -> [Vec3; 4] {

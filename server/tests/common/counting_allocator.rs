@@ -84,3 +84,11 @@ pub fn assert_counting_works() {
     let here = count_this_thread(|| drop(std::hint::black_box(vec![1u8; 64])));
     assert!(all > 0 && here > 0, "the counting allocator is not in use");
 }
+
+/// Run the tests of a binary that counts across all threads one at a time: hold the guard for the test.
+pub fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    SERIAL
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}

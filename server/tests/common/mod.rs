@@ -268,3 +268,56 @@ pub fn position_bits(object: &sinew_server::sim::SimObject) -> Vec<u32> {
         .flat_map(|p| p.iter().map(|c| c.to_bits()))
         .collect()
 }
+
+/// A tetrahedron's shape quality at `x` ([`sinew_server::tissue::volume::tet_shape_quality`]: 1 regular, 0
+/// flat, negative turned over).
+pub fn quality(x: &[sinew_server::tissue::Vec3], tet: &[u32; 4]) -> f32 {
+    sinew_server::tissue::volume::tet_shape_quality(x, *tet)
+}
+
+/// The least share of its rest quality any tetrahedron of `o` keeps now.
+pub fn worst_kept_quality(o: &sinew_server::sim::SimObject) -> f32 {
+    o.model
+        .tets()
+        .tets
+        .iter()
+        .map(|t| quality(&o.state.positions_mm, t) / quality(o.model.rest_positions_mm(), t))
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// Two runs of one script (inline and threaded, say) gave the same bits: every tool's force every tick
+/// (`a[tick][tool]`) and the final positions of object 0 of `sim_a` and `sim_b`.
+pub fn assert_same_bits<T: AsRef<[sinew_server::tissue::Vec3]>>(
+    a: &[T],
+    b: &[T],
+    sim_a: &Sim,
+    sim_b: &Sim,
+) {
+    assert_eq!(a.len(), b.len(), "the runs differ in length");
+    for (k, (fa, fb)) in a.iter().zip(b).enumerate() {
+        for (t, (fa, fb)) in fa.as_ref().iter().zip(fb.as_ref()).enumerate() {
+            assert_eq!(
+                fa.map(f32::to_bits),
+                fb.map(f32::to_bits),
+                "tick {k}, tool {t}: {fa:?} against {fb:?}"
+            );
+        }
+    }
+    assert_eq!(
+        position_bits(&sim_a.objects[0]),
+        position_bits(&sim_b.objects[0])
+    );
+}
+
+/// A tool held at `position_device_mm` (device frame) with its jaws closed by button 1 (`closed`) or open.
+pub fn jaws_at(position_device_mm: [f32; 3], closed: bool) -> ToolCommand {
+    ToolCommand {
+        active: true,
+        position_device_mm,
+        jaws: sinew_server::interaction::JawInput {
+            buttons: u32::from(closed),
+            jaw_angle_rad: 0.0,
+        },
+        ..ToolCommand::default()
+    }
+}

@@ -1,6 +1,6 @@
 use super::*;
 use crate::tissue::KUHN;
-use crate::tissue::volume::tet_volume_mm3;
+use crate::tissue::volume::{tet_shape_quality, tet_volume_mm3};
 
 /// A sheet of `nx` x `ny` unit squares in z = 0, each split into two triangles, every edge a spring.
 fn sheet(nx: u32, ny: u32) -> ModelParts {
@@ -164,17 +164,9 @@ fn plane_crossings(model: &MassSpringModel, normal: Vec3, offset: f32) -> Vec<Ed
         .collect()
 }
 
-/// A tetrahedron's shape quality: `6 sqrt(2) V / l_rms^3`, 1 for a regular one, 0 for a flat one.
+/// A tetrahedron's shape quality, unsigned (see [`tet_shape_quality`]).
 fn quality(rest: &[Vec3], tet: &[u32; 4]) -> f32 {
-    let x = tet.map(|v| rest[v as usize]);
-    let mut sum = 0.0;
-    for i in 0..4 {
-        for j in i + 1..4 {
-            sum += (x[i] - x[j]).norm_squared();
-        }
-    }
-    let l_rms = (sum / 6.0).sqrt();
-    6.0 * 2f32.sqrt() * tet_volume_mm3(rest, *tet).abs() / (l_rms * l_rms * l_rms)
+    tet_shape_quality(rest, *tet).abs()
 }
 
 /// The worst tetrahedron a cut may leave, as a share of the worst before it (see [`quality`]).
