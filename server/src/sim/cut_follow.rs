@@ -163,15 +163,9 @@ impl Sim {
         let Some(o) = self.objects.get_mut(object) else {
             return Opening::default();
         };
-        let margin_mm = scratch.margin_for(&o.model);
-        scratch.path.plan_sweep(
-            object_id,
-            &o.model,
-            &o.state.positions_mm,
-            sweep,
-            margin_mm,
-            &o.tied,
-        );
+        scratch
+            .path
+            .plan_sweep(object_id, &o.model, &o.state.positions_mm, sweep, &o.tied);
         let change = if scratch.path.plan.is_empty() {
             Subdivision::default()
         } else {
