@@ -36,9 +36,12 @@
 //! and starts its contact solves over (the last `K` stays until one finishes). The cut shows at once; the
 //! tissue moves on it from the next step.
 //!
-//! Must not: touch threads or clocks (the node's runner does), or change the model itself: the sim cuts the
-//! object's, and the job takes a copy at a hand-off. Tearing and burn shrink are refused by the loader (they
-//! would change the model every tick).
+//! Tearing goes the same way: the sim tests a multi-rate object's strain on the ticks that take back its step
+//! (its state changes only then), and a tear opens the mirror and is logged like a cut.
+//!
+//! Must not: touch threads or clocks (the node's runner does), or change the model itself: the sim cuts and
+//! tears the object's, and the job takes a copy at a hand-off. Burn shrink is refused by the loader (it would
+//! change the model every tick a tip burns).
 
 mod job_grasp;
 mod job_topology;

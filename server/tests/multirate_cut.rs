@@ -20,7 +20,7 @@ use nalgebra::{Vector2, Vector3};
 use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::sim::{Sim, SimObject, StepReport, ToolCommand, ToolOutput};
 use sinew_server::tissue::Vec3;
-use sinew_server::world::{World, load_world};
+use sinew_server::world::{InstrumentSpec, World, load_world};
 
 use common::worst_kept_quality;
 
@@ -120,6 +120,7 @@ fn drive(sim: &mut Sim, run: &mut Run, commands: impl Iterator<Item = [ToolComma
         r.attachments_slipped += report.attachments_slipped;
         r.vertices_split += report.vertices_split;
         r.seams_cut += report.seams_cut;
+        r.seams_torn += report.seams_torn;
         r.retries += report.retries;
     }
 }
@@ -386,4 +387,71 @@ fn after_the_cut_the_organs_ticks_allocate_nothing() {
             "threaded {threaded}: {allocations} allocations"
         );
     }
+}
+
+/// The liver made to tear at 30% strain, its grasper holding on up to 5 N a point.
+fn tearing_world() -> World {
+    let mut world = world();
+    world.objects[0].material.tear_strain = Some(0.3);
+    let InstrumentSpec::Grasper(spec) = &mut world.tools[1].instrument else {
+        panic!("tool 1 is the grasper");
+    };
+    spec.slip_force_n = 5.0;
+    world
+}
+
+/// The grasper takes the lobe and lifts it `lift_mm` over 1 s, then holds 1 s; the scalpel stays away.
+fn take_and_tear(sim: &mut Sim, lift_mm: f32) -> Run {
+    let mut run = Run::default();
+    let top = surface_z_mm(&sim.objects[0], GRASPER_X_MM, 0.0);
+    let bite = top - BITE_DEPTH_MM;
+    run.vertices.0 = sim.objects[0].model.node_count();
+    let idle = ToolCommand::default();
+    let at = |z: f32, closed: bool| [idle, grasper_at(Vec3::zeros(), z, closed)];
+    drive(
+        sim,
+        &mut run,
+        (0..500).map(|k| {
+            at(
+                top + 10.0 - (10.0 + BITE_DEPTH_MM) * (k + 1) as f32 / 500.0,
+                false,
+            )
+        }),
+    );
+    drive(sim, &mut run, (0..400).map(|_| at(bite, false)));
+    drive(sim, &mut run, (0..200).map(|_| at(bite, true)));
+    drive(
+        sim,
+        &mut run,
+        (0..1000).map(|k| at(bite + lift_mm * (k + 1) as f32 / 1000.0, true)),
+    );
+    drive(sim, &mut run, (0..1000).map(|_| at(bite + lift_mm, true)));
+    run.vertices.1 = sim.objects[0].model.node_count();
+    run
+}
+
+#[test]
+fn a_liver_lobe_pulled_past_its_limit_tears_on_its_own_thread_as_inline() {
+    let _serial = serial();
+    let mut inline = Sim::new(&tearing_world()).unwrap();
+    let mut threaded = Sim::new(&tearing_world()).unwrap();
+    threaded.set_step_runners(|object| Box::new(ThreadRunner::spawn(object).unwrap()));
+    let a = take_and_tear(&mut inline, 25.0);
+    let b = take_and_tear(&mut threaded, 25.0);
+    let o = &inline.objects[0];
+    println!(
+        "lifted 25 mm: {} facets torn, {} vertices added ({} -> {}), {} points slipped; the pull peaked at {:.3} N",
+        a.report.seams_torn,
+        a.vertices.1 - a.vertices.0,
+        a.vertices.0,
+        a.vertices.1,
+        a.report.attachments_slipped,
+        a.forces.iter().map(|f| f[1].norm()).fold(0.0f32, f32::max),
+    );
+    assert_eq!(a.report.grasps_taken, 1, "the jaws took the lobe");
+    assert!(a.report.seams_torn > 0, "a 25 mm lift tore nothing");
+    assert!(a.vertices.1 > a.vertices.0, "the tear opened nothing");
+    assert_eq!(o.state.positions_mm.len(), o.model.node_count());
+    assert!(o.state.is_finite());
+    common::assert_same_bits(&a.forces, &b.forces, &inline, &threaded);
 }

@@ -1208,10 +1208,10 @@ fn a_multi_rate_object_is_checked_by_key_and_line() {
         ),
         (
             "poisson_ratio = 0.45",
-            "poisson_ratio = 0.45\ntear_strain = 0.5",
+            "poisson_ratio = 0.45\nburn_shrink = 0.2",
             "objects[0].step_hz",
             "step_hz",
-            "tear_strain",
+            "burn_shrink",
         ),
     ];
     assert_refused_by_key_and_line(&good, &cases);

@@ -13,13 +13,19 @@ const MAX_TEARS_PER_TICK: usize = 32;
 
 impl Sim {
     /// Every object with a tear strain tears where a spring is stretched past it, at most
-    /// [`MAX_TEARS_PER_TICK`] facets a tick. No allocation unless something tears.
+    /// [`MAX_TEARS_PER_TICK`] facets a tick. A multi-rate object is tested on the ticks that take back its
+    /// step (its state changes only then; the step under way takes the tear at the next hand-off, as it takes
+    /// a cut). No allocation unless something tears.
     pub(super) fn tear_overstretched(&mut self, report: &mut StepReport) {
+        let tick = self.steps;
         for o in 0..self.objects.len() {
             let object = &mut self.objects[o];
             let Some(strain) = object.tear_strain else {
                 continue;
             };
+            if object.lane.as_ref().is_some_and(|lane| !lane.due(tick)) {
+                continue;
+            }
             let mut torn = std::mem::take(&mut object.torn);
             torn.clear();
             torn_seams(&object.model, &object.state.positions_mm, strain, &mut torn);

@@ -307,9 +307,9 @@ impl Context<'_> {
         self.check(
             at,
             &key,
-            material.tear_strain.is_none() && material.burn_shrink == 0.0,
-            "cannot be combined with material.tear_strain or material.burn_shrink: a multi-rate object's model \
-             is stepped on its own thread and cannot change under it",
+            material.burn_shrink == 0.0,
+            "cannot be combined with material.burn_shrink: a burn would change the model a multi-rate object's \
+             own thread steps every tick the tip touches it",
         )?;
         Ok(())
     }
