@@ -2,7 +2,8 @@
 //! tetrahedra stepped at 25 Hz on a thread of its own) with a scalpel and the grasper. The grasper retracts the
 //! lobe, the scalpel draws an incision across it; the cut follows the blade on the organ's latest finished step,
 //! the organ's own step takes the cut model at its next hand-off, and the incision gapes under the retraction.
-//! A run with the steps on a thread gives the same bits as one run inline.
+//! A run with the steps on a thread gives the same bits as one run inline. The same organ tears where the jaws
+//! pull it past its limit, and burns where a cautery tip touches it.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup should panic loudly
 
 mod common;
@@ -17,6 +18,7 @@ use counting_allocator::{Counting, assert_counting_works, count_all_threads, ser
 static GLOBAL: Counting = Counting;
 
 use nalgebra::{Vector2, Vector3};
+use sinew_server::interaction::CauterySpec;
 use sinew_server::node::step_threads::ThreadRunner;
 use sinew_server::sim::{Sim, SimObject, StepReport, ToolCommand, ToolOutput};
 use sinew_server::tissue::Vec3;
@@ -454,4 +456,73 @@ fn a_liver_lobe_pulled_past_its_limit_tears_on_its_own_thread_as_inline() {
     assert_eq!(o.state.positions_mm.len(), o.model.node_count());
     assert!(o.state.is_finite());
     common::assert_same_bits(&a.forces, &b.forces, &inline, &threaded);
+}
+
+#[test]
+fn a_cautery_tip_burns_the_multi_rate_liver_where_it_touches_and_the_burn_survives_the_hand_offs() {
+    let _serial = serial();
+    let mut world = world();
+    world.tools[0].instrument = InstrumentSpec::Cautery(CauterySpec::DEFAULT);
+    let mut sim = Sim::new(&world).unwrap();
+    // The surface node nearest the scalpel's device origin (the tool is tool 0): the tip (a 1 mm sphere at the
+    // tool's origin) rests 0.5 mm into it with the current on for 1 s, then lifts away for 0.5 s. (The burn is
+    // per vertex: on the liver's 3-5 mm surface a 1 mm tip burns the vertices it touches, not the triangles
+    // between them.)
+    let rest = sim.objects[0].model.rest_positions_mm().to_vec();
+    let target = (0..rest.len())
+        .filter(|&i| (rest[i].xy() - Vector2::new(SCALPEL_X_MM, 0.0)).norm() < 3.0)
+        .max_by(|&a, &b| rest[a].z.total_cmp(&rest[b].z))
+        .unwrap();
+    let p = rest[target];
+    let at = |lift_mm: f32, on: bool| ToolCommand {
+        active: true,
+        position_device_mm: [p.x - SCALPEL_X_MM, p.y, p.z + SCALPEL_BACK_MM + lift_mm],
+        jaws: sinew_server::interaction::JawInput {
+            buttons: u32::from(on),
+            jaw_angle_rad: 0.0,
+        },
+        ..ToolCommand::default()
+    };
+    let idle = ToolCommand::default();
+    let mut run = Run::default();
+    drive(
+        &mut sim,
+        &mut run,
+        (0..300).map(|k| [at(5.0 - 5.5 * (k + 1) as f32 / 300.0, false), idle]),
+    );
+    let mut burnt_ticks = 0;
+    let mut out = [ToolOutput::default(); 2];
+    for _ in 0..1000 {
+        let report = sim.step(0.001, &[at(-0.5, true), idle], &mut out);
+        assert_eq!(report.faults, 0);
+        burnt_ticks += u32::from(report.nodes_burnt > 0);
+    }
+    let burnt_then: Vec<u16> = sim.objects[0].burn().to_vec();
+    drive(
+        &mut sim,
+        &mut run,
+        (0..500).map(|_| [at(20.0, false), idle]),
+    );
+    let burn = sim.objects[0].burn();
+    let touched = burn.iter().filter(|&&b| b > 0).count();
+    println!(
+        "the tip burnt on {burnt_ticks} of 1000 ticks: {touched} vertices burnt, the one under it to level {}",
+        burn[target] >> 8
+    );
+    assert!(burnt_ticks > 900, "the tip burnt on {burnt_ticks} ticks");
+    assert_eq!(
+        burn[target] >> 8,
+        255,
+        "the vertex under the tip is not charred"
+    );
+    // Burns are the object's own record, not the step's state: twelve hand-offs later they are as they were.
+    assert_eq!(burn, burnt_then.as_slice());
+    // Nothing burnt away from the tip.
+    for (i, _) in burn.iter().enumerate().filter(|(_, b)| **b > 0) {
+        assert!(
+            (rest[i] - p).norm() < 3.0,
+            "vertex {i} at {:?} burnt, away from the tip at {p:?}",
+            rest[i]
+        );
+    }
 }
