@@ -7,7 +7,8 @@
 //! Reported, each as a ratio to the edge-above tick of the same run: the tick p50 / p99 between hand-offs, the
 //! ticks that changed the topology (p50 / p99 / worst), the hand-off ticks (p50 / worst) and the hand-offs
 //! that gave the step the cut model (worst); then the organ's step on its thread before and after the cuts, and
-//! the tetrahedra made per mm of cut.
+//! the tetrahedra made per mm of cut, and the mesh deltas a viewer gets (one per 60 Hz publish frame, encoded and
+//! weighed) while the scalpel cuts.
 //!
 //! Run: `cargo bench -p sinew-server --bench organ_cut` (add `-- --ticks N` to change the count per phase).
 #![allow(clippy::unwrap_used, clippy::expect_used)] // bench code: a failed setup should panic loudly
@@ -16,8 +17,11 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use nalgebra::Vector2;
+use sinew_protocol::MeshDelta;
+use sinew_protocol::codec::{InstanceId, encode_to_vec};
 use sinew_protocol::rt::{LatencyHistogram, Pacer};
 use sinew_server::node::step_threads::ThreadRunner;
+use sinew_server::replication::{ObjectReplication, ObjectTopology};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::load_world;
 
@@ -51,13 +55,16 @@ fn scalpel_at(sim_surface: &impl Fn(f32, f32) -> f32, k: usize, lift_mm: f32) ->
     }
 }
 
-/// One phase's ticks.
+/// One phase's ticks, and the mesh deltas published in it: (count, bytes, largest) with a topology change and
+/// without.
 #[derive(Default)]
 struct Phase {
     between: LatencyHistogram,
     hand_offs: LatencyHistogram,
     changing: LatencyHistogram,
     taking: LatencyHistogram,
+    topology_deltas: (u32, usize, usize),
+    plain_deltas: (u32, usize, usize),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -86,6 +93,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut pacer = Pacer::new(Duration::from_secs_f64(1.0 / world.tick_hz), 100_000);
     let mut out = [ToolOutput::default(); 2];
     let idle = ToolCommand::default();
+    let object = &sim.objects[0];
+    let mut replication = ObjectReplication::new(
+        &object.name,
+        object.model.rest_positions_mm(),
+        object.model.triangles(),
+        world.objects[0].quant_margin_mm,
+        0.0,
+    );
+    let mut topology = ObjectTopology::default();
+    let mut delta = MeshDelta::default();
+    let mut frame = 0u64;
     let mut run =
         |sim: &mut Sim, ticks: usize, timed: bool, scalpel: &dyn Fn(usize) -> ToolCommand| {
             let mut phase = Phase::default();
@@ -112,6 +130,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 if sim.objects[0].topology_version() != version {
                     phase.changing.record(elapsed);
                     taking = true;
+                }
+                // A 60 Hz publish frame: the delta a viewer would get, encoded.
+                if k % 16 == 15 {
+                    frame += 1;
+                    let object = &sim.objects[0];
+                    topology.follow(object);
+                    if replication.delta(
+                        0,
+                        &object.state.positions_mm,
+                        &[],
+                        Some(&topology),
+                        frame,
+                        &mut delta,
+                    ) {
+                        let bytes = encode_to_vec(InstanceId(1), &delta).len();
+                        let slot = if delta.topology.is_some() {
+                            &mut phase.topology_deltas
+                        } else {
+                            &mut phase.plain_deltas
+                        };
+                        *slot = (slot.0 + 1, slot.1 + bytes, slot.2.max(bytes));
+                    }
                 }
             }
             phase
@@ -168,6 +208,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         through.taking.count(),
         max_us(&through.taking),
         max_us(&through.taking) / a50,
+    );
+    let mean_bytes = |d: (u32, usize, usize)| d.1 as f64 / f64::from(d.0.max(1));
+    println!(
+        "mesh deltas at 60 Hz while cutting: {} with a topology change, mean {:.0} B, max {} B; {} without, mean {:.0} B, max {} B",
+        through.topology_deltas.0,
+        mean_bytes(through.topology_deltas),
+        through.topology_deltas.2,
+        through.plain_deltas.0,
+        mean_bytes(through.plain_deltas),
+        through.plain_deltas.2,
     );
     let mean_ms = |busy: u64, steps: u64| busy as f64 / steps as f64 / 1e6;
     println!(
