@@ -557,6 +557,10 @@ impl StepLane {
         integrator: impl FnOnce() -> Box<dyn Integrator>,
     ) -> Option<JobReport> {
         if !self.in_flight {
+            if self.lost {
+                // No step will take the cuts of a lane that lost its job.
+                self.topology.clear();
+            }
             return None;
         }
         self.in_flight = false;
