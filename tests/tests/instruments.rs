@@ -147,7 +147,7 @@ fn a_recorded_grasp_session_replays_bit_for_bit() {
 }
 
 /// Record 5 s of the demo surgeons in the shipped world `world_file` (no sim fault), replay the recording and
-/// check it is bit for bit with at least 2000 forces compared; the recorded event kinds.
+/// check it is bit for bit, every recorded force compared and at least 500 of them; the recorded event kinds.
 fn record_and_replay_exactly(world_file: &str) -> Vec<String> {
     let _serial = serial();
     let dir = std::env::temp_dir().join(format!(
@@ -164,7 +164,23 @@ fn record_and_replay_exactly(world_file: &str) -> Vec<String> {
     let outcome = replay(&recording, &world).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
     assert!(outcome.exact(), "{outcome:?}");
-    assert!(outcome.forces_compared > 2000, "{outcome:?}");
+    // Every force the recording holds was compared, and enough to mean something (0.5 s of one device). How
+    // many it holds follows the machine: 5 s of wall clock on a loaded one simulated 3.5 s, a device joining
+    // late, and held 1147 forces where an idle one holds over 2000.
+    let recorded_forces = recording
+        .ticks
+        .iter()
+        .flat_map(|t| &t.devices)
+        .filter(|d| d.force.is_some())
+        .count() as u64;
+    assert!(
+        recorded_forces >= 500,
+        "the recording holds {recorded_forces} forces"
+    );
+    assert!(
+        outcome.forces_compared >= recorded_forces,
+        "{outcome:?} of {recorded_forces} recorded"
+    );
     assert_eq!(live.faults, 0);
     recording
         .events
