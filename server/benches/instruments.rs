@@ -16,16 +16,17 @@
 
 use std::time::Instant;
 
-use sinew_protocol::MeshDelta;
-use sinew_protocol::codec::{InstanceId, encode_to_vec};
 use sinew_protocol::rt::LatencyHistogram;
 use sinew_server::interaction::JawInput;
-use sinew_server::replication::{ObjectReplication, ObjectTopology};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::load_world;
 
 #[path = "support/bench_args.rs"]
 mod bench_args;
+#[path = "support/delta_scale.rs"]
+mod delta_scale;
+
+use delta_scale::DeltaScale;
 
 fn command(x_mm: f32, z_mm: f32, closed: bool) -> ToolCommand {
     ToolCommand {
@@ -164,17 +165,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// a fresh line each pass; timed ticks, the ticks that split vertices, and the weight of the mesh deltas.
 fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::error::Error>> {
     let mut sim = Sim::new(&load_world(path)?)?;
-    let object = &sim.objects[0];
-    let mut replication = ObjectReplication::new(
-        &object.name,
-        object.model.rest_positions_mm(),
-        object.model.triangles(),
-        40.0,
-        0.0,
-    );
-    let mut topology = ObjectTopology::default();
-    let mut delta = MeshDelta::default();
-    let mut frame = 0;
+    let mut deltas = DeltaScale::new(&sim.objects[0], 40.0);
     let mut out = [ToolOutput::default(); 2];
     // Pass k runs at device x = -21 + 3k mm, from y = -25 to +25 (k even) or back (k odd), 2.5 s a pass.
     let at = |k: usize, height_mm: f32| {
@@ -211,8 +202,6 @@ fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::er
     // Every tick that changed the topology (a subdivision that opened nothing too).
     let mut changing = LatencyHistogram::new();
     let (mut split, mut changes) = (0u32, 0u32);
-    let (mut plain_bytes, mut plain_count, mut topo_bytes, mut topo_count, mut topo_max) =
-        (0, 0, 0, 0, 0);
     for k in 0..ticks {
         let version = sim.objects[0].topology_version();
         let started = Instant::now();
@@ -228,27 +217,7 @@ fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::er
         }
         split += report.vertices_split;
         if k % 16 == 15 {
-            frame += 1;
-            let object = &sim.objects[0];
-            topology.follow(object);
-            if replication.delta(
-                0,
-                &object.state.positions_mm,
-                &[],
-                Some(&topology),
-                frame,
-                &mut delta,
-            ) {
-                let bytes = encode_to_vec(InstanceId(1), &delta).len();
-                if delta.topology.is_some() {
-                    topo_bytes += bytes;
-                    topo_count += 1;
-                    topo_max = topo_max.max(bytes);
-                } else {
-                    plain_bytes += bytes;
-                    plain_count += 1;
-                }
-            }
+            deltas.frame(&sim.objects[0]);
         }
     }
     let (a50, a99) = (air.percentile_us(50.0), air.percentile_us(99.0));
@@ -270,11 +239,14 @@ fn cut_phase(path: &std::path::Path, ticks: usize) -> Result<(), Box<dyn std::er
         changing.max_ns() as f32 / 1000.0,
         changing.max_ns() as f32 / 1000.0 / a50,
     );
-    let mean = |bytes: usize, count: usize| bytes.checked_div(count).unwrap_or(0);
+    let (topo, plain) = (deltas.with_topology, deltas.plain);
     println!(
-        "cut mesh deltas (60 Hz): {topo_count} with a topology change, mean {} B, max {topo_max} B; {plain_count} without, mean {} B; {} vertices and {} triangles in the mesh",
-        mean(topo_bytes, topo_count),
-        mean(plain_bytes, plain_count),
+        "cut mesh deltas (60 Hz): {} with a topology change, mean {:.0} B, max {} B; {} without, mean {:.0} B; {} vertices and {} triangles in the mesh",
+        topo.count,
+        topo.mean(),
+        topo.max,
+        plain.count,
+        plain.mean(),
         sim.objects[0].model.node_count(),
         sim.objects[0].model.triangles().len()
     );

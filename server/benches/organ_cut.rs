@@ -17,16 +17,17 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use nalgebra::Vector2;
-use sinew_protocol::MeshDelta;
-use sinew_protocol::codec::{InstanceId, encode_to_vec};
 use sinew_protocol::rt::{LatencyHistogram, Pacer};
 use sinew_server::node::step_threads::ThreadRunner;
-use sinew_server::replication::{ObjectReplication, ObjectTopology};
 use sinew_server::sim::{Sim, ToolCommand, ToolOutput};
 use sinew_server::world::load_world;
 
 #[path = "support/bench_args.rs"]
 mod bench_args;
+#[path = "support/delta_scale.rs"]
+mod delta_scale;
+
+use delta_scale::DeltaScale;
 
 /// The scalpel's device origin in the world, mm.
 const SCALPEL_ORIGIN_MM: (f32, f32) = (25.0, 0.0);
@@ -55,16 +56,13 @@ fn scalpel_at(sim_surface: &impl Fn(f32, f32) -> f32, k: usize, lift_mm: f32) ->
     }
 }
 
-/// One phase's ticks, and the mesh deltas published in it: (count, bytes, largest) with a topology change and
-/// without.
+/// One phase's ticks.
 #[derive(Default)]
 struct Phase {
     between: LatencyHistogram,
     hand_offs: LatencyHistogram,
     changing: LatencyHistogram,
     taking: LatencyHistogram,
-    topology_deltas: (u32, usize, usize),
-    plain_deltas: (u32, usize, usize),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -93,72 +91,51 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut pacer = Pacer::new(Duration::from_secs_f64(1.0 / world.tick_hz), 100_000);
     let mut out = [ToolOutput::default(); 2];
     let idle = ToolCommand::default();
-    let object = &sim.objects[0];
-    let mut replication = ObjectReplication::new(
-        &object.name,
-        object.model.rest_positions_mm(),
-        object.model.triangles(),
-        world.objects[0].quant_margin_mm,
-        0.0,
-    );
-    let mut topology = ObjectTopology::default();
-    let mut delta = MeshDelta::default();
-    let mut frame = 0u64;
-    let mut run =
-        |sim: &mut Sim, ticks: usize, timed: bool, scalpel: &dyn Fn(usize) -> ToolCommand| {
-            let mut phase = Phase::default();
-            let mut taking = false;
-            for k in 0..ticks {
-                let command = [scalpel(k), idle];
-                pacer.wait();
-                let version = sim.objects[0].topology_version();
-                let hand_off = sim.steps().is_multiple_of(ticks_per_step);
-                let started = Instant::now();
-                sim.step(dt_s, &command, &mut out);
-                let elapsed = started.elapsed();
-                if !timed {
-                    continue;
-                }
-                if hand_off {
-                    phase.hand_offs.record(elapsed);
-                    if std::mem::take(&mut taking) {
-                        phase.taking.record(elapsed);
-                    }
-                } else {
-                    phase.between.record(elapsed);
-                }
-                if sim.objects[0].topology_version() != version {
-                    phase.changing.record(elapsed);
-                    taking = true;
-                }
-                // A 60 Hz publish frame: the delta a viewer would get, encoded.
-                if k % 16 == 15 {
-                    frame += 1;
-                    let object = &sim.objects[0];
-                    topology.follow(object);
-                    if replication.delta(
-                        0,
-                        &object.state.positions_mm,
-                        &[],
-                        Some(&topology),
-                        frame,
-                        &mut delta,
-                    ) {
-                        let bytes = encode_to_vec(InstanceId(1), &delta).len();
-                        let slot = if delta.topology.is_some() {
-                            &mut phase.topology_deltas
-                        } else {
-                            &mut phase.plain_deltas
-                        };
-                        *slot = (slot.0 + 1, slot.1 + bytes, slot.2.max(bytes));
-                    }
-                }
+    let mut deltas = DeltaScale::new(&sim.objects[0], world.objects[0].quant_margin_mm);
+    let mut run = |sim: &mut Sim,
+                   deltas: &mut DeltaScale,
+                   ticks: usize,
+                   timed: bool,
+                   scalpel: &dyn Fn(usize) -> ToolCommand| {
+        let mut phase = Phase::default();
+        let mut taking = false;
+        for k in 0..ticks {
+            let command = [scalpel(k), idle];
+            pacer.wait();
+            let version = sim.objects[0].topology_version();
+            let hand_off = sim.steps().is_multiple_of(ticks_per_step);
+            let started = Instant::now();
+            sim.step(dt_s, &command, &mut out);
+            let elapsed = started.elapsed();
+            if !timed {
+                continue;
             }
-            phase
-        };
+            if hand_off {
+                phase.hand_offs.record(elapsed);
+                if std::mem::take(&mut taking) {
+                    phase.taking.record(elapsed);
+                }
+            } else {
+                phase.between.record(elapsed);
+            }
+            if sim.objects[0].topology_version() != version {
+                phase.changing.record(elapsed);
+                taking = true;
+            }
+            // A 60 Hz publish frame: the delta a viewer would get, weighed.
+            if k % 16 == 15 {
+                deltas.frame(&sim.objects[0]);
+            }
+        }
+        phase
+    };
     // Join 14 mm above the first line's start (not timed).
-    run(&mut sim, 500, false, &|_| scalpel_at(&surface, 0, 14.0));
-    let air = run(&mut sim, ticks, true, &|k| scalpel_at(&surface, k, 14.0));
+    run(&mut sim, &mut deltas, 500, false, &|_| {
+        scalpel_at(&surface, 0, 14.0)
+    });
+    let air = run(&mut sim, &mut deltas, ticks, true, &|k| {
+        scalpel_at(&surface, k, 14.0)
+    });
     let step_ns = |c: &sinew_server::node::step_threads::StepCounters| {
         (
             c.busy_ns.load(Ordering::Relaxed),
@@ -167,11 +144,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let (busy_air, steps_air) = step_ns(&counters[0]);
     // Down onto the surface at the first line's start (not timed), then cut.
-    run(&mut sim, 300, false, &|j| {
+    run(&mut sim, &mut deltas, 300, false, &|j| {
         scalpel_at(&surface, 0, 14.0 - 13.2 * (j + 1) as f32 / 300.0)
     });
     let (busy_down, steps_down) = step_ns(&counters[0]);
-    let through = run(&mut sim, ticks, true, &|k| scalpel_at(&surface, k, 0.8));
+    // The deltas weighed are the cutting phase's.
+    (deltas.with_topology, deltas.plain) = Default::default();
+    let through = run(&mut sim, &mut deltas, ticks, true, &|k| {
+        scalpel_at(&surface, k, 0.8)
+    });
     let (busy_cut, steps_cut) = step_ns(&counters[0]);
     let us = |h: &LatencyHistogram, p: f64| h.percentile_ns(p) as f64 / 1000.0;
     let max_us = |h: &LatencyHistogram| h.max_ns() as f64 / 1000.0;
@@ -209,15 +190,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         max_us(&through.taking),
         max_us(&through.taking) / a50,
     );
-    let mean_bytes = |d: (u32, usize, usize)| d.1 as f64 / f64::from(d.0.max(1));
+    let (topo, plain) = (deltas.with_topology, deltas.plain);
     println!(
         "mesh deltas at 60 Hz while cutting: {} with a topology change, mean {:.0} B, max {} B; {} without, mean {:.0} B, max {} B",
-        through.topology_deltas.0,
-        mean_bytes(through.topology_deltas),
-        through.topology_deltas.2,
-        through.plain_deltas.0,
-        mean_bytes(through.plain_deltas),
-        through.plain_deltas.2,
+        topo.count,
+        topo.mean(),
+        topo.max,
+        plain.count,
+        plain.mean(),
+        plain.max,
     );
     let mean_ms = |busy: u64, steps: u64| busy as f64 / steps as f64 / 1e6;
     println!(

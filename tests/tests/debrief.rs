@@ -125,12 +125,7 @@ fn a_published_replay_is_watched_by_a_viewer_and_sends_no_force() {
     // Every force the recording holds was compared (each device's from the tick it joined: on a loaded
     // machine a device joins late, and a 1.5 s recording held 526 device-ticks of force where an idle one
     // holds over 2000), and there were enough to mean something (0.2 s of one device at least).
-    let recorded_forces = recording
-        .ticks
-        .iter()
-        .flat_map(|t| &t.devices)
-        .filter(|d| d.force.is_some())
-        .count() as u64;
+    let recorded_forces = recording.recorded_forces();
     assert!(
         recorded_forces > 200,
         "the recording holds {recorded_forces} forces"

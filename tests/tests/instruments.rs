@@ -167,12 +167,7 @@ fn record_and_replay_exactly(world_file: &str) -> Vec<String> {
     // Every force the recording holds was compared, and enough to mean something (0.5 s of one device). How
     // many it holds follows the machine: 5 s of wall clock on a loaded one simulated 3.5 s, a device joining
     // late, and held 1147 forces where an idle one holds over 2000.
-    let recorded_forces = recording
-        .ticks
-        .iter()
-        .flat_map(|t| &t.devices)
-        .filter(|d| d.force.is_some())
-        .count() as u64;
+    let recorded_forces = recording.recorded_forces();
     assert!(
         recorded_forces >= 500,
         "the recording holds {recorded_forces} forces"

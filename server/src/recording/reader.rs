@@ -93,6 +93,16 @@ impl Recording {
             .get("kind")
             .map_or(super::KIND_SESSION, String::as_str)
     }
+
+    /// How many forces the recording holds: device-ticks with a force (each device's from the tick it joined),
+    /// what a replay compares.
+    pub fn recorded_forces(&self) -> u64 {
+        self.ticks
+            .iter()
+            .flat_map(|t| &t.devices)
+            .filter(|d| d.force.is_some())
+            .count() as u64
+    }
 }
 
 /// Read any Sinew recording, a session or `sinew-recorder`'s (which has no ticks and no world): its metadata,
