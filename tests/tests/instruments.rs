@@ -417,7 +417,8 @@ fn a_scalpel_cut_reaches_every_viewer_and_opens_under_the_grasper() {
     };
     assert!(
         wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
-        "the viewer's mesh differs from the server's after the cut"
+        "the viewer's mesh differs from the server's after the cut: {}",
+        topology_mismatch(&server, &viewer, 1)
     );
     // The replica is as close to the server's true positions as quantization allows, new vertices included.
     let error = replica_error(&server, &viewer, 0, Duration::from_secs(5)).unwrap();
@@ -477,19 +478,10 @@ fn scissors_snips_into_the_block_reach_every_viewer_with_the_blades() {
     println!("blades seen closing and opening; {}", pace(&server.stats()));
     // The snip line takes 1 s of descent and 10 snips of 0.8 s: wait until both objects stop changing for
     // longer than a snip.
-    let mut last = (0, 0);
     assert!(
-        wait_until(Duration::from_secs(30), || {
-            std::thread::sleep(Duration::from_millis(1000));
-            let now = (
-                server.latest_topology(0).map_or(0, |t| t.0),
-                server.latest_topology(1).map_or(0, |t| t.0),
-            );
-            let still = now == last && now.0 > 0 && now.1 > 0;
-            last = now;
-            still
-        }),
-        "the cuts never settled: topology versions {last:?}"
+        topology_settles(&server, &[0, 1], 1.0, Duration::from_secs(30)),
+        "the cuts never settled: {}",
+        pace(&server.stats())
     );
     let (version, triangles, vertices) = server.latest_topology(1).unwrap();
     println!(
@@ -515,7 +507,8 @@ fn scissors_snips_into_the_block_reach_every_viewer_with_the_blades() {
     };
     assert!(
         wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
-        "the viewer's meshes differ from the server's after the cuts"
+        "the viewer's meshes differ from the server's after the cuts: {}",
+        topology_mismatch(&server, &viewer, 2)
     );
     let error = replica_error(&server, &viewer, 1, Duration::from_secs(5)).unwrap();
     assert!(error.max_error_mm <= error.bound_mm, "{error:?}");
@@ -554,16 +547,9 @@ fn an_incision_in_the_multi_rate_liver_reaches_every_viewer() {
     let left = start_sim_device(scene, "left", left_script, &endpoint, Pacing::Sleep).unwrap();
     let right = start_sim_device(scene, "right", right_script, &endpoint, Pacing::Sleep).unwrap();
     // The line is drawn from 1 s to 3 s: wait until the cut stops changing for a second.
-    let mut last = 0;
     assert!(
-        wait_until(Duration::from_secs(30), || {
-            std::thread::sleep(Duration::from_millis(1000));
-            let now = server.latest_topology(0).map_or(0, |t| t.0);
-            let still = now == last && now > 0;
-            last = now;
-            still
-        }),
-        "the cut never settled: topology version {last}; {}",
+        topology_settles(&server, &[0], 1.0, Duration::from_secs(30)),
+        "the cut never settled: {}",
         pace(&server.stats())
     );
     let (version, triangles, vertices) = server.latest_topology(0).unwrap();
@@ -585,7 +571,8 @@ fn an_incision_in_the_multi_rate_liver_reaches_every_viewer() {
     };
     assert!(
         wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
-        "the viewer's liver differs from the server's after the cut"
+        "the viewer's liver differs from the server's after the cut: {}",
+        topology_mismatch(&server, &viewer, 1)
     );
     let error = replica_error(&server, &viewer, 0, Duration::from_secs(5)).unwrap();
     assert!(error.max_error_mm <= error.bound_mm, "{error:?}");
@@ -599,6 +586,40 @@ fn an_incision_in_the_multi_rate_liver_reaches_every_viewer() {
 
 /// The server's pace, for a failure message: simulated time against ticks, the tick's cost and the periods it
 /// skipped (a server slower than real time closes a button's jaws over fewer simulated milliseconds).
+/// Wait until every object in `objects` has been cut at least once and then kept its topology for
+/// `still_sim_s` of simulated time and as long of wall-clock time. Stillness is judged in simulated time
+/// because the scripts' snips and strokes run on the devices' clocks: on a loaded machine the sim lags them, and
+/// a wall-clock second without a change can fall between two snips that are still to come.
+fn topology_settles(
+    server: &sinew_server::node::ServerHandle,
+    objects: &[usize],
+    still_sim_s: f64,
+    timeout: Duration,
+) -> bool {
+    let versions = || -> Vec<u32> {
+        objects
+            .iter()
+            .map(|&o| server.latest_topology(o).map_or(0, |t| t.0))
+            .collect()
+    };
+    let mut last = (
+        versions(),
+        server.stats().sim_time_s,
+        std::time::Instant::now(),
+    );
+    wait_until(timeout, || {
+        std::thread::sleep(Duration::from_millis(100));
+        let now = versions();
+        if now != last.0 {
+            last = (now, server.stats().sim_time_s, std::time::Instant::now());
+            return false;
+        }
+        now.iter().all(|&v| v > 0)
+            && server.stats().sim_time_s - last.1 >= still_sim_s
+            && last.2.elapsed().as_secs_f64() >= still_sim_s
+    })
+}
+
 fn pace(stats: &sinew_protocol::ServerStats) -> String {
     format!(
         "server: {:.2} s simulated in {} ticks, tick p50 {:.0} us p99 {:.0} us max {:.0} us, {} periods skipped",
@@ -609,4 +630,43 @@ fn pace(stats: &sinew_protocol::ServerStats) -> String {
         stats.tick_max_us,
         stats.overruns
     )
+}
+
+/// What the server and a viewer hold of each of the first `objects` objects' topology, and the viewer's sync
+/// counters: the message of a failed "the viewer's meshes match" check.
+fn topology_mismatch(
+    server: &sinew_server::node::ServerHandle,
+    viewer: &ViewerHandle,
+    objects: usize,
+) -> String {
+    let mut out = String::new();
+    for o in 0..objects {
+        let server_side = server.latest_topology(o).map(|(version, t, v)| {
+            format!("version {version}, {} triangles, {v} vertices", t.len())
+        });
+        let replica_side = viewer.with_replica(|r| {
+            r.objects().get(o).map(|x| {
+                format!(
+                    "epoch {}, frame {}, {} triangles, {} vertices",
+                    x.topology_epoch(),
+                    x.frame(),
+                    x.triangles().len(),
+                    x.vertex_count()
+                )
+            })
+        });
+        out += &format!("object {o}: server {server_side:?}, viewer {replica_side:?}; ");
+    }
+    let stats = viewer.stats();
+    out += &format!(
+        "viewer: {} snapshots fetched ({} failed), {} deltas applied, {} stale, {} gaps, {} protocol errors, {} dropped",
+        stats.snapshots_fetched,
+        stats.snapshot_failures,
+        stats.deltas_applied,
+        stats.deltas_stale,
+        stats.gaps,
+        stats.protocol_errors,
+        stats.deltas_dropped
+    );
+    out
 }

@@ -18,7 +18,7 @@ use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Reliability};
 
 use super::device_slots::PoseArrival;
-use super::keepalive::Keepalive;
+use super::keepalive::{Keepalive, KeepaliveSend};
 use super::{ServerError, Shared};
 use crate::recording::{FinalState, RecorderTap, TickRecord};
 use crate::server_tick::DeadbandParams;
@@ -46,6 +46,9 @@ pub struct DeviceReport {
     pub moderated: bool,
     /// Ticks on which its model was within the deadband and nothing was sent.
     pub suppressed: u64,
+    /// Moderated heartbeats the tick made (models due only because the heartbeat period had passed), published
+    /// at once or held for the keepalive; in `forces_sent` once published.
+    pub heartbeats_sent: u64,
     /// The force limit the device announced (recorded, in a replay), N.
     pub force_limit_n: Option<f32>,
     /// The training layer's view of the participant (`crate::training`), live.
@@ -375,12 +378,16 @@ fn run(
                 // (a live replay publishes only what was recorded).
                 if !d.active || recorded.is_some() {
                     keepalive.forget(t);
-                } else if let Some(again) = keepalive.due(t, Instant::now()) {
+                } else if let Some(send) = keepalive.due(t, Instant::now()) {
+                    let (KeepaliveSend::Repeat(again) | KeepaliveSend::Held(again)) = send;
                     encode(shared.instance, &again, &mut buf);
                     if let Some(outlet) = outlets.get_mut(t) {
                         outlet.send(&buf);
                     }
-                    d.keepalives_sent += 1;
+                    match send {
+                        KeepaliveSend::Repeat(_) => d.keepalives_sent += 1,
+                        KeepaliveSend::Held(_) => d.forces_sent += 1,
+                    }
                 }
                 continue;
             };
@@ -390,6 +397,19 @@ fn run(
             } else {
                 pose_wait_us[t]
             };
+            // A heartbeat close behind the last message waits for the keepalive (`keepalive`'s module doc);
+            // a live replay publishes what was recorded, when it was.
+            let heartbeat = tick.stream_counters(t).heartbeats > d.heartbeats_sent;
+            d.heartbeats_sent = tick.stream_counters(t).heartbeats;
+            if heartbeat && recorded.is_none() && keepalive.hold(t, command, Instant::now()) {
+                last_sent[t] = Some((
+                    command.seq,
+                    command.echo_pose_seq,
+                    command.echo_device_time_ns,
+                    command.device_instance,
+                ));
+                continue;
+            }
             encode(shared.instance, command, &mut buf);
             if let Some(outlet) = outlets.get_mut(t) {
                 outlet.send(&buf);

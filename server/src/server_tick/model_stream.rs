@@ -97,6 +97,18 @@ pub struct StreamCounters {
     pub sent: u64,
     /// Ticks on which a moderated device's model was within the deadband and nothing was sent.
     pub suppressed: u64,
+    /// Of `sent`, the moderated heartbeats: models sent only because [`DeadbandParams::heartbeat_s`] had passed
+    /// since the last one, nothing in them differing perceptibly (a still hand's whole stream).
+    pub heartbeats: u64,
+}
+
+/// Why a moderated device gets this tick's model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SendReason {
+    /// Something in the model differs perceptibly from what the device renders.
+    Change,
+    /// Nothing does, but the heartbeat period has passed.
+    Heartbeat,
 }
 
 /// The command stream to one device.
@@ -266,13 +278,17 @@ impl ModelStream {
     ) -> Option<ForceCommand> {
         let radius_mm = self.radius_mm(now_s, pose);
         let model = self.model_within(now_s, out, max_force_n, radius_mm);
-        let send = match pose.render_mode {
-            RenderMode::Direct => true,
-            RenderMode::Moderated => self.worth_sending(now_s, &model),
+        let reason = match pose.render_mode {
+            RenderMode::Direct => Some(SendReason::Change),
+            RenderMode::Moderated => self.send_reason(now_s, &model),
         };
-        if !send {
-            self.counters.suppressed += 1;
-            return None;
+        match reason {
+            None => {
+                self.counters.suppressed += 1;
+                return None;
+            }
+            Some(SendReason::Heartbeat) => self.counters.heartbeats += 1,
+            Some(SendReason::Change) => {}
         }
         // Direct mode streams the tissue's force on the tool (its f0), as a classic virtual coupling
         // renders its spring: extrapolating to the device pose (f0 - K (x_d - x0) - D (v_d - v0)) carried the
@@ -314,14 +330,23 @@ impl ModelStream {
         }
     }
 
-    fn worth_sending(&self, now_s: f64, model: &LocalModel) -> bool {
+    /// Whether `model` goes out this tick, and why: a perceptible change first, else the heartbeat.
+    fn send_reason(&self, now_s: f64, model: &LocalModel) -> Option<SendReason> {
+        if self.differs_perceptibly(model) {
+            return Some(SendReason::Change);
+        }
+        // The tolerance keeps float rounding of tick times from stretching the period by a tick.
+        (now_s - self.last_sent_s >= self.params.heartbeat_s - HEARTBEAT_TOLERANCE_S)
+            .then_some(SendReason::Heartbeat)
+    }
+
+    /// Whether `model` differs from the last one sent by more than the deadband (always, before the first).
+    fn differs_perceptibly(&self, model: &LocalModel) -> bool {
         let Some(last) = &self.last_sent else {
             return true;
         };
         let p = &self.params;
-        // The tolerance keeps float rounding of tick times from stretching the period by a tick.
-        if now_s - self.last_sent_s >= p.heartbeat_s - HEARTBEAT_TOLERANCE_S
-            || last.in_contact != model.in_contact
+        if last.in_contact != model.in_contact
             || last.attached != model.attached
             || (last.cut_drag_n - model.cut_drag_n).abs()
                 > p.force_floor_n.max(p.weber_fraction * model.cut_drag_n)
@@ -438,6 +463,8 @@ mod tests {
         // One at start, then every 7 ms.
         assert!((142..=144).contains(&sent), "{sent} messages in 1 s");
         assert_eq!(stream.counters().sent, sent);
+        // The first is news (no model before it); every other one is a heartbeat.
+        assert_eq!(stream.counters().heartbeats, sent - 1);
     }
 
     #[test]
@@ -467,6 +494,9 @@ mod tests {
                 .command(0.003, &ToolOutput::default(), &pose, 3.3)
                 .is_some()
         );
+        // Three news, none of them a heartbeat.
+        assert_eq!(stream.counters().heartbeats, 0);
+        assert_eq!(stream.counters().sent, 3);
     }
 
     #[test]
