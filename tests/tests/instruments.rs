@@ -416,7 +416,7 @@ fn a_scalpel_cut_reaches_every_viewer_and_opens_under_the_grasper() {
         o.triangles() == triangles.as_slice() && o.vertex_count() == vertices
     };
     assert!(
-        wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
+        wait_until(Duration::from_secs(10), || viewer.with_replica(same)),
         "the viewer's mesh differs from the server's after the cut: {}",
         topology_mismatch(&server, &viewer, 1)
     );
@@ -506,7 +506,7 @@ fn scissors_snips_into_the_block_reach_every_viewer_with_the_blades() {
         })
     };
     assert!(
-        wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
+        wait_until(Duration::from_secs(10), || viewer.with_replica(same)),
         "the viewer's meshes differ from the server's after the cuts: {}",
         topology_mismatch(&server, &viewer, 2)
     );
@@ -570,7 +570,7 @@ fn an_incision_in_the_multi_rate_liver_reaches_every_viewer() {
         o.triangles() == triangles.as_slice() && o.vertex_count() == vertices
     };
     assert!(
-        wait_until(Duration::from_secs(5), || viewer.with_replica(same)),
+        wait_until(Duration::from_secs(10), || viewer.with_replica(same)),
         "the viewer's liver differs from the server's after the cut: {}",
         topology_mismatch(&server, &viewer, 1)
     );
