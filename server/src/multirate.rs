@@ -540,7 +540,7 @@ impl StepLane {
         &mut self.topology
     }
 
-    /// Set tool `t`'s pose and broad-phase candidates for the next step (ignored while a step is under way or
+    /// Set tool `t`'s pose and broad-phase candidates (nodes and surface triangles) for the next step (ignored while a step is under way or
     /// the lane is lost). No allocation beyond the contacts' capacity.
     pub fn set_tool(
         &mut self,
@@ -549,6 +549,7 @@ impl StepLane {
         position_mm: &Vec3,
         rotation: &UnitQuaternion<f32>,
         candidates: &[u32],
+        candidate_triangles: &[u32],
     ) {
         let Some(tool) = self.home.as_mut().and_then(|job| job.tools.get_mut(t)) else {
             return;
@@ -560,8 +561,12 @@ impl StepLane {
         tool.rotation = *rotation;
         // The candidates are this tick's; last step's held nodes stay for the sticky test.
         tool.contacts.candidates.clear();
+        tool.contacts.candidate_triangles.clear();
         if active {
             tool.contacts.candidates.extend_from_slice(candidates);
+            tool.contacts
+                .candidate_triangles
+                .extend_from_slice(candidate_triangles);
         } else {
             tool.contacts.forget();
             tool.grasp.clear();
@@ -599,6 +604,17 @@ impl StepLane {
             self.runner.launch(job);
             self.in_flight = true;
         }
+    }
+
+    /// Tools keep the object's surface triangles out of their tips too, not only its nodes
+    /// (`ObjectSpec::triangle_contact`).
+    pub fn with_triangle_contact(mut self, on: bool) -> Self {
+        if let Some(job) = self.home.as_mut() {
+            for tool in &mut job.tools {
+                tool.contacts = std::mem::take(&mut tool.contacts).with_triangles(on);
+            }
+        }
+        self
     }
 
     /// Tool `t`'s contact as the latest finished step left it.

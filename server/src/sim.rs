@@ -256,6 +256,11 @@ impl Sim {
                     object
                         .collider
                         .nodes_near(&aabb, &mut object.marks, &mut contacts.candidates);
+                    if contacts.wants_triangles() {
+                        contacts
+                            .candidate_triangles
+                            .extend(object.collider.triangles_near(&aabb));
+                    }
                 } else {
                     contacts.forget();
                 }
@@ -277,6 +282,7 @@ impl Sim {
                     &tool.position_mm,
                     &tool.rotation,
                     &tool.contacts[o].candidates,
+                    &tool.contacts[o].candidate_triangles,
                 );
                 lane.set_grasp(t, o, tool.instrument_state.as_ref().and_then(|i| i.grasp()));
             }

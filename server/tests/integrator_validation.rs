@@ -209,6 +209,7 @@ fn sheet_spec(side: usize, integrator: IntegratorName, dt_s: f32, k: f32) -> Obj
         dt_s,
         quant_margin_mm: 10.0,
         delta_tolerance_mm: 0.0,
+        triangle_contact: false,
         material: MaterialSpec {
             mass: MassSpec::TotalKg(0.01),
             stiffness_n_per_mm: k,

@@ -46,17 +46,6 @@ const INCISION_Y_MM: (f32, f32) = (-20.0, 15.0);
 /// How far the grasper retracts the lobe away from the incision (+x) and up, mm.
 const RETRACT_MM: (f32, f32) = (4.0, 3.0);
 
-/// The organ's rest surface height at world (x, y): the highest rest node within 2.5 mm, mm.
-fn surface_z_mm(object: &SimObject, x_mm: f32, y_mm: f32) -> f32 {
-    object
-        .model
-        .rest_positions_mm()
-        .iter()
-        .filter(|p| (p.xy() - Vector2::new(x_mm, y_mm)).norm() < 2.5)
-        .map(|p| p.z)
-        .fold(f32::MIN, f32::max)
-}
-
 fn scalpel_at(y_mm: f32, z_mm: f32) -> ToolCommand {
     ToolCommand {
         active: true,
@@ -152,9 +141,9 @@ fn gap_mm(object: &SimObject) -> (f32, f32) {
 fn incise(sim: &mut Sim, retract: bool) -> Run {
     let mut run = Run::default();
     let o = &sim.objects[0];
-    let grasp_top = surface_z_mm(o, GRASPER_X_MM, 0.0);
+    let grasp_top = common::rest_surface_z_mm(o, GRASPER_X_MM, 0.0);
     let bite = grasp_top - BITE_DEPTH_MM;
-    let back_z = |y: f32| surface_z_mm(o, SCALPEL_X_MM, y) + SCALPEL_BACK_MM - 0.2;
+    let back_z = |y: f32| common::rest_surface_z_mm(o, SCALPEL_X_MM, y) + SCALPEL_BACK_MM - 0.2;
     let (y0, y1) = INCISION_Y_MM;
     let path: Vec<f32> = (0..=200)
         .map(|k| back_z(y0 + (y1 - y0) * k as f32 / 200.0))
@@ -360,10 +349,10 @@ fn after_the_cut_the_organs_ticks_allocate_nothing() {
         assert!(run.vertices.1 > run.vertices.0);
         let version = sim.objects[0].topology_version();
         let o = &sim.objects[0];
-        let held_z = surface_z_mm(o, GRASPER_X_MM, 0.0) - BITE_DEPTH_MM + RETRACT_MM.1;
+        let held_z = common::rest_surface_z_mm(o, GRASPER_X_MM, 0.0) - BITE_DEPTH_MM + RETRACT_MM.1;
         let lifted = scalpel_at(
             INCISION_Y_MM.1,
-            surface_z_mm(o, SCALPEL_X_MM, INCISION_Y_MM.1) + 20.0,
+            common::rest_surface_z_mm(o, SCALPEL_X_MM, INCISION_Y_MM.1) + 20.0,
         );
         let mut out = [ToolOutput::default(); 2];
         assert_counting_works();
@@ -405,7 +394,7 @@ fn tearing_world() -> World {
 /// The grasper takes the lobe and lifts it `lift_mm` over 1 s, then holds 1 s; the scalpel stays away.
 fn take_and_tear(sim: &mut Sim, lift_mm: f32) -> Run {
     let mut run = Run::default();
-    let top = surface_z_mm(&sim.objects[0], GRASPER_X_MM, 0.0);
+    let top = common::rest_surface_z_mm(&sim.objects[0], GRASPER_X_MM, 0.0);
     let bite = top - BITE_DEPTH_MM;
     run.vertices.0 = sim.objects[0].model.node_count();
     let idle = ToolCommand::default();

@@ -137,6 +137,39 @@ fn a_cut_mode_is_read_and_an_unknown_one_names_its_line_and_the_choices() {
 }
 
 #[test]
+fn a_tool_contact_is_read_and_an_unknown_one_names_its_line_and_the_choices() {
+    let with = |value: &str| {
+        let mut world = good_world();
+        world = world.replacen(
+            "[objects.material]",
+            &format!("tool_contact = \"{value}\"\n[objects.material]"),
+            1,
+        );
+        world
+    };
+    let good = with("nodes-and-triangles");
+    assert!(good.contains("tool_contact"), "{good}");
+    let world = load_world(&write_world(&good, None)).unwrap();
+    assert!(world.objects[0].triangle_contact);
+    let world = load_world(&write_world(&with("nodes"), None)).unwrap();
+    assert!(!world.objects[0].triangle_contact);
+    let world = load_world(&write_world(&good_world(), None)).unwrap();
+    assert!(!world.objects[0].triangle_contact, "the default is nodes");
+    let bad = with("faces");
+    let (error, message, _) = refused(&bad, None);
+    assert!(
+        matches!(error, WorldError::Syntax { line, .. } if line == line_of(&bad, "\"faces\"")),
+        "{message}"
+    );
+    assert!(
+        message.contains("faces")
+            && message.contains("nodes-and-triangles")
+            && message.contains("`nodes`"),
+        "{message}"
+    );
+}
+
+#[test]
 fn a_non_manifold_mesh_is_refused() {
     // A fourth triangle on the edge (1, 5) that two triangles already share.
     let mesh = format!("{GRID_OBJ}v 2 2 3\nf 1 5 10\n");

@@ -20,6 +20,8 @@
 
 use nalgebra::UnitQuaternion;
 
+mod triangles;
+
 use crate::collision::{ContactSide, ToolCollider};
 use crate::tissue::{MassSpringModel, TissueState, Vec3};
 
@@ -96,6 +98,8 @@ impl<'a> ToolBody<'a> {
 pub struct ProbeContacts {
     /// Candidate nodes from the broad phase.
     pub candidates: Vec<u32>,
+    /// Candidate surface triangles from the broad phase (the triangle pass, `triangles`).
+    pub candidate_triangles: Vec<u32>,
     /// Nodes held this tick (subset of candidates).
     pub held: Vec<u32>,
     /// Tool outward normal (unit) at each held node.
@@ -114,6 +118,16 @@ pub struct ProbeContacts {
     held_before: Vec<(u32, Vec3)>,
     /// `held_before` was filled by [`Self::clear`] (a new tick's broad phase): the next projection uses it as is.
     carried: bool,
+    /// Triangles the triangle pass held last projection, sorted (sticky contacts keep them).
+    triangles_held: Vec<u32>,
+    /// The same for this projection, being built.
+    triangles_held_now: Vec<u32>,
+    /// Run the triangle pass (`triangles`): the object's surface is coarse for the tools.
+    triangles: bool,
+    /// Triangles met in front of the tool (under it) last projection, sorted: they stay on that side.
+    triangles_in_front: Vec<u32>,
+    /// The same for this projection, being built.
+    triangles_in_front_now: Vec<u32>,
 }
 
 impl ProbeContacts {
@@ -121,6 +135,7 @@ impl ProbeContacts {
     pub fn with_capacity(capacity: usize) -> Self {
         Self {
             candidates: Vec::with_capacity(capacity),
+            candidate_triangles: Vec::with_capacity(capacity),
             held: Vec::with_capacity(capacity),
             normals: Vec::with_capacity(capacity),
             in_front: Vec::with_capacity(capacity),
@@ -130,7 +145,24 @@ impl ProbeContacts {
             sticky: false,
             held_before: Vec::new(),
             carried: false,
+            triangles_held: Vec::with_capacity(capacity),
+            triangles_held_now: Vec::with_capacity(capacity),
+            triangles: false,
+            triangles_in_front: Vec::with_capacity(capacity),
+            triangles_in_front_now: Vec::with_capacity(capacity),
         }
+    }
+
+    /// Contacts that also keep the surface's triangles out of a ball or capsule tip (`on`), not only its nodes
+    /// (`triangles`); the broad phase then fills [`Self::candidate_triangles`] too.
+    pub fn with_triangles(mut self, on: bool) -> Self {
+        self.triangles = on;
+        self
+    }
+
+    /// Whether the broad phase should fill [`Self::candidate_triangles`].
+    pub fn wants_triangles(&self) -> bool {
+        self.triangles
     }
 
     /// Contacts for a solver that holds the held nodes still through its step (`TissueState::pinned`): a
@@ -152,6 +184,7 @@ impl ProbeContacts {
             self.carried = true;
         }
         self.candidates.clear();
+        self.candidate_triangles.clear();
         self.held.clear();
         self.normals.clear();
     }
@@ -165,6 +198,8 @@ impl ProbeContacts {
         self.in_front_now.clear();
         self.anchors.clear();
         self.anchors_now.clear();
+        self.triangles_held.clear();
+        self.triangles_in_front.clear();
     }
 
     /// Keep the held nodes and their normals for the sticky test, sorted by node. No allocation beyond capacity.
@@ -175,7 +210,8 @@ impl ProbeContacts {
         self.held_before.sort_unstable_by_key(|h| h.0);
     }
 
-    /// Push every candidate node that is inside the tool out to its surface; record the held nodes. With
+    /// Push every candidate node that is inside the tool out to its surface, then every candidate triangle the
+    /// tip reaches into between its corners (`triangles`); record the held nodes. With
     /// `friction` (the material's Coulomb coefficient, 0: frictionless) a node held last substep sticks to its
     /// point of the tool until it slips (module docs). Fixed nodes are not moved, nor the nodes in `grasped`
     /// (sorted: the tool's jaws hold them). No allocation beyond capacity, never panics.
@@ -279,6 +315,7 @@ impl ProbeContacts {
                 }
             }
         }
+        self.hold_triangles(body, model, state, grasped, pressure);
         self.in_front_now.sort_unstable();
         std::mem::swap(&mut self.in_front, &mut self.in_front_now);
         self.anchors_now.sort_unstable_by_key(|a| a.0);

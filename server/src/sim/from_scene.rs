@@ -82,6 +82,7 @@ impl Sim {
                 torn: Vec::new(),
                 lane: None,
                 pins_held: spec.integrator == IntegratorName::ImplicitEuler,
+                triangle_contact: spec.triangle_contact,
                 tied: Vec::new(),
                 parts: ModelParts::default(),
                 name: spec.name.clone(),
@@ -149,7 +150,8 @@ impl Sim {
                 contacts: objects
                     .iter()
                     .map(|o| {
-                        let contacts = ProbeContacts::with_capacity(4096);
+                        let contacts =
+                            ProbeContacts::with_capacity(4096).with_triangles(o.triangle_contact);
                         if o.pins_held {
                             contacts.sticky()
                         } else {
@@ -219,15 +221,18 @@ impl Sim {
         }
         for (object, spec) in objects.iter_mut().zip(&world.objects) {
             if spec.ticks_per_step > 1 {
-                object.lane = Some(StepLane::new(
-                    &object.model,
-                    &object.state,
-                    integrator_for(spec.integrator, spec.solver_iterations),
-                    spec.dt_s,
-                    object.friction,
-                    spec.ticks_per_step,
-                    &seeds,
-                ));
+                object.lane = Some(
+                    StepLane::new(
+                        &object.model,
+                        &object.state,
+                        integrator_for(spec.integrator, spec.solver_iterations),
+                        spec.dt_s,
+                        object.friction,
+                        spec.ticks_per_step,
+                        &seeds,
+                    )
+                    .with_triangle_contact(spec.triangle_contact),
+                );
             }
         }
         let mut sim = Self {

@@ -70,6 +70,8 @@ pub struct SimObject {
     /// The integrator solves with the tools' held nodes pinned (implicit Euler): each substep pushes out
     /// first, then integrates, and the contacts are sticky.
     pub(super) pins_held: bool,
+    /// Tools keep its surface's triangles out of their tips too (`ObjectSpec::triangle_contact`).
+    pub(super) triangle_contact: bool,
     /// The collider has not followed this tick's motion yet (it does in the tick's tail, after the forces).
     pub(super) refit_due: bool,
 }

@@ -32,6 +32,9 @@ pub struct ObjectSpec {
     pub fixed: Vec<FixedSelection>,
     /// Region of deformation (`None`: the whole object is integrated every tick).
     pub region: Option<RegionParams>,
+    /// Tools keep the surface's triangles out of a ball or capsule tip, not only its nodes
+    /// (`interaction::probe`'s triangle pass): for a surface whose nodes are further apart than a tool is wide.
+    pub triangle_contact: bool,
     /// Ticks per step of the object (1: it steps every tick; `N > 1`: a multi-rate object, stepped every `N`
     /// ticks with `N` ticks' time, on its own thread: see [`crate::multirate`]).
     pub ticks_per_step: u32,

@@ -29,6 +29,17 @@ impl LengthUnit {
     }
 }
 
+/// What of an object's surface the tools keep out of their tips.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ToolContactName {
+    /// The surface's nodes (the default: enough for a surface finer than the tools).
+    #[default]
+    Nodes,
+    /// The nodes and the triangles between them (a coarse surface: an organ's 3-5 mm under a 4 mm probe).
+    NodesAndTriangles,
+}
+
 /// How an object's elasticity is modelled.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -215,6 +226,9 @@ pub(crate) struct ObjectSection {
     /// Region of deformation: integrate only the part that moves, `{ threshold_mm }` (default: off).
     #[serde(default)]
     pub region: Option<Spanned<RegionSection>>,
+    /// What of the surface the tools keep out of their tips: `"nodes"` (default) or `"nodes-and-triangles"`.
+    #[serde(default)]
+    pub tool_contact: Option<Spanned<ToolContactName>>,
 }
 
 fn default_delta_tolerance_mm() -> Spanned<f32> {

@@ -248,6 +248,17 @@ pub fn fem_block_move(
     all
 }
 
+/// An object's rest surface height at world (x, y): the highest rest node within 2.5 mm, mm.
+pub fn rest_surface_z_mm(object: &sinew_server::sim::SimObject, x_mm: f32, y_mm: f32) -> f32 {
+    object
+        .model
+        .rest_positions_mm()
+        .iter()
+        .filter(|p| (p.xy() - nalgebra::Vector2::new(x_mm, y_mm)).norm() < 2.5)
+        .map(|p| p.z)
+        .fold(f32::MIN, f32::max)
+}
+
 /// How far the node furthest from its rest position is from it, mm.
 pub fn furthest_from_rest_mm(object: &sinew_server::sim::SimObject) -> f32 {
     object

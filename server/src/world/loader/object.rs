@@ -158,6 +158,9 @@ impl Context<'_> {
             material,
             fixed,
             region,
+            triangle_contact: object.tool_contact.as_ref().is_some_and(|c| {
+                *c.get_ref() == super::super::file_format::ToolContactName::NodesAndTriangles
+            }),
             ticks_per_step,
         };
         // An explicit integrator must be stable at this dt for this stiffness, damping and mass.
