@@ -106,6 +106,8 @@ pub struct ToolSeed {
     pub max_force_n: f32,
     /// Largest distance from the tool origin to its surface, mm.
     pub reach_mm: f32,
+    /// The tool takes hold with jaws (a grasper).
+    pub grasps: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -607,10 +609,13 @@ impl StepLane {
     }
 
     /// Tools keep the object's surface triangles out of their tips too, not only its nodes
-    /// (`ObjectSpec::triangle_contact`).
+    /// (`ObjectSpec::triangle_contact`), except a grasper: its jaws bite the nodes within `bite_mm` of its tip,
+    /// and with the triangles holding the surface off the tip the light hand 100 ms away no longer took the
+    /// liver's lobe (`instrument_explore`, 2026-12-07).
     pub fn with_triangle_contact(mut self, on: bool) -> Self {
         if let Some(job) = self.home.as_mut() {
             for tool in &mut job.tools {
+                let on = on && !tool.seed.grasps;
                 tool.contacts = std::mem::take(&mut tool.contacts).with_triangles(on);
             }
         }

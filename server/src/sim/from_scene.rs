@@ -150,8 +150,11 @@ impl Sim {
                 contacts: objects
                     .iter()
                     .map(|o| {
-                        let contacts =
-                            ProbeContacts::with_capacity(4096).with_triangles(o.triangle_contact);
+                        // A grasper's jaws bite the nodes by its tip: it keeps node contact
+                        // (`StepLane::with_triangle_contact`).
+                        let contacts = ProbeContacts::with_capacity(4096).with_triangles(
+                            o.triangle_contact && spec.instrument.grasp().is_none(),
+                        );
                         if o.pins_held {
                             contacts.sticky()
                         } else {
@@ -198,6 +201,7 @@ impl Sim {
                     .zip(tool.shaft_spec.map(|s| 0.5 * s.length_mm)),
                 max_force_n: tool.max_force_n,
                 reach_mm: tool.body.reach_mm,
+                grasps: tool.instrument.grasp().is_some(),
             })
             .collect();
         for tie in &world.ties {

@@ -8,7 +8,8 @@
 //! [`TRIANGLE_SLACK_MM`]) is moved as a whole along its corners' push (minus their mean outward rest normal)
 //! until it is no deeper than that, and its free corners are held there with the tool's normal at the contact:
 //! the tool feels them as it feels any held node. On a fine surface the allowance is never reached and the
-//! pass moves nothing.
+//! pass moves nothing. A grasper's contacts never run it (`sim::from_scene`, `StepLane::with_triangle_contact`):
+//! its jaws bite the nodes by its tip, which the pass would hold away.
 //!
 //! Only contacts under the tool count (its normal there within 60 degrees of the push): a triangle that meets
 //! the tip's side or top is a dent's wall, which the node pass and the shaft already answer. With sticky
