@@ -127,8 +127,13 @@ fn the_server_and_a_separate_recorder_both_record_the_wire() {
     assert_eq!(wire.kind(), "wire");
     assert_eq!(count(&wire, "sinew/pad/snapshot"), 1);
     for device in ["left", "right"] {
-        // 2.5 s of commands at up to 1 kHz, allowing for a loaded machine.
-        assert!(count(&wire, &format!("sinew/pad/device/{device}/force")) > 300);
+        // 2.5 s of commands: about 2,000-2,500 in the direct mode the devices choose on an idle machine. On a
+        // loaded one their round trip can put them in the latency-moderated mode, where a still hand hears a
+        // heartbeat every 7 ms of sim time (357 in 2.5 s), a moving one more. Since 2026-12-07 a slowed sim no longer doubles the heartbeats
+        // with keepalives (`server/src/node/keepalive.rs`), so on a loaded machine the count follows the sim's
+        // pace: 285 in a fresh-clone run, where the bound was 300. Over 200 is the stream taken whole.
+        let forces = count(&wire, &format!("sinew/pad/device/{device}/force"));
+        assert!(forces > 200, "{device}: {forces} force commands recorded");
     }
     assert!(count(&wire, "sinew/pad/mesh/pad/delta") > 30);
     assert!(count(&wire, "/sinew/stats") >= 2);
