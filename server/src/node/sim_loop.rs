@@ -399,8 +399,9 @@ fn run(
             };
             // A heartbeat close behind the last message waits for the keepalive (`keepalive`'s module doc);
             // a live replay publishes what was recorded, when it was.
-            let heartbeat = tick.stream_counters(t).heartbeats > d.heartbeats_sent;
-            d.heartbeats_sent = tick.stream_counters(t).heartbeats;
+            let heartbeats = tick.stream_counters(t).heartbeats;
+            let heartbeat = heartbeats > d.heartbeats_sent;
+            d.heartbeats_sent = heartbeats;
             if heartbeat && recorded.is_none() && keepalive.hold(t, command, Instant::now()) {
                 last_sent[t] = Some((
                     command.seq,
