@@ -248,7 +248,20 @@ fn moderated_mode_through_a_lossy_100_ms_path_holds_still_and_zeroes_for_good_wh
         .iter()
         .filter(|r| r.t_s >= silence_t - 2.15 && r.t_s < silence_t - 0.15)
         .collect();
-    assert!(hold.len() > 1500, "only {} ticks of hold", hold.len());
+    // The device logs the ticks it ran: a stalled machine skips periods (counted as overruns), so the hold is
+    // judged on the ticks there are, as long as they cover the 2 s from end to end (a CI run on a loaded
+    // machine logged 1,143 of 2,000 with 1,680 overruns in the run).
+    assert!(
+        hold.len() > 500,
+        "only {} ticks of hold: {final_line}",
+        hold.len()
+    );
+    let hold_start_s = hold.first().unwrap().t_s - (silence_t - 2.15);
+    let hold_end_s = (silence_t - 0.15) - hold.last().unwrap().t_s;
+    assert!(
+        hold_start_s < 0.1 && hold_end_s < 0.1,
+        "the hold's ticks leave {hold_start_s:.3} s uncovered at its start and {hold_end_s:.3} s at its end"
+    );
     let p2p = (0..3)
         .map(|axis| {
             let (lo, hi) = hold.iter().fold((f32::MAX, f32::MIN), |(lo, hi), r| {

@@ -175,12 +175,17 @@ fn through_zenohd_at_a_distance_both_surgeons_feel_are_watched_recorded_and_rejo
     // A server with access rules behind the router prints no warning (zenoh's note on the QUIC socket's
     // interfaces is left out of the log: access_refusals::QUIET_ACCESS_CONTROL_WARNING).
     let server_err = String::from_utf8_lossy(&server.stderr);
-    let warnings: Vec<String> = server_out
+    // The late-tick warning says the machine stalled, not that the site is set up wrong: it is printed, and
+    // left out of the check (a run with CPU hogs on the 2 cores skipped 488 of 10,088 periods).
+    let (late, warnings): (Vec<String>, Vec<String>) = server_out
         .lines()
         .chain(server_err.lines())
         .filter(|l| l.contains("WARN") || l.contains("ERROR"))
-        .map(|l| l.chars().take(200).collect())
-        .collect();
+        .map(|l| l.chars().take(200).collect::<String>())
+        .partition(|l| l.contains("ticks ran late"));
+    for line in &late {
+        println!("the second server, on this machine's load: {line}");
+    }
     zenohd.kill().unwrap();
     let relay = lab.stop_relay().unwrap();
     drop(lab);
