@@ -6,7 +6,8 @@
 //! divergence guard, and per tool the contact it probes and that contact's force, stiffness and damping at the
 //! end of the step), the trait that carries a job to wherever it runs ([`StepRunner`]: [`InlineRunner`] here,
 //! a thread in `node/step_threads.rs`), the lane that hands jobs out and takes them back at fixed ticks
-//! ([`StepLane`]), and the tick-side view of a finished step's contact ([`LaneContact`]).
+//! ([`StepLane`]), the tick-side view of a finished step's contact ([`LaneContact`]), and the surface ahead
+//! of a tool the tick renders until a step answers ([`LanePlane`]).
 //!
 //! The hand-off, and why it is deterministic. At tick `kN` the sim takes back the job launched at tick
 //! `(k-1)N` (waiting for it if its thread is late), copies its state into the object (what the collider, the
@@ -16,7 +17,9 @@
 //! threads' timing. Between hand-offs a tool in contact feels `f = f0 - K (x - x0)`, one-sided along `f0`: the
 //! force `f0` the step found at the tool's launch position `x0` and the contact's stiffness `K` (the condensed
 //! solve of `haptics/contact_stiffness.rs`, run on the job's thread): the local model a latency-moderated device
-//! renders, evaluated on the server every tick. The object's deformation lags its tools by one step period.
+//! renders, evaluated on the server every tick (with the tool's prior stiffness until the contact's solve
+//! finishes). Before a step has found a tool, the tick renders the tool's plane on the object
+//! (`multirate/lane_plane.rs`). The object's deformation lags its tools by one step period.
 //!
 //! Grasping. The tick's grasper takes hold of a multi-rate object's surface on its latest finished step, as
 //! it does any object's; each launch copies the tool's attachments to that object into the job
@@ -46,12 +49,14 @@
 mod job_grasp;
 mod job_topology;
 mod lane_contact;
+mod lane_plane;
 
 use nalgebra::{Matrix3, UnitQuaternion};
 
 use self::job_grasp::JobGrasp;
 pub use self::job_topology::TopologyLog;
 pub use self::lane_contact::LaneContact;
+pub use self::lane_plane::{LANE_PLANE_SPAN_MM, LanePlane};
 
 use crate::collision::ToolCollider;
 use crate::haptics::ContactStiffness;

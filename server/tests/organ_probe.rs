@@ -138,3 +138,70 @@ fn a_probe_stroked_across_the_liver_stays_on_the_surface_it_dents() {
         "a surface triangle let the sphere {worst_sunk_mm:.2} mm in between its corners"
     );
 }
+
+/// The organ steps at 25 Hz and sees the probe only at each step's launch pose, so a probe coming down at
+/// 20 mm/s waited up to two steps for a push: it went 1.6 mm past touching the lobe before it felt anything,
+/// then felt it in 0.03 N stairs 40 ms apart. The tick now renders the probe's plane on the organ from the
+/// moment it crosses it, with the stiffness of a touch-down solved on the organ's latest step, until the
+/// step's contact takes over (`multirate/lane_plane.rs`), and renders that contact with the same stiffness
+/// until its own solve finishes.
+#[test]
+fn a_probe_coming_down_on_the_liver_feels_it_where_it_touches() {
+    let mut sim = liver();
+    let top = common::rest_surface_z_mm(&sim.objects[0], 0.0, 0.0);
+    let touching_centre = top + PROBE_RADIUS_MM;
+    let mut out = [ToolOutput::default(); 2];
+    let (mut first_touch_mm, mut plane_k, mut at_1_mm_n) = (None, None, 0.0f32);
+    let mut climb = Vec::new();
+    // From 3 mm above touching to 3 mm past it at 20 mm/s.
+    for k in 0..300 {
+        let past_mm = -3.0 + 0.02 * (k + 1) as f32;
+        let report = sim.step(
+            0.001,
+            &probe_at(Vector3::new(0.0, 0.0, touching_centre - past_mm)),
+            &mut out,
+        );
+        assert_eq!(report.faults, 0, "the organ was reset");
+        let f = out[0].force_world_n;
+        assert!(f.iter().all(|c| c.is_finite()) && f.norm() <= 3.3 + 1e-4);
+        if past_mm < 0.0 && out[0].plane_count > 0 {
+            plane_k = Some(out[0].planes[0].stiffness_n_per_mm);
+        }
+        if first_touch_mm.is_none() && f.z > 0.005 {
+            first_touch_mm = Some(past_mm);
+        }
+        if (past_mm - 1.0).abs() < 1e-3 {
+            at_1_mm_n = f.z;
+        }
+        if past_mm > 0.0 {
+            climb.push(f.z);
+        }
+    }
+    let first_touch_mm = first_touch_mm.expect("the probe never felt the lobe");
+    let plane_k = plane_k.expect("no plane ahead of the probe");
+    // The largest drop from one tick to the next on the way in (at a hand-off the step's contact takes over
+    // from the plane).
+    let largest_drop_n = climb.windows(2).map(|w| w[0] - w[1]).fold(0.0f32, f32::max);
+    println!(
+        "liver touch-down at 20 mm/s: felt {first_touch_mm:.2} mm past touching the topmost node, {at_1_mm_n:.3} N \
+         at 1 mm, {:.3} N at 3 mm; the plane ahead {plane_k:.3} N/mm; largest drop {largest_drop_n:.3} N",
+        climb.last().unwrap()
+    );
+    assert!(
+        first_touch_mm < 0.5,
+        "the probe felt the lobe only {first_touch_mm:.2} mm past touching it"
+    );
+    assert!(
+        at_1_mm_n > 0.02,
+        "1 mm into the lobe the probe felt {at_1_mm_n:.3} N"
+    );
+    // The touch-down's stiffness, not the fixed prior of 0.2 N/mm (4 to 5 times the lobe's own).
+    assert!(
+        (0.01..0.1).contains(&plane_k),
+        "the plane ahead of the probe carries {plane_k:.3} N/mm"
+    );
+    assert!(
+        largest_drop_n < 0.05,
+        "on the way in the force dropped {largest_drop_n:.3} N in a tick"
+    );
+}

@@ -178,6 +178,7 @@ impl Sim {
                         .map(|_| crate::haptics::Touchdown::default())
                         .collect(),
                     touchdown_plane: None,
+                    lane_planes: vec![crate::multirate::LanePlane::default(); objects.len()],
                     plane_candidates: Vec::with_capacity(8192),
                     estimate: NormalStiffnessEstimate::default(),
                     friction: KineticFrictionEstimate::default(),
@@ -237,6 +238,18 @@ impl Sim {
                     )
                     .with_triangle_contact(spec.triangle_contact),
                 );
+            }
+        }
+        // A multi-rate object's touch-down solves run on the tick's tail over its mirror, as far out as its
+        // step's own solves reach (on a coarse organ 8 rings take in half of it).
+        for (o, spec) in world.objects.iter().enumerate() {
+            if spec.ticks_per_step > 1 {
+                for tool in &mut tools {
+                    if let Some(solver) = tool.haptic.stiffness.get_mut(o) {
+                        *solver = ContactStiffness::new(objects[o].model.node_count())
+                            .with_rings(crate::multirate::SOLVE_RINGS);
+                    }
+                }
             }
         }
         let mut sim = Self {

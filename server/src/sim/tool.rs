@@ -111,12 +111,45 @@ pub(super) struct ToolHaptics {
     /// The normal stiffness and damping the last touch-down plane carried: a first contact's ticks before its
     /// own solve finishes use them (as later contacts use the last measured one).
     pub(super) touchdown_plane: Option<(f32, f32)>,
+    /// Per object: the tip's plane on a multi-rate object, rendered on the tick until its step answers.
+    pub(super) lane_planes: Vec<crate::multirate::LanePlane>,
     /// Broad-phase scratch of the plane search.
     pub(super) plane_candidates: Vec<u32>,
     /// The contact's normal stiffness fitted to the tissue's answer.
     pub(super) estimate: NormalStiffnessEstimate,
     /// The contact's sliding friction coefficient, measured (the model's cone).
     pub(super) friction: KineticFrictionEstimate,
+}
+
+impl ToolHaptics {
+    /// The normal stiffness a contact is rendered with before its own solve finishes, N/mm: the touch-down's
+    /// (the plane carried it) before the tool's first contact, else the last measured contact's.
+    pub(super) fn unsolved_stiffness_n_per_mm(&self) -> f32 {
+        match self.touchdown_plane {
+            Some((k, _)) if !self.plane_measured && k > 0.0 => k,
+            _ => self.plane_stiffness_n_per_mm,
+        }
+    }
+
+    /// A contact began on object `o`: the touch-down is over. Its solver starts the contact's own solve
+    /// afresh; until that finishes, the contact renders (and the coupling uses) the touch-down's stiffness,
+    /// which the plane carried (a fixed prior stood for 1-3 ticks and sent the device a model of 0.2 N/mm on
+    /// a 0.02 N/mm sheet). Nothing happens if no touch-down was in play.
+    pub(super) fn end_touchdown(&mut self, o: usize) {
+        if !self.touchdown.get_mut(o).is_some_and(|t| t.end()) {
+            return;
+        }
+        if let Some(solver) = self.stiffness.get_mut(o) {
+            solver.forget();
+        }
+        if let Some((k, d)) = self.touchdown_plane.take()
+            && !self.plane_measured
+            && k > 0.0
+        {
+            self.plane_stiffness_n_per_mm = k;
+            self.plane_damping_n_s_per_mm = d;
+        }
+    }
 }
 
 impl SimTool {

@@ -18,14 +18,18 @@ impl Sim {
         let mut friction_n = Vec3::zeros();
         let mut friction_coefficient = 0.0f32;
         let mut held = 0;
-        for (object, contacts) in self.objects.iter().zip(&tool.contacts) {
+        for (o, (object, contacts)) in self.objects.iter().zip(&tool.contacts).enumerate() {
             if let Some(lane) = &object.lane {
-                // A multi-rate object pushes through its latest step's local model, at the tool's position now.
+                // A multi-rate object pushes through its latest step's local model, at the tool's position now;
+                // before its step has found the tool, through the tool's plane on it (`LanePlane`).
                 let contact = lane.contact(t);
-                let push = contact.force_at(&tool.position_mm);
+                let push =
+                    contact.force_at(&tool.position_mm, tool.haptic.unsolved_stiffness_n_per_mm());
                 if tool.active && push != Vec3::zeros() {
                     force += push;
                     held += contact.held_nodes;
+                } else if tool.active && tool.attached_nodes(o).is_empty() {
+                    force += tool.haptic.lane_planes[o].force_at(&tool.position_mm);
                 }
                 continue;
             }
@@ -105,17 +109,24 @@ impl Sim {
                 .instrument_state
                 .as_ref()
                 .map_or(&[][..], |i| i.attached_nodes(o));
-            let solver = &mut tool.haptic.stiffness[o];
             if !tool.active {
-                solver.forget();
+                tool.haptic.stiffness[o].forget();
                 continue;
             }
             if let Some(lane) = &object.lane {
                 // A multi-rate object's contact stiffness was solved on its own thread, with its step: the
                 // push's normal part while it pushes, the held tissue's full K while the jaws hold it.
                 let contact = lane.contact(t);
-                let pushing = contact.force_at(&tool.position_mm) != Vec3::zeros();
+                let pushing = contact
+                    .force_at(&tool.position_mm, tool.haptic.unsolved_stiffness_n_per_mm())
+                    != Vec3::zeros();
                 let holding = !grasped.is_empty() && contact.grasped_points > 0 && contact.solved;
+                if pushing || !grasped.is_empty() {
+                    // Its step's own solve takes over; until it finishes, the touch-down's stiffness. The
+                    // plane the tick rendered is done until the tool is back outside it.
+                    tool.haptic.end_touchdown(o);
+                    tool.haptic.lane_planes[o].contact_began();
+                }
                 if pushing {
                     if contact.solved {
                         k += contact.stiffness_matrix();
@@ -139,6 +150,7 @@ impl Sim {
                     continue;
                 }
             }
+            let solver = &mut tool.haptic.stiffness[o];
             let normals = object.model.rest_normals();
             for &node in &contacts.held {
                 surface_normal += normals
@@ -148,9 +160,9 @@ impl Sim {
             }
             if contacts.held.is_empty() && grasped.is_empty() {
                 // Before a tool's first contact its planes carry the stiffness of a touch-down at the plane's
-                // node (the solver's result for that node alone); a multi-rate object's state is its own
-                // thread's, so its planes keep the prior.
-                let touchdown = !tool.haptic.plane_measured && object.lane.is_none();
+                // node (the solver's result for that node alone; on a multi-rate object, solved on its mirror,
+                // the latest finished step).
+                let touchdown = !tool.haptic.plane_measured;
                 if !touchdown {
                     solver.forget();
                 }
@@ -215,6 +227,19 @@ impl Sim {
                 } else if touchdown {
                     solver.forget();
                 }
+                if object.lane.is_some() {
+                    // The tick renders the tip's plane on a multi-rate object until its step answers.
+                    let tip = (plane_count > tip_plane).then(|| planes[tip_plane]);
+                    let node_mm = tip
+                        .and_then(|p| object.state.positions_mm.get(p.node as usize).copied())
+                        .unwrap_or_else(Vec3::zeros);
+                    let reach_mm = tip.map_or(0.0, |p| {
+                        tool.body
+                            .collider
+                            .reach_along_mm(&tool.rotation, &(-p.normal))
+                    });
+                    tool.haptic.lane_planes[o].update(tip, node_mm, reach_mm, &tool.position_mm);
+                }
                 // The shaft's own plane, where it would meet a surface the tip's plane does not keep it
                 // out of (a tool laid low over the tissue, its shaft lower than its tip's reach): at the tip's
                 // plane's stiffness on this object (before a first contact, its touch-down's: the same
@@ -255,19 +280,8 @@ impl Sim {
                 }
                 continue;
             }
-            if tool.haptic.touchdown[o].end() {
-                // The contact's own solve starts afresh; until it finishes, the contact renders (and the
-                // coupling uses) the touch-down's stiffness, which the plane carried (a fixed prior stood
-                // for 1-3 ticks and sent the device a model of 0.2 N/mm on a 0.02 N/mm sheet).
-                solver.forget();
-                if let Some((k, d)) = tool.haptic.touchdown_plane.take()
-                    && !tool.haptic.plane_measured
-                    && k > 0.0
-                {
-                    tool.haptic.plane_stiffness_n_per_mm = k;
-                    tool.haptic.plane_damping_n_s_per_mm = d;
-                }
-            }
+            tool.haptic.end_touchdown(o);
+            let solver = &mut tool.haptic.stiffness[o];
             let first = contacts
                 .held
                 .first()
