@@ -350,15 +350,30 @@ fn the_page_draws_what_a_viewer_replicates_through_the_changes_it_is_sent() {
     // The pressing probe's force arrow shows, in the colour of its share of the device's limit (green to
     // yellow well under it), drawn over the tissue.
     // Paused while it draws one: on a loaded machine a late pose can release the probe for a moment, and a
-    // force under 0.05 N makes an arrow shorter than the page draws (0.5 mm).
+    // force under 0.05 N makes an arrow shorter than the page draws (0.5 mm). And drawn with the device's limit
+    // known: the limit comes with the server's stats, which may not have caught up with the tool's state (a
+    // fresh-clone run on a loaded machine drew it once in the unknown limit's blue, UNKNOWN_LIMIT_RGB).
+    let unknown_limit: Vec<f64> = sinew_viewer::instructor_overlay::UNKNOWN_LIMIT_RGB
+        .iter()
+        .map(|&c| f64::from(c))
+        .collect();
     let started = std::time::Instant::now();
     let state = loop {
         page.pause(true).unwrap();
         let (state, _) = page.state().unwrap();
+        let limit_known = |arrow: &Value| {
+            arrow["rgb"].as_array().is_some_and(|rgb| {
+                rgb.len() == 3
+                    && rgb
+                        .iter()
+                        .zip(&unknown_limit)
+                        .any(|(c, u)| c.as_f64().is_none_or(|c| (c - u).abs() > 1e-3))
+            })
+        };
         if state["arrows"] == 1
             && state["arrowsDrawn"]
                 .as_array()
-                .is_some_and(|a| a.len() == 1)
+                .is_some_and(|a| a.len() == 1 && limit_known(&a[0]))
         {
             break state;
         }
