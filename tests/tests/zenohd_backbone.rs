@@ -125,7 +125,12 @@ fn record_both_surgeons(router: &str, extra: &[String], name: &str) {
             count(&format!("sinew/pad/device/{device}/pose")) > 300,
             "{device}'s poses did not reach the recorder"
         );
-        assert!(count(&format!("sinew/pad/device/{device}/force")) > 300);
+        // Forces: a device in the latency-moderated mode (its choice through the router on a loaded machine)
+        // hears a heartbeat every 7 ms of sim time while still, and since 2026-12-07 a slowed sim no longer
+        // doubles them with keepalives (`server/src/node/keepalive.rs`): a fresh-clone run recorded 277-284
+        // in 2.5 s, where the bound was 300. Over 200 is the stream taken whole (as `wire_recording` asks).
+        let forces = count(&format!("sinew/pad/device/{device}/force"));
+        assert!(forces > 200, "{device}: {forces} force commands recorded");
         let key = format!("sinew/pad/presence/haptic/{device}");
         assert!(
             wire.presence
@@ -406,7 +411,8 @@ fn two_scenes_on_one_zenohd_reach_only_their_own_roles() {
         count(&theirs, "sinew/cautery/device/right/pose") > 300,
         "the cautery's observer missed its surgeon"
     );
-    assert!(count(&theirs, "sinew/cautery/device/right/force") > 300);
+    // Over 200 forces in 2.5 s: the stream taken whole (see `record_both_surgeons`).
+    assert!(count(&theirs, "sinew/cautery/device/right/force") > 200);
     assert_eq!(
         count(&theirs, "sinew/cautery/device/left/pose"),
         0,
