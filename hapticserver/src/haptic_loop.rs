@@ -90,6 +90,20 @@ impl std::fmt::Debug for HapticLoop {
     }
 }
 
+/// Longest time one read advances a simulated device by, s: a longer stall is taken as this much (the hand
+/// model's substeps cover it; a pause of the whole process is not the hand's motion).
+const MAX_READ_INTERVAL_S: f32 = 0.25;
+
+/// The time a device read advances by: the measured interval since the previous tick, or the loop period on
+/// the first tick or when the interval is unusable; at most [`MAX_READ_INTERVAL_S`].
+fn read_interval_s(interval: Option<Duration>, period_s: f32) -> f32 {
+    interval
+        .map(|d| d.as_secs_f32())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .unwrap_or(period_s)
+        .min(MAX_READ_INTERVAL_S)
+}
+
 fn norm3(v: &[f32; 3]) -> f32 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
@@ -224,8 +238,10 @@ impl HapticLoop {
                 .record(interval.abs_diff(self.period));
         }
 
-        // 1. Sense and publish.
-        match self.device.read(self.dt_s) {
+        // 1. Sense and publish. A simulated hand or a replay lives in wall time, as a real hand does: it moves
+        // on by the time since the previous read, so a loop that skipped periods in a VM stall does not fall
+        // behind its script (the pacer never bursts ticks to catch up).
+        match self.device.read(read_interval_s(interval, self.dt_s)) {
             Ok(reading) if reading.is_finite() => {
                 self.pose_seq += 1;
                 let pose = DevicePose {
@@ -506,6 +522,47 @@ mod tests {
         })
         .unwrap();
         HapticLoop::new(Box::new(device), safety, inbox.clone(), PERIOD)
+    }
+
+    /// Where a pressing hand is after `ticks` ticks `every` apart, mm (z).
+    fn pressed_hand_z_mm(ticks: u64, every: Duration) -> f32 {
+        let inbox = Arc::new(ForceInbox::new(ME));
+        let device = SimDevice::new(HandScript::Press {
+            at_mm: [0.0; 3],
+            depth_mm: 10.0,
+            approach_mm: 10.0,
+            descend_s: 1.0,
+        });
+        let safety = ForceSafety::new(SafetyConfig::new(3.3)).unwrap();
+        let mut haptic = HapticLoop::new(Box::new(device), safety, inbox, PERIOD);
+        haptic.record_trace(1024);
+        let step_ns = u64::try_from(every.as_nanos()).unwrap();
+        haptic.tick(step_ns, None, &mut |_: &[u8]| true);
+        for k in 2..=ticks {
+            haptic.tick(k * step_ns, Some(every), &mut |_: &[u8]| true);
+        }
+        haptic.trace().samples().last().unwrap().position_mm[2]
+    }
+
+    #[test]
+    fn a_simulated_hand_keeps_to_wall_time_when_the_loop_skips_periods() {
+        // 501 ticks 1 ms apart and 26 ticks 20 ms apart both end 0.5 s after the first: the hand is halfway
+        // down either way (a loop that skipped periods in a stall does not leave its script behind).
+        let paced = pressed_hand_z_mm(501, PERIOD);
+        let stalled = pressed_hand_z_mm(26, Duration::from_millis(20));
+        assert!((paced - 0.0).abs() < 0.5, "paced hand at {paced} mm");
+        // The hand model extrapolates its target over each read's interval: a 20 ms read runs 0.4 mm ahead
+        // at this 20 mm/s descent. A loop whose script counted ticks would still be 9.5 mm up.
+        assert!(
+            (stalled - paced).abs() < 0.5,
+            "stalled loop's hand at {stalled} mm, paced {paced} mm"
+        );
+        assert_eq!(read_interval_s(None, 0.001), 0.001);
+        assert_eq!(read_interval_s(Some(Duration::ZERO), 0.001), 0.001);
+        assert_eq!(
+            read_interval_s(Some(Duration::from_secs(9)), 0.001),
+            MAX_READ_INTERVAL_S
+        );
     }
 
     #[test]
