@@ -283,6 +283,8 @@ struct TwoSiteTug {
     finals: Vec<String>,
     traces: Vec<Vec<hapticserver::TraceSample>>,
     relay: String,
+    /// The server's warnings and lateness reports.
+    server_notes: Vec<String>,
 }
 
 /// The tug of war with left at the lab's first site and right at its second, each path 50 ms each way with
@@ -357,7 +359,22 @@ fn run_two_site_tug(loss: f64, hub: Hub) -> TwoSiteTug {
         finals.push(line);
     }
     server.kill().unwrap();
-    let _ = server.wait();
+    // What the server said of its own lateness (a stall of the hub's machine is a silence at both sites).
+    let server_notes = server
+        .wait_with_output()
+        .map(|o| {
+            [o.stdout, o.stderr]
+                .iter()
+                .flat_map(|b| {
+                    String::from_utf8_lossy(b)
+                        .lines()
+                        .map(str::to_owned)
+                        .collect::<Vec<_>>()
+                })
+                .filter(|l| l.contains("late") || l.contains("WARN"))
+                .collect::<Vec<_>>()
+        })
+        .unwrap_or_default();
     if let Some(zenohd) = zenohd.as_mut() {
         let _ = (zenohd.kill(), zenohd.wait());
     }
@@ -376,6 +393,7 @@ fn run_two_site_tug(loss: f64, hub: Hub) -> TwoSiteTug {
         finals,
         traces,
         relay,
+        server_notes,
     }
 }
 
@@ -393,6 +411,25 @@ fn silences_during_the_run(trace: &[hapticserver::TraceSample]) -> (usize, f64) 
         longest = longest.max(current);
     }
     (starts, longest as f64)
+}
+
+/// Where in script time each silence began, and the device loop's own longest pause between two ticks (a
+/// stall of the machine the device runs on), for a failure's message.
+fn silence_report(trace: &[hapticserver::TraceSample]) -> String {
+    let starts: Vec<String> = trace
+        .windows(2)
+        .filter(|w| !w[0].stale && w[1].stale)
+        .map(|w| format!("{:.3}", w[1].t_s))
+        .collect();
+    let (pause_s, at_s) = trace
+        .windows(2)
+        .map(|w| (w[1].t_s - w[0].t_s, w[1].t_s))
+        .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+    format!(
+        "silences begin at [{}] s; the device loop's longest pause {:.1} ms, ending at {at_s:.3} s",
+        starts.join(", "),
+        pause_s * 1000.0
+    )
 }
 
 #[test]
@@ -422,7 +459,15 @@ fn through_zenohd_two_surgeons_at_two_sites_feel_each_others_pull() {
         let (peak, _) = peak_and_rms(trace);
         assert!(peak < max_force_n * 0.999, "{id}: {peak} N, at the clamp");
         let (silences, _) = silences_during_the_run(trace);
-        assert_eq!(silences, 0, "{id}: silences during the run");
+        println!("{id}: {}", silence_report(trace));
+        assert_eq!(
+            silences,
+            0,
+            "{id}: silences during the run: {}; the relays: {}; the server: {:?}",
+            silence_report(trace),
+            tug.relay,
+            tug.server_notes
+        );
         felt.push(tug_felt_n(trace));
     }
     println!(
