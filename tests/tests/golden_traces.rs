@@ -339,6 +339,7 @@ fn shipped(file: &str) -> World {
 fn every_shipped_world_has_a_golden_trace() {
     let covered = [
         "cautery",
+        "cholecystectomy",
         "cut",
         "cut_under_tension",
         "exercise_accurate_touch",
@@ -408,6 +409,7 @@ golden_world!(
 golden_world!(tet_block, "tet_block.toml", DURATION_S);
 golden_world!(fem_block, "fem_block.toml", HEAVY_DURATION_S);
 golden_world!(liver, "liver.toml", DURATION_S);
+golden_world!(cholecystectomy, "cholecystectomy.toml", DURATION_S);
 
 /// The liver stepped on its own thread, cut by the demo's scalpel while the grasper pulls: the trace covers the
 /// cut carried into the organ's step at a hand-off.
