@@ -63,7 +63,18 @@ pub struct BladePath {
     crossings: Vec<EdgeSplit>,
     /// The plan of the latest sweep on the latest object.
     pub plan: CutPlan,
+    /// Where the blade's edge was [`CATCH_UP_SWEEPS`] contiguous sweeps ago (or since the stroke began, if
+    /// fewer): the start of the catch-up chord, and how many sweeps it spans.
+    stroke: VecDeque<[Vec3; 2]>,
 }
+
+/// Sweeps the plan looks back over: besides the latest sweep, it splits any edge that now crosses the
+/// quadrilateral from where the edge was this many contiguous sweeps ago to where it is now. Tissue that moves
+/// as the blade does (a retracted plate lifting as its attachment is divided) can carry an edge's crossing
+/// from ahead of the blade to behind it between two ticks, so that no one sweep's quadrilateral holds it; the
+/// blade passed through that edge all the same. 16 sweeps is 0.32 mm at 20 mm/s: a chord across so little of
+/// a path is within rounding of the path itself.
+pub const CATCH_UP_SWEEPS: usize = 16;
 
 /// On which sides of `reach` point `p` lies: one bit per side (below the least x, above the greatest x, then y,
 /// then z). An element's box misses `reach` exactly when its vertices' codes share a bit (they all lie beyond
@@ -127,6 +138,27 @@ impl BladePath {
         self.stamp
     }
 
+    /// The catch-up chord of `sweep` ([`CATCH_UP_SWEEPS`]): from the edge where it was that many contiguous
+    /// sweeps ago to where it is now. A sweep that does not start where the last one ended begins a new stroke
+    /// (the chord is then the sweep itself). Called once per sweep and object; no allocation once warm.
+    fn catch_up_chord(&mut self, sweep: &BladeSweep) -> BladeSweep {
+        if self.stroke.back() != Some(&sweep.to_mm) {
+            if self.stroke.back() != Some(&sweep.from_mm) {
+                self.stroke.clear();
+                self.stroke.reserve(CATCH_UP_SWEEPS + 1);
+                self.stroke.push_back(sweep.from_mm);
+            }
+            if self.stroke.len() > CATCH_UP_SWEEPS {
+                self.stroke.pop_front();
+            }
+            self.stroke.push_back(sweep.to_mm);
+        }
+        BladeSweep {
+            from_mm: *self.stroke.front().unwrap_or(&sweep.from_mm),
+            to_mm: sweep.to_mm,
+        }
+    }
+
     fn find(&self, object: u16, vertex: u32) -> Result<usize, usize> {
         self.on_cut
             .binary_search_by(|c| (c.object, c.vertex).cmp(&(object, vertex)))
@@ -169,7 +201,9 @@ impl BladePath {
             return;
         }
         let swept = sweep.triangles();
-        let reach = sweep.aabb().loosened(PLAN_REACH_MM);
+        let chord = self.catch_up_chord(sweep);
+        let chord_triangles = chord.triangles();
+        let reach = sweep.aabb().merged(&chord.aabb()).loosened(PLAN_REACH_MM);
         self.edges.clear();
         self.outcodes.clear();
         self.outcodes
@@ -198,7 +232,11 @@ impl BladePath {
         self.crossings.clear();
         for &[a, b] in &self.edges {
             let (p, q) = (&positions_mm[a as usize], &positions_mm[b as usize]);
-            if let Some(t) = crossing(&swept, p, q) {
+            let t = match (crossing(&swept, p, q), crossing(&chord_triangles, p, q)) {
+                (Some(s), Some(c)) => Some(s.min(c)),
+                (s, c) => s.or(c),
+            };
+            if let Some(t) = t {
                 self.crossings.push(EdgeSplit { a, b, t });
             }
         }
