@@ -9,7 +9,7 @@ its plate of connective tissue.
   that joins it to the bed, a slab x in [0, 48], y in [-9, 9], z in [-4, -1] mm. The bed is wider than the plate
   on every side, so a hook can be lowered into it beside the plate and drawn across under the gallbladder. The plate's bottom face lies on
   the bed's floor (the world fixes the nodes on it); the gallbladder's lowest millimetre is sunk into the plate's
-  top. The plate is meshed finer (2 mm) than the gallbladder (4 mm).
+  top. The plate is meshed finer (2.5 mm) than the gallbladder (5 mm).
 
 Regenerate (needs the `gmsh` Python package; CI does not, the .msh outputs are committed):
 
@@ -90,8 +90,8 @@ def gallbladder(out):
     occ.synchronize()
     field = gmsh.model.mesh.field
     fine = field.add("Box")
-    field.setNumber(fine, "VIn", 2.0)
-    field.setNumber(fine, "VOut", 4.0)
+    field.setNumber(fine, "VIn", 2.5)
+    field.setNumber(fine, "VOut", 5.0)
     for key, value in [
         ("XMin", PLATE["x0"] - 1.0),
         ("XMax", PLATE["x1"] + 1.0),
@@ -102,7 +102,7 @@ def gallbladder(out):
         ("Thickness", 2.0),
     ]:
         field.setNumber(fine, key, value)
-    finish("gallbladder", 4.0, out, size_field=fine)
+    finish("gallbladder", 5.0, out, size_field=fine)
 
 
 gmsh.initialize()
