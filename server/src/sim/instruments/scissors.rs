@@ -15,9 +15,8 @@ use super::blade_drag::{BladeDrag, BladeTick, blade_tick, cut_everything};
 pub(in crate::sim) struct Scissors {
     spec: ScissorsSpec,
     jaws: Jaws,
-    /// The jaw opening at the end of the last tick, rad, and where the two blades were in the world then
-    /// (each from where it starts cutting to its tip), mm (None while they may not cut).
-    last: Option<(f32, [[Vec3; 2]; 2])>,
+    /// The jaw opening at the end of the last tick, rad (None while they may not cut).
+    blade_angle_rad: Option<f32>,
     drag: BladeDrag,
 }
 
@@ -27,18 +26,16 @@ impl Scissors {
         Self {
             spec,
             jaws: Jaws::new(spec.activation, spec.open_angle_rad),
-            last: None,
+            blade_angle_rad: None,
             drag: BladeDrag::default(),
         }
     }
 }
 
 impl Instrument for Scissors {
-    /// The jaws take this tick's input; while they close, each blade cuts what it swept since the last tick,
-    /// from where it was then to where it is now in the world: the part of the opening it closed and, if the
-    /// hand moved the scissors meanwhile, what its edge passed through on the way (closing scissors carried
-    /// along their own plane cut a continuous line, not a row of teeth). Open or opening scissors moved
-    /// through tissue cut nothing. No allocation unless something is cut.
+    /// The jaws take this tick's input; the blades cut through the part of their opening they closed this
+    /// tick, in the tool's current pose (open scissors moved through tissue cut nothing). No allocation
+    /// unless something is cut.
     fn before_contacts(&mut self, sim: &mut Sim, t: usize, dt_s: f32, report: &mut StepReport) {
         self.drag.begin_tick(dt_s);
         let tool = &mut sim.tools[t];
@@ -49,26 +46,29 @@ impl Instrument for Scissors {
         }
         match blade_tick(tool, &mut self.drag) {
             BladeTick::Idle => {
-                self.last = None;
+                self.blade_angle_rad = None;
                 return;
             }
-            BladeTick::Joined => self.last = None,
+            BladeTick::Joined => self.blade_angle_rad = None,
             BladeTick::Sweeping => {}
         }
         let world = |p: [f32; 3]| tool.position_mm + tool.rotation * Vec3::from(p);
         let angle_rad = self.jaws.angle_rad();
-        let now = self.spec.blades_mm(angle_rad).map(|blade| blade.map(world));
-        let Some((before_rad, was)) = self.last.replace((angle_rad, now)) else {
+        let Some(before_rad) = self.blade_angle_rad.replace(angle_rad) else {
             return;
         };
         if angle_rad >= before_rad {
             return;
         }
-        // Closing: each blade cuts what it swept. The resistance of a snip is in the grip, which no device
-        // renders: the tool feels no drag.
+        // Closing: each blade cuts the wedge of the opening it passed through. The resistance of a snip is in
+        // the grip, which no device renders: the tool feels no drag.
+        let (was, now) = (
+            self.spec.blades_mm(before_rad),
+            self.spec.blades_mm(angle_rad),
+        );
         let sweeps = [0, 1].map(|k| BladeSweep {
-            from_mm: was[k],
-            to_mm: now[k],
+            from_mm: was[k].map(world),
+            to_mm: now[k].map(world),
         });
         let mut severed = 0;
         for sweep in &sweeps {
